@@ -1,0 +1,251 @@
+"""Boundary conditions of an equilibrium problem: pins (Dirichlet) and clamps (fixed lengths).
+
+A pin fixes single coordinates at their starting values. A clamp fixes the length of a
+spring (Eq. 25), either exactly (an equality constraint ``r_c - l_c = 0`` whose Lagrange
+multiplier is the clamp force) or, as in the paper, with a stiff ``rod``: an extra spring of
+stiffness ``rod_stiffness`` and rest length ``l_c`` on the same node pair.
+
+:class:`Problem` bundles a network with its boundary conditions and gives every solver the
+same energy, gradient, constraint Jacobian and residual.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import ArrayLike, NDArray
+
+from .energy import spring_energy, spring_gradient
+from .model import SpringNetwork
+
+__all__ = ["Problem", "default_pins", "pin_mask"]
+
+ClampMode = Literal["exact", "rod"]
+Pins = Sequence[int] | NDArray | None
+
+
+def default_pins(net: SpringNetwork, avoid: ArrayLike = ()) -> NDArray[np.bool_]:
+    """Pins that remove rigid-body motion: one node fully, one coordinate of a far node.
+
+    The first node is the one farthest from the springs in ``avoid`` (sources and targets;
+    the network's centre when empty); the second is the node farthest from the first, pinned
+    in the coordinate that a rotation about the first node would move most. Adjacent pins
+    leave a very soft rotation mode in large lattices; far pins do not.
+
+    Returns a (n_nodes, 2) bool mask.
+    """
+    x = net.positions
+    avoid = np.asarray(avoid, dtype=np.int64).ravel()
+    if avoid.size:
+        avoid_nodes = np.unique(net.springs[avoid].ravel())
+        dist = np.min(np.linalg.norm(x[:, None, :] - x[None, avoid_nodes, :], axis=2), axis=1)
+        dist[avoid_nodes] = -np.inf
+        first = int(np.argmax(dist))
+    else:
+        avoid_nodes = np.empty(0, dtype=np.int64)
+        first = int(np.argmin(np.linalg.norm(x - x.mean(axis=0), axis=1)))
+    far = np.linalg.norm(x - x[first], axis=1)
+    far[avoid_nodes] = -np.inf
+    far[first] = -np.inf
+    second = int(np.argmax(far))
+    mask = np.zeros((net.n_nodes, 2), dtype=bool)
+    mask[first] = True
+    if net.n_nodes > 1:
+        d = x[second] - x[first]
+        mask[second, 1 if abs(d[0]) >= abs(d[1]) else 0] = True
+    return mask
+
+
+def pin_mask(net: SpringNetwork, pinned: Pins, avoid: ArrayLike = ()) -> NDArray[np.bool_]:
+    """Normalise ``pinned`` (None, node indices, or a (n_nodes, 2) bool mask) to a mask."""
+    if pinned is None:
+        return default_pins(net, avoid)
+    arr = np.asarray(pinned)
+    if arr.dtype == bool:
+        if arr.shape != (net.n_nodes, 2):
+            raise ValueError(
+                f"pinned as a mask must have shape ({net.n_nodes}, 2), got {arr.shape}"
+            )
+        return arr.copy()
+    arr = arr.ravel()
+    if arr.size and not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"pinned must hold node indices or a bool mask, got dtype {arr.dtype}")
+    bad = arr[(arr < 0) | (arr >= net.n_nodes)]
+    if bad.size:
+        raise ValueError(f"pinned names node {bad[0]} outside 0..{net.n_nodes - 1}")
+    mask = np.zeros((net.n_nodes, 2), dtype=bool)
+    mask[arr.astype(np.int64)] = True
+    return mask
+
+
+def _clamp_arrays(net: SpringNetwork, clamped: Mapping[int, float] | None) -> tuple[NDArray, NDArray]:
+    if not clamped:
+        return np.empty(0, np.int64), np.empty(0)
+    if not isinstance(clamped, Mapping):
+        raise ValueError("clamped must be a mapping {spring_index: length}")
+    idx = np.array([int(k) for k in clamped], dtype=np.int64)
+    length = np.array([float(v) for v in clamped.values()], dtype=np.float64)
+    bad = np.flatnonzero((idx < 0) | (idx >= net.n_springs))
+    if bad.size:
+        raise ValueError(f"clamped names spring {idx[bad[0]]} outside 0..{net.n_springs - 1}")
+    bad = np.flatnonzero(~np.isfinite(length) | (length <= 0))
+    if bad.size:
+        raise ValueError(
+            f"clamped length of spring {idx[bad[0]]} must be finite and > 0, got {length[bad[0]]}"
+        )
+    return idx, length
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A network with pins and clamps: what every equilibrium method minimises.
+
+    Attributes
+    ----------
+    net : SpringNetwork
+    free : (n_nodes, 2) bool array
+        Coordinates that move.
+    clamp_springs : (m,) int array
+    clamp_lengths : (m,) float array
+    clamp : "exact" or "rod"
+    rod_stiffness : float
+        Stiffness of the paper's rods, used when ``clamp == "rod"``.
+    """
+
+    net: SpringNetwork
+    free: NDArray[np.bool_]
+    clamp_springs: NDArray[np.int64]
+    clamp_lengths: NDArray[np.float64]
+    clamp: ClampMode = "exact"
+    rod_stiffness: float = 1e10
+    free_flat: NDArray[np.int64] = field(init=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "free_flat", np.flatnonzero(self.free.ravel()))
+
+    @classmethod
+    def build(
+        cls,
+        net: SpringNetwork,
+        *,
+        pinned: Pins = None,
+        clamped: Mapping[int, float] | None = None,
+        clamp: ClampMode = "exact",
+        rod_stiffness: float = 1e10,
+    ) -> Problem:
+        if clamp not in ("exact", "rod"):
+            raise ValueError(f"clamp must be 'exact' or 'rod', got {clamp!r}")
+        if not (np.isfinite(rod_stiffness) and rod_stiffness > 0):
+            raise ValueError(f"rod_stiffness must be finite and > 0, got {rod_stiffness}")
+        idx, length = _clamp_arrays(net, clamped)
+        free = ~pin_mask(net, pinned, avoid=idx)
+        return cls(net, free, idx, length, clamp, float(rod_stiffness))
+
+    # -- the energy that is minimised -----------------------------------------------
+    @property
+    def n_clamps(self) -> int:
+        return int(self.clamp_springs.size)
+
+    @property
+    def exact(self) -> bool:
+        """True when clamps are equality constraints (not rods)."""
+        return self.clamp == "exact" and self.n_clamps > 0
+
+    def all_springs(self) -> tuple[NDArray, NDArray, NDArray]:
+        """Springs, stiffness and rest lengths including rods in ``rod`` mode."""
+        net = self.net
+        if self.clamp == "rod" and self.n_clamps:
+            springs = np.concatenate([net.springs, net.springs[self.clamp_springs]])
+            k = np.concatenate([net.stiffness, np.full(self.n_clamps, self.rod_stiffness)])
+            L = np.concatenate([net.rest_length, self.clamp_lengths])
+            return springs, k, L
+        return net.springs, net.stiffness, net.rest_length
+
+    def energy(self, x: NDArray) -> float:
+        """Energy minimised at fixed clamps: network springs, plus rods in ``rod`` mode."""
+        return spring_energy(x, *self.all_springs())
+
+    def gradient(self, x: NDArray) -> NDArray:
+        """Full (n_nodes, 2) gradient of :meth:`energy`."""
+        return spring_gradient(x, *self.all_springs())
+
+    # -- clamp constraints ------------------------------------------------------------
+    def clamp_violation(self, x: NDArray) -> NDArray:
+        """``r_c - l_c`` for every clamp, (m,) float array."""
+        if not self.n_clamps:
+            return np.empty(0)
+        s = self.net.springs[self.clamp_springs]
+        d = x[s[:, 1]] - x[s[:, 0]]
+        return np.hypot(d[:, 0], d[:, 1]) - self.clamp_lengths
+
+    def clamp_jacobian(self, x: NDArray) -> sp.csr_matrix:
+        """``d(r_c)/d(x_free)`` as a sparse (m, n_free) matrix: rows ``[-u_c, +u_c]``."""
+        m = self.n_clamps
+        s = self.net.springs[self.clamp_springs]
+        d = x[s[:, 1]] - x[s[:, 0]]
+        u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
+        cols = np.concatenate([2 * s[:, 0], 2 * s[:, 0] + 1, 2 * s[:, 1], 2 * s[:, 1] + 1])
+        vals = np.concatenate([-u[:, 0], -u[:, 1], u[:, 0], u[:, 1]])
+        rows = np.tile(np.arange(m), 4)
+        full = sp.csr_matrix((vals, (rows, cols)), shape=(m, 2 * self.net.n_nodes))
+        return full[:, self.free_flat]
+
+    # -- the one residual used by every method ----------------------------------------
+    def residual(self, x: NDArray) -> tuple[float, NDArray]:
+        """Largest net force on a free coordinate after removing clamp-normal forces.
+
+        Returns ``(residual, multipliers)``: the multipliers ``mu`` (the clamp tensions,
+        (m,) float array) minimise ``|grad E + A^T mu|_2`` over free coordinates; pin
+        reactions are removed by looking at free coordinates only. The same definition
+        holds for exact clamps and rods (whose axial force is a clamp-normal component).
+        """
+        g = self.gradient(x).ravel()[self.free_flat]
+        if not self.n_clamps:
+            return (float(np.max(np.abs(g))) if g.size else 0.0), np.empty(0)
+        A = self.clamp_jacobian(x)
+        AAt = (A @ A.T).toarray()
+        mu = -np.linalg.lstsq(AAt, A @ g, rcond=None)[0]
+        r = g + A.T @ mu
+        return float(np.max(np.abs(r))) if r.size else 0.0, mu
+
+    # -- counting ---------------------------------------------------------------------
+    def maxwell_zero_modes(self) -> int:
+        """Lower bound on internal zero modes from Maxwell counting.
+
+        Free coordinates minus constraints (springs with ``k > 0``, and clamps on springs
+        with ``k == 0``) minus the rigid motions the pins leave, floored at 0.
+        """
+        n_free = int(self.free.sum())
+        stiff = self.net.stiffness > 0
+        n_constraints = int(stiff.sum()) + int((~stiff[self.clamp_springs]).sum())
+        rigid_left = max(0, 3 - int((~self.free).sum()))
+        return max(0, n_free - n_constraints - rigid_left)
+
+    def start(self, x: NDArray) -> NDArray:
+        """A copy of ``x`` (n_nodes, 2) with every clamped spring set to its clamp length.
+
+        Each clamped spring is stretched symmetrically about its midpoint (or about a pinned
+        end) to its clamp length, so the first iterate is close to feasible.
+        """
+        net = self.net
+        x = np.array(x, dtype=np.float64, copy=True)
+        for c, length in zip(self.clamp_springs, self.clamp_lengths):
+            a, b = net.springs[c]
+            d = x[b] - x[a]
+            r = float(np.hypot(*d))
+            if r == 0.0:
+                raise ValueError(f"clamped spring {c} has zero length at the start; move its nodes")
+            free_a, free_b = self.free[a].all(), self.free[b].all()
+            grow = (length - r) * d / r
+            if free_a and free_b:
+                x[a] -= 0.5 * grow
+                x[b] += 0.5 * grow
+            elif free_b:
+                x[b] += grow
+            elif free_a:
+                x[a] -= grow
+        return x

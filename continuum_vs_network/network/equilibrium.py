@@ -1,0 +1,302 @@
+"""Mechanical equilibrium of a pinned, clamped spring network: ``cvn.relax``.
+
+Every method minimises the same :class:`~.constraints.Problem` and is judged by the same
+residual (:meth:`Problem.residual`): the largest net force on a free coordinate after the
+clamp-normal components (the Lagrange multipliers) are removed. ``tol`` is relative to the
+network's force scale ``F = mean(k) mean(L)`` for forces and to ``mean(L)`` for clamp
+lengths; the reported residual is in absolute force units.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .constraints import ClampMode, Pins, Problem
+from .model import SpringNetwork
+
+__all__ = ["METHODS", "Equilibrium", "EquilibriumError", "StopRule", "Trace", "relax"]
+
+
+@dataclass(frozen=True, eq=False)
+class Equilibrium:
+    """Result of :func:`relax`.
+
+    Attributes
+    ----------
+    positions : (n_nodes, 2) float array
+    energy : float
+        Elastic energy of the network's springs (Eq. 11), rods excluded.
+    residual : float
+        Largest net force on a free coordinate, clamp-normal forces removed (force units).
+    clamp_error : float
+        Largest ``|r_c - l_c|`` over clamped springs (length units; 0 without clamps).
+    clamp_force : (m,) float array
+        Tension carried by each clamp (the Lagrange multiplier), in ``clamped`` order.
+    converged : bool
+    iterations : int
+    seconds : float
+        Wall-clock time of the solve.
+    method : str
+    residual_trace, seconds_trace : (iterations + 1,) float arrays
+        Residual after each iteration and the wall-clock time at which it was reached,
+        for error-against-run-time plots.
+    """
+
+    positions: NDArray[np.float64]
+    energy: float
+    residual: float
+    clamp_error: float
+    clamp_force: NDArray[np.float64]
+    converged: bool
+    iterations: int
+    seconds: float
+    method: str
+    residual_trace: NDArray[np.float64] = field(repr=False)
+    seconds_trace: NDArray[np.float64] = field(repr=False)
+
+
+class EquilibriumError(RuntimeError):
+    """Raised when a method does not reach the requested residual.
+
+    Attributes
+    ----------
+    state : Equilibrium
+        The last iterate, with ``converged=False`` and its diagnostics.
+    reason : str
+    """
+
+    def __init__(self, reason: str, state: Equilibrium | None = None) -> None:
+        self.reason = reason
+        self.state = state
+        detail = ""
+        if state is not None:
+            detail = (
+                f" (method={state.method}, iterations={state.iterations}, "
+                f"residual={state.residual:.3e}, clamp_error={state.clamp_error:.3e}, "
+                f"seconds={state.seconds:.3g})"
+            )
+        super().__init__(reason + detail)
+
+
+class Trace:
+    """Residual against wall-clock time, recorded by a solver as it iterates."""
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+        self.residual: list[float] = []
+        self.seconds: list[float] = []
+
+    def record(self, residual: float) -> None:
+        self.residual.append(float(residual))
+        self.seconds.append(time.perf_counter() - self.t0)
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.t0
+
+
+@dataclass(frozen=True)
+class StopRule:
+    """When a solver stops: absolute force and length tolerances and budgets."""
+
+    force: float
+    length: float
+    max_iter: int
+    max_seconds: float
+
+    def met(self, residual: float, clamp_error: float) -> bool:
+        return residual <= self.force and clamp_error <= self.length
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What a method returns to :func:`relax`."""
+
+    x: NDArray[np.float64]
+    iterations: int
+    converged: bool
+    message: str = ""
+
+
+Method = Callable[[Problem, NDArray, StopRule, Trace], Outcome]
+
+
+def _newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
+    from .newton import newton
+
+    return newton(problem, x, stop, trace)
+
+
+def _fire(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
+    from .minimizers import fire
+
+    return fire(problem, x, stop, trace)
+
+
+def _lbfgs(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
+    from .minimizers import lbfgs
+
+    return lbfgs(problem, x, stop, trace)
+
+
+def _paper(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
+    from .minimizers import paper_adagrad
+
+    return paper_adagrad(problem, x, stop, trace)
+
+
+METHODS: dict[str, Method] = {"newton": _newton, "fire": _fire, "lbfgs": _lbfgs, "paper": _paper}
+_DEFAULT_MAX_ITER = {"newton": 200, "fire": 200_000, "lbfgs": 50_000, "paper": 20_000}
+
+
+def relax(
+    net: SpringNetwork,
+    pinned: Pins = None,
+    clamped: Mapping[int, float] | None = None,
+    x0: ArrayLike | None = None,
+    method: str = "newton",
+    tol: float = 1e-10,
+    *,
+    clamp: ClampMode = "exact",
+    rod_stiffness: float = 1e10,
+    ramp: int = 1,
+    max_iter: int | None = None,
+    max_seconds: float = 600.0,
+) -> Equilibrium:
+    """Find the mechanical equilibrium of ``net`` with pinned nodes and clamped springs.
+
+    Parameters
+    ----------
+    net : SpringNetwork
+    pinned : sequence of node indices, (n_nodes, 2) bool mask, or None
+        Coordinates held at their values in ``x0``. None pins one node fully and one
+        coordinate of a far node, chosen away from the clamped springs.
+    clamped : {spring_index: length}, optional
+        Springs held at a length (Eq. 25).
+    x0 : (n_nodes, 2) float array, optional
+        Starting positions (default ``net.positions``); pinned coordinates keep these values.
+    method : {"newton", "fire", "lbfgs", "paper"}
+        ``newton``: sparse Newton with exact clamps (default). ``fire`` and ``lbfgs``:
+        first-order minimisers, exact clamps through an augmented Lagrangian. ``paper``: the
+        seed paper's PyTorch Adagrad (learning rate 0.1) with rod clamps; it stalls and is
+        kept as a baseline.
+    tol : float
+        Relative tolerance: converged when the residual is ``<= tol * F`` with
+        ``F = mean(k) mean(L)`` and every clamp within ``tol * mean(L)`` of its length.
+    clamp : {"exact", "rod"}
+        Exact equality constraints, or the paper's stiff rods of ``rod_stiffness``.
+        ``method="paper"`` always uses rods.
+    ramp : int
+        Strain continuation: approach the clamp lengths in ``ramp`` equal steps from the
+        starting lengths, each relaxed in turn. At large strains the energy has several
+        local minima and the one found depends on this path.
+    max_iter, max_seconds : budgets; exceeding either raises :class:`EquilibriumError`.
+
+    Returns
+    -------
+    Equilibrium
+
+    Raises
+    ------
+    ValueError
+        Bad input (named), or a floppy network (with its count of zero modes).
+    EquilibriumError
+        The method did not reach ``tol``; ``err.state`` holds the last iterate.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
+    if not (np.isfinite(tol) and tol > 0):
+        raise ValueError(f"tol must be finite and > 0, got {tol}")
+    if int(ramp) != ramp or ramp < 1:
+        raise ValueError(f"ramp must be an integer >= 1, got {ramp}")
+    if method == "paper":
+        clamp = "rod"
+    problem = Problem.build(
+        net, pinned=pinned, clamped=clamped, clamp=clamp, rod_stiffness=rod_stiffness
+    )
+    floppy = problem.maxwell_zero_modes()
+    if floppy:
+        raise ValueError(
+            f"network is floppy: at least {floppy} zero modes beyond rigid motion "
+            f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
+            f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
+        )
+    stop = StopRule(
+        force=tol * net.force_scale,
+        length=tol * float(np.mean(net.rest_length)),
+        max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]),
+        max_seconds=float(max_seconds),
+    )
+    x = _start(problem, x0)
+    trace = Trace()
+    solve = METHODS[method]
+    start_lengths = net.lengths(x)[problem.clamp_springs]
+    iterations = 0
+    outcome = Outcome(x, 0, True)
+    for step in range(1, int(ramp) + 1):
+        frac = step / ramp
+        lengths = start_lengths + frac * (problem.clamp_lengths - start_lengths)
+        stage = Problem(net, problem.free, problem.clamp_springs, lengths, problem.clamp,
+                        problem.rod_stiffness)
+        outcome = solve(stage, stage.start(outcome.x), stop, trace)
+        iterations += outcome.iterations
+        if not outcome.converged:
+            break
+    return _finish(problem, outcome, iterations, method, stop, trace)
+
+
+def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
+    if x0 is None:
+        return problem.net.positions.copy()
+    x = np.array(x0, dtype=np.float64, copy=True)
+    if x.shape != (problem.net.n_nodes, 2):
+        raise ValueError(f"x0 must have shape ({problem.net.n_nodes}, 2), got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("x0 must be finite")
+    return x
+
+
+def _finish(
+    problem: Problem, outcome: Outcome, iterations: int, method: str, stop: StopRule, trace: Trace
+) -> Equilibrium:
+    x = outcome.x
+    finite = bool(np.all(np.isfinite(x)))
+    if finite:
+        residual, mu = problem.residual(x)
+        violation = problem.clamp_violation(x)
+        clamp_error = float(np.max(np.abs(violation))) if violation.size else 0.0
+        energy = float(
+            0.5 * np.dot(problem.net.stiffness, (problem.net.lengths(x) - problem.net.rest_length) ** 2)
+        )
+    else:
+        residual, clamp_error, energy, mu = np.inf, np.inf, np.inf, np.full(problem.n_clamps, np.inf)
+    converged = finite and outcome.converged and stop.met(residual, clamp_error)
+    x = x.copy()
+    x.setflags(write=False)
+    state = Equilibrium(
+        positions=x,
+        energy=energy,
+        residual=residual,
+        clamp_error=clamp_error,
+        clamp_force=np.asarray(mu, dtype=np.float64),
+        converged=converged,
+        iterations=iterations,
+        seconds=trace.elapsed(),
+        method=method,
+        residual_trace=np.asarray(trace.residual),
+        seconds_trace=np.asarray(trace.seconds),
+    )
+    if not converged:
+        reason = outcome.message or "did not reach the requested residual"
+        if not finite:
+            reason = "iterate became non-finite; " + reason
+        raise EquilibriumError(
+            f"{method}: {reason} (wanted residual <= {stop.force:.3e}, "
+            f"clamp error <= {stop.length:.3e})",
+            state,
+        )
+    return state

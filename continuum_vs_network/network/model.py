@@ -1,0 +1,160 @@
+"""The spring network: node positions, springs, stiffness and rest lengths (Eq. 9-11)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ["SpringNetwork"]
+
+
+def _frozen_copy(value: ArrayLike, dtype: type) -> NDArray:
+    """``value`` as a read-only array; an array that already is one is shared, not copied."""
+    if isinstance(value, np.ndarray) and value.dtype == dtype and not value.flags.writeable:
+        return value
+    return np.array(value, dtype=dtype, copy=True)
+
+
+def _as_float_array(name: str, value: ArrayLike, shape: tuple[int | None, ...]) -> NDArray:
+    arr = _frozen_copy(value, np.float64)
+    _check_shape(name, arr, shape)
+    bad = np.flatnonzero(~np.isfinite(arr).reshape(arr.shape[0], -1).all(axis=1))
+    if bad.size:
+        raise ValueError(f"{name} must be finite; entry {bad[0]} is {arr[bad[0]]}")
+    if arr.flags.writeable:
+        arr.setflags(write=False)
+    return arr
+
+
+def _check_shape(name: str, arr: NDArray, shape: tuple[int | None, ...]) -> None:
+    ok = arr.ndim == len(shape) and all(s is None or s == d for s, d in zip(shape, arr.shape))
+    if not ok:
+        want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
+
+
+@dataclass(frozen=True, eq=False)
+class SpringNetwork:
+    """A 2D network of unit point masses joined by Hookean springs.
+
+    Parameters
+    ----------
+    positions : (n_nodes, 2) float array
+        Reference node positions (length units).
+    springs : (n_springs, 2) int array
+        Node pairs ``(i, j)``; no self-loops, no duplicate pairs.
+    stiffness : (n_springs,) float array
+        Spring constants ``k_j >= 0`` (force per length).
+    rest_length : (n_springs,) float array
+        Rest lengths ``L_j > 0`` (length units).
+
+    The elastic energy is ``E = sum_j k_j (r_j - L_j)^2 / 2`` (Eq. 11). Arrays are stored
+    as read-only float64 (int64 for ``springs``) copies; change a network with the
+    ``with_*`` methods, which return validated copies.
+    """
+
+    positions: NDArray[np.float64]
+    springs: NDArray[np.int64]
+    stiffness: NDArray[np.float64]
+    rest_length: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        positions = _as_float_array("positions", self.positions, (None, 2))
+        springs_raw = np.asarray(self.springs)
+        _check_shape("springs", springs_raw, (None, 2))
+        if springs_raw.size and not np.issubdtype(springs_raw.dtype, np.integer):
+            if not np.all(springs_raw == np.round(springs_raw)):
+                raise ValueError("springs must hold integer node indices")
+        springs = _frozen_copy(self.springs, np.int64)
+        n_nodes, n_springs = positions.shape[0], springs.shape[0]
+        stiffness = _as_float_array("stiffness", self.stiffness, (n_springs,))
+        rest_length = _as_float_array("rest_length", self.rest_length, (n_springs,))
+
+        out = np.flatnonzero((springs < 0).any(axis=1) | (springs >= n_nodes).any(axis=1))
+        if out.size:
+            raise ValueError(
+                f"springs[{out[0]}] = {springs[out[0]].tolist()} names a node outside "
+                f"0..{n_nodes - 1}"
+            )
+        loops = np.flatnonzero(springs[:, 0] == springs[:, 1])
+        if loops.size:
+            raise ValueError(f"springs[{loops[0]}] is a self-loop on node {springs[loops[0], 0]}")
+        pairs = np.sort(springs, axis=1)
+        _, first, counts = np.unique(pairs, axis=0, return_index=True, return_counts=True)
+        if np.any(counts > 1):
+            dup_pair = pairs[first[counts > 1][0]]
+            dups = np.flatnonzero((pairs == dup_pair).all(axis=1))
+            raise ValueError(
+                f"springs[{dups[1]}] duplicates springs[{dups[0]}] (nodes {dup_pair.tolist()})"
+            )
+        neg = np.flatnonzero(stiffness < 0)
+        if neg.size:
+            raise ValueError(f"stiffness must be >= 0; stiffness[{neg[0]}] = {stiffness[neg[0]]}")
+        nonpos = np.flatnonzero(rest_length <= 0)
+        if nonpos.size:
+            raise ValueError(
+                f"rest_length must be > 0; rest_length[{nonpos[0]}] = {rest_length[nonpos[0]]}"
+            )
+        if springs.flags.writeable:
+            springs.setflags(write=False)
+        object.__setattr__(self, "positions", positions)
+        object.__setattr__(self, "springs", springs)
+        object.__setattr__(self, "stiffness", stiffness)
+        object.__setattr__(self, "rest_length", rest_length)
+
+    # -- sizes and scales -------------------------------------------------------------
+    @property
+    def n_nodes(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_springs(self) -> int:
+        return int(self.springs.shape[0])
+
+    @property
+    def force_scale(self) -> float:
+        """Typical spring force ``F = mean(k) * mean(L)``: the unit of relative tolerances."""
+        return float(np.mean(self.stiffness) * np.mean(self.rest_length)) if self.n_springs else 1.0
+
+    # -- geometry ---------------------------------------------------------------------
+    def lengths(self, x: ArrayLike | None = None) -> NDArray[np.float64]:
+        """Spring lengths ``r_j`` at positions ``x`` (default: the stored positions).
+
+        Returns a (n_springs,) float array.
+        """
+        x = self.positions if x is None else np.asarray(x, dtype=np.float64)
+        d = x[self.springs[:, 1]] - x[self.springs[:, 0]]
+        return np.hypot(d[:, 0], d[:, 1])
+
+    def strains(self, x: ArrayLike | None = None) -> NDArray[np.float64]:
+        """Spring strains ``S_j = r_j / L_j - 1`` (Eq. 24), (n_springs,) float array."""
+        return self.lengths(x) / self.rest_length - 1.0
+
+    def clamp_length(self, spring: ArrayLike, strain: ArrayLike) -> NDArray[np.float64]:
+        """Length ``L_j (S + 1)`` at which spring(s) ``spring`` have strain ``strain`` (Eq. 25)."""
+        idx = np.asarray(spring, dtype=np.int64)
+        if np.any((idx < 0) | (idx >= self.n_springs)):
+            raise ValueError(f"spring index out of range 0..{self.n_springs - 1}: {spring}")
+        length = self.rest_length[idx] * (np.asarray(strain, dtype=np.float64) + 1.0)
+        if np.any(length <= 0):
+            raise ValueError(f"strain must be > -1 so that the clamp length is positive: {strain}")
+        return length
+
+    # -- copies -----------------------------------------------------------------------
+    def with_positions(self, positions: ArrayLike) -> SpringNetwork:
+        """A copy with new reference positions (validated)."""
+        return dataclasses.replace(self, positions=positions)
+
+    def with_stiffness(self, stiffness: ArrayLike) -> SpringNetwork:
+        """A copy with new spring constants (validated)."""
+        return dataclasses.replace(self, stiffness=stiffness)
+
+    def with_rest_length(self, rest_length: ArrayLike) -> SpringNetwork:
+        """A copy with new rest lengths (validated)."""
+        return dataclasses.replace(self, rest_length=rest_length)
+
+    def __repr__(self) -> str:
+        return f"SpringNetwork(n_nodes={self.n_nodes}, n_springs={self.n_springs})"
