@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .constraints import Problem
-from .energy import HessianPattern, spring_energy, spring_gradient, spring_hessian_blocks
+from .energy import HessianPattern, spring_energy, spring_gradient
 from .equilibrium import Outcome, StopRule, Trace
 
 __all__ = ["DENSE_MAX", "factor_pd", "newton", "pattern_for"]
@@ -99,6 +99,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     m = problem.n_clamps if problem.exact else 0
     rho = float(np.max(k)) if m else 0.0
     shift = 0.0
+    exact_ok = True
     x = np.array(x, dtype=np.float64)
 
     for it in range(stop.max_iter + 1):
@@ -122,20 +123,9 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             return Outcome(x, it, False, f"time budget of {stop.max_seconds:g} s exceeded")
 
         # Hessian of the augmented Lagrangian, in the spring-block pattern
-        blocks = spring_hessian_blocks(x, springs, k, L)
-        if problem.clamp == "rod" and problem.n_clamps:
-            blocks[clamps] += spring_hessian_blocks(
-                x, springs[clamps], np.full(clamps.size, problem.rod_stiffness),
-                problem.clamp_lengths,
-            )
-        if m:
-            d = x[springs[clamps, 1]] - x[springs[clamps, 0]]
-            r = np.hypot(d[:, 0], d[:, 1])
-            u = d / r[:, None]
-            uu = u[:, :, None] * u[:, None, :]
-            blocks[clamps] += (lam_ls / r)[:, None, None] * (np.eye(2) - uu) + rho * uu
-        W = pattern.assemble(blocks)
-        factor, shift = _shifted_factor(W, shift)
+        factor, shift, exact_ok = _factor_lagrangian_hessian(
+            problem, pattern, x, lam_ls, rho, shift, try_exact=exact_ok or shift == 0.0
+        )
         if factor is None:
             return Outcome(x, it, False, "Hessian could not be made positive definite")
 
@@ -154,19 +144,68 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     return Outcome(x, stop.max_iter, False, "no convergence")
 
 
-def _shifted_factor(W: sp.csr_matrix, shift: float) -> tuple[_Factor | None, float]:
-    """Factorise ``W + shift I``, raising the shift until positive definite."""
+def _lagrangian_blocks(
+    problem: Problem, x: NDArray, lam: NDArray, rho: float, *, clip: bool
+) -> NDArray:
+    """Per-spring 2x2 blocks of the augmented Lagrangian's Hessian, (n_springs, 2, 2).
+
+    With ``clip`` every tangential coefficient ``k (1 - L/r)`` (and ``lam / r`` of a
+    compressed clamp) is floored at 0: a sum of positive semi-definite blocks.
+    """
+    net = problem.net
+    springs, clamps = net.springs, problem.clamp_springs
+    d = x[springs[:, 1]] - x[springs[:, 0]]
+    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
+    axial = net.stiffness.copy()
+    tangential = net.stiffness * (1.0 - net.rest_length / r)
+    if problem.clamp == "rod" and problem.n_clamps:
+        k_rod = problem.rod_stiffness
+        axial[clamps] += k_rod
+        tangential[clamps] += k_rod * (1.0 - problem.clamp_lengths / r[clamps])
+    elif lam.size:
+        axial[clamps] += rho
+        tangential[clamps] += lam / r[clamps]
+    if clip:
+        tangential = np.maximum(tangential, 0.0)
+    u = d / r[:, None]
+    uu = u[:, :, None] * u[:, None, :]
+    return axial[:, None, None] * uu + tangential[:, None, None] * (np.eye(2) - uu)
+
+
+def _factor_lagrangian_hessian(
+    problem: Problem,
+    pattern: HessianPattern,
+    x: NDArray,
+    lam: NDArray,
+    rho: float,
+    shift: float,
+    *,
+    try_exact: bool,
+) -> tuple[_Factor | None, float, bool]:
+    """Factorise a positive-definite Hessian model: exact if possible, else modified.
+
+    Order: the exact Hessian (when ``try_exact``); then the tangentially clipped one, which is
+    positive semi-definite by construction; then the clipped one with a Levenberg shift that
+    grows tenfold until the factorisation is positive definite. Returns ``(factor, shift,
+    exact_used)``. The exact Hessian is used whenever it is positive definite, so the last
+    iterations are pure Newton steps and converge quadratically.
+    """
+    if try_exact:
+        W = pattern.assemble(_lagrangian_blocks(problem, x, lam, rho, clip=False))
+        factor = factor_pd(W)
+        if factor is not None:
+            return factor, 0.0, True
+    W = pattern.assemble(_lagrangian_blocks(problem, x, lam, rho, clip=True))
     scale = float(np.max(np.abs(W.diagonal()))) if W.shape[0] else 1.0
     floor = 1e-12 * scale
     shift = shift / 10 if shift > 10 * floor else 0.0
     eye = sp.identity(W.shape[0], format="csr")
-    while True:
+    while shift <= 1e8 * scale:
         factor = factor_pd(W + shift * eye if shift else W)
         if factor is not None:
-            return factor, shift
+            return factor, shift, False
         shift = max(floor, 10 * shift)
-        if shift > 1e8 * scale:
-            return None, shift
+    return None, shift, False
 
 
 def _line_search(
