@@ -32,7 +32,8 @@ def _as_float_array(name: str, value: ArrayLike, shape: tuple[int | None, ...]) 
 def _check_shape(name: str, arr: NDArray, shape: tuple[int | None, ...]) -> None:
     ok = arr.ndim == len(shape) and all(s is None or s == d for s, d in zip(shape, arr.shape))
     if not ok:
-        want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
+        dims = ["n" if s is None else str(s) for s in shape]
+        want = f"({dims[0]},)" if len(dims) == 1 else "(" + ", ".join(dims) + ")"
         raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
 
 

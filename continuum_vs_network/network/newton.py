@@ -104,14 +104,13 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
 
     for it in range(stop.max_iter + 1):
         grad = spring_gradient(x, *all_springs).ravel()[free]
-        if m:
+        if problem.n_clamps:
             A = problem.clamp_jacobian(x)
-            viol = problem.clamp_violation(x)
-            AAt = (A @ A.T).toarray()
-            lam_ls = -np.linalg.solve(AAt, A @ grad)
-            force = grad + A.T @ lam_ls
+            lam_ls = -np.linalg.solve((A @ A.T).toarray(), A @ grad)
+            force = grad + A.T @ lam_ls  # clamp-normal (rod or constraint) forces removed
         else:
-            viol, lam_ls, force = np.empty(0), np.empty(0), grad
+            lam_ls, force = np.empty(0), grad
+        viol = problem.clamp_violation(x) if m else np.empty(0)
         residual = float(np.max(np.abs(force))) if force.size else 0.0
         clamp_error = float(np.max(np.abs(viol))) if m else 0.0
         trace.record(residual)
@@ -124,7 +123,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
 
         # Hessian of the augmented Lagrangian, in the spring-block pattern
         factor, shift, exact_ok = _factor_lagrangian_hessian(
-            problem, pattern, x, lam_ls, rho, shift, try_exact=exact_ok or shift == 0.0
+            problem, pattern, x, lam_ls if m else np.empty(0), rho, shift, try_exact=exact_ok or shift == 0.0
         )
         if factor is None:
             return Outcome(x, it, False, "Hessian could not be made positive definite")

@@ -1,0 +1,74 @@
+"""SpringNetwork: validation at the boundary, geometry helpers, copies."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import continuum_vs_network as cvn
+
+
+def _triangle(**overrides):
+    args = dict(
+        positions=[[0.0, 0.0], [1.0, 0.0], [0.5, np.sqrt(3) / 2]],
+        springs=[[0, 1], [1, 2], [2, 0]],
+        stiffness=[1.0, 2.0, 3.0],
+        rest_length=[1.0, 1.0, 1.0],
+    )
+    args.update(overrides)
+    return cvn.SpringNetwork(**args)
+
+
+def test_arrays_are_read_only_float64_copies():
+    pos = np.array([[0.0, 0.0], [1.0, 0.0], [0.5, 0.8]], dtype=np.float32)
+    net = _triangle(positions=pos)
+    assert net.positions.dtype == np.float64 and net.springs.dtype == np.int64
+    pos[0, 0] = 99.0
+    assert net.positions[0, 0] == 0.0
+    with pytest.raises(ValueError):
+        net.positions[0, 0] = 1.0
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"positions": [[0, 0], [1, 0]]}, r"springs\[1\] = \[1, 2\] names a node outside 0..1"),
+        ({"positions": np.zeros((3, 3))}, r"positions must have shape \(n, 2\)"),
+        ({"positions": [[0, 0], [1, np.nan], [0, 1]]}, r"positions must be finite; entry 1"),
+        ({"springs": [[0, 1], [1, 1], [2, 0]]}, r"springs\[1\] is a self-loop on node 1"),
+        ({"springs": [[0, 1], [1, 0], [2, 0]]}, r"springs\[1\] duplicates springs\[0\]"),
+        ({"springs": [[0, 1.5], [1, 2], [2, 0]]}, "integer node indices"),
+        ({"stiffness": [1.0, -2.0, 3.0]}, r"stiffness must be >= 0; stiffness\[1\] = -2.0"),
+        ({"stiffness": [1.0, 2.0]}, r"stiffness must have shape \(3,\)"),
+        ({"rest_length": [1.0, 1.0, 0.0]}, r"rest_length must be > 0; rest_length\[2\] = 0.0"),
+        ({"rest_length": [1.0, np.inf, 1.0]}, r"rest_length must be finite; entry 1"),
+    ],
+)
+def test_validation_names_argument_and_first_bad_index(overrides, message):
+    with pytest.raises(ValueError, match=message):
+        _triangle(**overrides)
+
+
+def test_strain_and_clamp_length_are_inverse():
+    net = _triangle(rest_length=[2.0, 0.5, 1.0])
+    lengths = net.lengths()
+    np.testing.assert_allclose(lengths, 1.0)
+    np.testing.assert_allclose(net.strains(), lengths / net.rest_length - 1)  # Eq. 24
+    target = np.array([0.3, -0.5, 5.0])
+    clamp = net.clamp_length([0, 1, 2], target)  # Eq. 25
+    np.testing.assert_allclose(clamp / net.rest_length - 1, target)
+    with pytest.raises(ValueError, match="strain must be > -1"):
+        net.clamp_length(0, -1.0)
+    with pytest.raises(ValueError, match="out of range"):
+        net.clamp_length(3, 0.1)
+
+
+def test_with_copies_validate_and_share_topology():
+    net = _triangle()
+    moved = net.with_rest_length([1.5, 1.5, 1.5])
+    assert moved.springs is net.springs  # shared: the Hessian pattern is cached per topology
+    np.testing.assert_array_equal(net.rest_length, 1.0)
+    with pytest.raises(ValueError, match="rest_length"):
+        net.with_rest_length([1.0, -1.0, 1.0])
+    with pytest.raises(ValueError, match="stiffness"):
+        net.with_stiffness([1.0, 1.0])

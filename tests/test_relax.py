@@ -1,0 +1,125 @@
+"""cvn.relax with the default Newton method: closed forms, clamps, pins, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import continuum_vs_network as cvn
+
+
+def _series(k1=2.0, k2=3.0, k3=0.5, L=(1.0, 1.5, 2.0)):
+    """Nodes 0-1-2 on the x axis; springs 0-1 and 1-2 in series, spring 0-2 across them."""
+    return cvn.SpringNetwork(
+        [[0.0, 0.0], [1.1, 0.05], [2.3, 0.0]], [[0, 1], [1, 2], [0, 2]], [k1, k2, k3], list(L)
+    )
+
+
+def test_two_springs_in_series_with_a_clamp_closed_form():
+    k1, k2, k3 = 2.0, 3.0, 0.5
+    L1, L2, L3 = 1.0, 1.5, 2.0
+    net = _series(k1, k2, k3, (L1, L2, L3))
+    D = 3.1  # the outer spring clamped at D stretches both inner springs
+    pinned = np.zeros((3, 2), bool)
+    pinned[0] = True
+    pinned[2, 1] = True
+    eq = cvn.relax(net, pinned=pinned, clamped={2: D})
+    r1 = (k1 * L1 + k2 * (D - L2)) / (k1 + k2)  # force balance k1 (r1 - L1) = k2 (r2 - L2)
+    r2 = D - r1
+    np.testing.assert_allclose(net.lengths(eq.positions), [r1, r2, D], rtol=0, atol=1e-12)
+    energy = 0.5 * (k1 * (r1 - L1) ** 2 + k2 * (r2 - L2) ** 2 + k3 * (D - L3) ** 2)
+    assert eq.energy == pytest.approx(energy, rel=1e-12)
+    # the clamp carries the tension of the chain plus its own spring's
+    tension = k1 * (r1 - L1) + k3 * (D - L3)
+    assert eq.clamp_force == pytest.approx([tension], rel=1e-10)
+    assert eq.converged and eq.residual <= 1e-10 * net.force_scale
+    assert eq.clamp_error <= 1e-12
+
+
+def test_equilateral_triangle_with_one_side_clamped():
+    L, clamp = 1.0, 1.6
+    net = cvn.SpringNetwork(
+        [[0.0, 0.0], [1.0, 0.0], [0.5, 0.8]], [[0, 1], [1, 2], [2, 0]], [4.0, 1.0, 1.0], [L] * 3
+    )
+    eq = cvn.relax(net, pinned=(0,), clamped={0: clamp})
+    # the two free sides relax to their rest length; only the clamped side holds energy
+    np.testing.assert_allclose(net.lengths(eq.positions), [clamp, L, L], atol=1e-12)
+    assert eq.energy == pytest.approx(0.5 * 4.0 * (clamp - L) ** 2, rel=1e-12)
+    assert eq.clamp_force == pytest.approx([4.0 * (clamp - L)], rel=1e-9)
+
+
+def test_rod_clamp_agrees_with_exact_clamp_to_rod_compliance():
+    net = _series()
+    exact = cvn.relax(net, clamped={2: 3.1})
+    rod = cvn.relax(net, clamped={2: 3.1}, clamp="rod", rod_stiffness=1e10)
+    # the rod yields by (clamp tension) / k_rod
+    assert rod.clamp_error == pytest.approx(abs(exact.clamp_force[0]) / 1e10, rel=1e-3)
+    np.testing.assert_allclose(
+        net.lengths(rod.positions), net.lengths(exact.positions), atol=1e-9
+    )
+
+
+def test_pins_hold_coordinates_and_mask_equals_indices():
+    net = _series()
+    by_index = cvn.relax(net, pinned=(0, 2), clamped=None)
+    mask = np.zeros((3, 2), bool)
+    mask[[0, 2]] = True
+    by_mask = cvn.relax(net, pinned=mask)
+    np.testing.assert_array_equal(by_index.positions[[0, 2]], net.positions[[0, 2]])
+    np.testing.assert_allclose(by_index.positions, by_mask.positions, atol=0)
+
+
+def test_warm_start_from_equilibrium_takes_no_iteration():
+    net = _series()
+    eq = cvn.relax(net, clamped={2: 3.1})
+    again = cvn.relax(net, clamped={2: 3.1}, x0=eq.positions)
+    assert again.iterations == 0
+    assert again.residual_trace.shape == (1,) and again.seconds_trace.shape == (1,)
+
+
+def test_ramp_reaches_same_clamp_and_traces_grow():
+    net = _series()
+    direct = cvn.relax(net, clamped={2: 4.0})
+    ramped = cvn.relax(net, clamped={2: 4.0}, ramp=4)
+    np.testing.assert_allclose(net.lengths(ramped.positions), net.lengths(direct.positions), atol=1e-9)
+    assert ramped.residual_trace.size > direct.residual_trace.size
+    assert np.all(np.diff(ramped.seconds_trace) >= 0)
+
+
+def test_non_convergence_raises_with_last_state_and_no_nan():
+    net = _series()
+    with pytest.raises(cvn.EquilibriumError) as info:
+        cvn.relax(net, clamped={2: 4.0}, max_iter=1)
+    state = info.value.state
+    assert state is not None and not state.converged
+    assert np.all(np.isfinite(state.positions)) and np.isfinite(state.residual)
+    assert "newton" in str(info.value) and "residual" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"method": "magic"}, "method must be one of"),
+        ({"tol": 0.0}, "tol must be finite and > 0"),
+        ({"ramp": 0}, "ramp must be an integer >= 1"),
+        ({"clamp": "glue"}, "clamp must be 'exact' or 'rod'"),
+        ({"clamped": {7: 1.0}}, "clamped names spring 7"),
+        ({"clamped": {0: -1.0}}, "clamped length of spring 0 must be finite and > 0"),
+        ({"pinned": (5,)}, "pinned names node 5"),
+        ({"pinned": np.zeros((2, 2), bool)}, r"pinned as a mask must have shape \(3, 2\)"),
+        ({"x0": np.zeros((2, 2))}, r"x0 must have shape \(3, 2\)"),
+        ({"x0": np.full((3, 2), np.nan)}, "x0 must be finite"),
+    ],
+)
+def test_bad_arguments_are_named(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        cvn.relax(_series(), **kwargs)
+
+
+def test_floppy_network_error_counts_zero_modes():
+    # a square without diagonals: 4 nodes, 4 springs; 8 - 3 pinned = 5 free coordinates
+    net = cvn.SpringNetwork(
+        [[0, 0], [1, 0], [1, 1], [0, 1]], [[0, 1], [1, 2], [2, 3], [3, 0]], [1.0] * 4, [1.0] * 4
+    )
+    with pytest.raises(ValueError, match="floppy: at least 1 zero modes"):
+        cvn.relax(net)
