@@ -81,7 +81,9 @@ def test_ramp_reaches_same_clamp_and_traces_grow():
     net = _series()
     direct = cvn.relax(net, clamped={2: 4.0})
     ramped = cvn.relax(net, clamped={2: 4.0}, ramp=4)
-    np.testing.assert_allclose(net.lengths(ramped.positions), net.lengths(direct.positions), atol=1e-9)
+    np.testing.assert_allclose(
+        net.lengths(ramped.positions), net.lengths(direct.positions), atol=1e-9
+    )
     assert ramped.residual_trace.size > direct.residual_trace.size
     assert np.all(np.diff(ramped.seconds_trace) >= 0)
 

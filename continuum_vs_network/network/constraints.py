@@ -82,7 +82,9 @@ def pin_mask(net: SpringNetwork, pinned: Pins, avoid: ArrayLike = ()) -> NDArray
     return mask
 
 
-def _clamp_arrays(net: SpringNetwork, clamped: Mapping[int, float] | None) -> tuple[NDArray, NDArray]:
+def _clamp_arrays(
+    net: SpringNetwork, clamped: Mapping[int, float] | None
+) -> tuple[NDArray, NDArray]:
     if not clamped:
         return np.empty(0, np.int64), np.empty(0)
     if not isinstance(clamped, Mapping):

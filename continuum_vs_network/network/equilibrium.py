@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .constraints import ClampMode, Pins, Problem
+from .energy import spring_energy
 from .model import SpringNetwork
 
 __all__ = ["METHODS", "Equilibrium", "EquilibriumError", "StopRule", "Trace", "relax"]
@@ -265,17 +266,16 @@ def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
 def _finish(
     problem: Problem, outcome: Outcome, iterations: int, method: str, stop: StopRule, trace: Trace
 ) -> Equilibrium:
-    x = outcome.x
+    x, net = outcome.x, problem.net
     finite = bool(np.all(np.isfinite(x)))
     if finite:
         residual, mu = problem.residual(x)
         violation = problem.clamp_violation(x)
         clamp_error = float(np.max(np.abs(violation))) if violation.size else 0.0
-        energy = float(
-            0.5 * np.dot(problem.net.stiffness, (problem.net.lengths(x) - problem.net.rest_length) ** 2)
-        )
+        energy = spring_energy(x, net.springs, net.stiffness, net.rest_length)
     else:
-        residual, clamp_error, energy, mu = np.inf, np.inf, np.inf, np.full(problem.n_clamps, np.inf)
+        residual, clamp_error, energy = np.inf, np.inf, np.inf
+        mu = np.full(problem.n_clamps, np.inf)
     # a rod yields by its tension / rod_stiffness: only exact clamps are held to tol
     converged = (
         finite

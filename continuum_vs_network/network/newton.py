@@ -91,11 +91,10 @@ def factor_pd(W: sp.csr_matrix) -> _Factor | None:
 def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
     """Minimise ``problem`` from ``x`` (n_nodes, 2) by shifted sparse Newton (see module)."""
     net = problem.net
-    springs, k, L = net.springs, net.stiffness, net.rest_length
+    springs, k = net.springs, net.stiffness
     all_springs = problem.all_springs()
     free = problem.free_flat
     pattern = pattern_for(springs, net.n_nodes, problem.free)
-    clamps = problem.clamp_springs
     m = problem.n_clamps if problem.exact else 0
     rho = float(np.max(k)) if m else 0.0
     shift = 0.0
@@ -123,7 +122,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
 
         # Hessian of the augmented Lagrangian, in the spring-block pattern
         factor, shift, exact_ok = _factor_lagrangian_hessian(
-            problem, pattern, x, lam_ls if m else np.empty(0), rho, shift, try_exact=exact_ok or shift == 0.0
+            problem, pattern, x, lam_ls[:m], rho, shift, try_exact=exact_ok or shift == 0.0
         )
         if factor is None:
             return Outcome(x, it, False, "Hessian could not be made positive definite")
