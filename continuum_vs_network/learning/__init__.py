@@ -1,0 +1,48 @@
+"""Learning in spring networks: allosteric tasks, local learning rules, training, metrics.
+
+Light to import (numpy and scipy only). The main names:
+
+* tasks: :class:`AllosteryTask`, :func:`paper_task`, :func:`stern_task`;
+* rules: :class:`CoupledLearning`, :class:`ProspectiveConfiguration`,
+  :class:`ExactGradient` (frozen dataclasses with ``update(net, task, ...) -> Step``);
+* equilibria for learning: :class:`Solver`, :class:`Tracker`;
+* exact gradients: :func:`cost_gradient`, :class:`Sensitivity`, :func:`gcl_limit`;
+* training: :func:`train` -> :class:`History` (``.save`` / ``History.load``).
+"""
+
+from __future__ import annotations
+
+from .history import History
+from .rules import (
+    CoupledLearning,
+    ExactGradient,
+    LearningError,
+    ProspectiveConfiguration,
+    Rule,
+    Step,
+    Warm,
+)
+from .sensitivity import Sensitivity, cost_gradient, gcl_limit
+from .states import Solver, Tracker
+from .tasks import AllosteryTask, paper_task, stern_task
+from .train import train
+
+__all__ = [
+    "AllosteryTask",
+    "CoupledLearning",
+    "ExactGradient",
+    "History",
+    "LearningError",
+    "ProspectiveConfiguration",
+    "Rule",
+    "Sensitivity",
+    "Solver",
+    "Step",
+    "Tracker",
+    "Warm",
+    "cost_gradient",
+    "gcl_limit",
+    "paper_task",
+    "stern_task",
+    "train",
+]

@@ -1,0 +1,445 @@
+"""Learning rules: coupled learning, prospective configuration and the exact gradient.
+
+Every rule is a frozen dataclass whose :meth:`~Rule.update` takes a network and a task,
+finds the equilibria it needs and returns a :class:`Step`: the change of the learning
+degrees of freedom (rest lengths ``L`` or stiffnesses ``k``) for one step, plus what was
+measured. Applying it (:meth:`Step.apply`) gives the next network.
+
+Signs (derived here; Eq. 14 of the paper has its two lines of opposite sign)
+------------------------------------------------------------------------------
+With ``E = sum_j k_j (r_j - L_j)^2 / 2``, ``dE/dL_j = -k_j (r_j - L_j)`` and
+``dE/dk_j = (r_j - L_j)^2 / 2``. At an equilibrium with fixed clamps the total
+derivative of the minimum energy equals the partial one (envelope theorem), so descending
+the contrastive function ``(E^C - E^F) / eta`` with rate ``alpha`` gives
+
+* coupled learning (GCL, Eq. 14-15)::
+
+      dL_j = (alpha / eta) k_j (r_j^C - r_j^F)
+      dk_j = (alpha / (2 eta)) [(r_j^F - L_j)^2 - (r_j^C - L_j)^2]
+
+  For a nudged state that pulls the target towards its desired length, ``r^C - r^F``
+  points the same way for the springs that must change, so the rest lengths follow the
+  nudge. (The second line of Eq. 14, ``k (r^F - L) - k (r^C - L)``, is the negative of
+  this; implementing it literally makes the error grow: ``tests/test_learning_rules.py``
+  checks that one small step of this rule lowers the error.)
+
+* prospective configuration (GPC, Eq. 22-23), descending ``E^C`` of the fully clamped
+  state::
+
+      dL_j = alpha k_j (r_j^C - L_j)
+      dk_j = -(alpha / 2) (r_j^C - L_j)^2
+
+  Eq. 23 prints ``dk = +alpha (r - L)^2``, which ascends the energy and contradicts its
+  own first line ``dk = -alpha dE/dk``; the derivation's sign and factor are used.
+
+* exact gradient: ``d theta = -alpha dC/d theta`` with ``dC/d theta`` from the adjoint
+  of the free state (:func:`~.sensitivity.cost_gradient`).
+
+Options every rule honours: ``dof``, ``learn_sources``, ``learn_targets``,
+``strain_reference`` (``"current"``: the paper's literal ``S = r / L - 1`` with the learning
+``L``; ``"initial"``: fixed clamp lengths from the task's recorded rest lengths),
+floors ``min_rest_length`` / ``min_stiffness``, and the equilibrium ``solver``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..network.equilibrium import Equilibrium
+from ..network.model import SpringNetwork
+from .sensitivity import Cost, cost_gradient
+from .states import Solver, Tracker
+from .tasks import AllosteryTask, Reference
+
+__all__ = [
+    "CoupledLearning",
+    "Dof",
+    "ExactGradient",
+    "LearningError",
+    "ProspectiveConfiguration",
+    "Rule",
+    "Step",
+    "Warm",
+]
+
+Dof = Literal["rest_length", "stiffness"]
+
+
+class LearningError(RuntimeError):
+    """A learning step that cannot be applied (a rest length or stiffness left its range)."""
+
+
+@dataclass(frozen=True)
+class Warm:
+    """Warm starts carried from one learning step to the next.
+
+    Attributes
+    ----------
+    free, clamped : (n_nodes, 2) float arrays or None
+        The last free and clamped equilibria.
+    """
+
+    free: NDArray | None = None
+    clamped: NDArray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Step:
+    """One learning step: the change of the learning degrees of freedom and the states.
+
+    Attributes
+    ----------
+    delta : (n_springs,) float array
+        Change of ``L`` or ``k`` (masks and floors applied).
+    dof : {"rest_length", "stiffness"}
+    free : Equilibrium or None
+        Free state (sources clamped) of the network before the step, when the rule used one.
+    clamped : Equilibrium or None
+        Nudged (GCL) or clamped (GPC) state, when the rule used one.
+    clamp_lengths : (n_targets,) float array or None
+        Lengths the targets were clamped at in ``clamped``.
+    measured_free, measured_clamped : (n_springs,) float arrays or None
+        Spring lengths as the rule read them (with read-out noise, if any).
+    raw : (n_springs,) float array
+        The rule's update before masks and floors.
+    """
+
+    delta: NDArray[np.float64]
+    dof: Dof
+    free: Equilibrium | None
+    clamped: Equilibrium | None
+    clamp_lengths: NDArray | None = None
+    measured_free: NDArray | None = field(default=None, repr=False)
+    measured_clamped: NDArray | None = field(default=None, repr=False)
+    raw: NDArray | None = field(default=None, repr=False)
+
+    @property
+    def warm(self) -> Warm:
+        """Warm starts for the next step."""
+        return Warm(
+            free=None if self.free is None else self.free.positions,
+            clamped=None if self.clamped is None else self.clamped.positions,
+        )
+
+    def apply(self, net: SpringNetwork) -> SpringNetwork:
+        """The network after this step.
+
+        Raises
+        ------
+        LearningError
+            A rest length would become ``<= 0`` or a stiffness ``< 0`` (set a floor).
+        """
+        if self.dof == "rest_length":
+            new = net.rest_length + self.delta
+            bad = np.flatnonzero(new <= 0)
+            if bad.size:
+                j = int(bad[0])
+                raise LearningError(
+                    f"rest length of spring {j} would become {new[j]:.3g} <= 0 "
+                    f"({bad.size} springs); set min_rest_length to floor it"
+                )
+            return net.with_rest_length(new)
+        new = net.stiffness + self.delta
+        bad = np.flatnonzero(new < 0)
+        if bad.size:
+            j = int(bad[0])
+            raise LearningError(
+                f"stiffness of spring {j} would become {new[j]:.3g} < 0 "
+                f"({bad.size} springs); set min_stiffness to floor it"
+            )
+        return net.with_stiffness(new)
+
+
+def _noisy(lengths: NDArray, noise: float, rng: np.random.Generator | None) -> NDArray:
+    if noise == 0.0:
+        return lengths
+    return lengths * (1.0 + noise * rng.standard_normal(lengths.shape))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Rule:
+    """Options shared by every rule (see the module docstring)."""
+
+    dof: Dof = "rest_length"
+    learn_sources: bool = True
+    learn_targets: bool = True
+    strain_reference: Reference = "current"
+    min_rest_length: float | None = None
+    min_stiffness: float | None = None
+    solver: Solver = field(default_factory=Solver)
+
+    def __post_init__(self) -> None:
+        if self.dof not in ("rest_length", "stiffness"):
+            raise ValueError(f"dof must be 'rest_length' or 'stiffness', got {self.dof!r}")
+        if self.strain_reference not in ("current", "initial"):
+            raise ValueError(
+                f"strain_reference must be 'current' or 'initial', got {self.strain_reference!r}"
+            )
+        for name in ("min_rest_length", "min_stiffness"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be None or a finite value >= 0, got {value}")
+        if not isinstance(self.solver, Solver):
+            raise ValueError(f"solver must be a Solver, got {type(self.solver).__name__}")
+
+    # -- what every rule shares -------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return type(self).__name__
+
+    @property
+    def uses_free_state(self) -> bool:
+        return True
+
+    def settings(self) -> dict[str, object]:
+        """The rule's parameters as a flat dict of plain values (for histories)."""
+        out: dict[str, object] = {"rule": self.name}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, Solver):
+                for g in dataclasses.fields(value):
+                    out[f"solver.{g.name}"] = getattr(value, g.name)
+            else:
+                out[f.name] = value
+        return out
+
+    def learning_mask(self, net: SpringNetwork, task: AllosteryTask) -> NDArray[np.bool_]:
+        """Springs whose degree of freedom may change, (n_springs,) bool."""
+        mask = np.ones(net.n_springs, dtype=bool)
+        if not self.learn_sources:
+            mask[task.sources] = False
+        if not self.learn_targets:
+            mask[task.targets] = False
+        return mask
+
+    def _delta(self, net: SpringNetwork, task: AllosteryTask, raw: NDArray) -> NDArray:
+        """Mask and floor a raw update. A floor stops a decrease; it never lifts a value."""
+        raw = np.where(self.learning_mask(net, task), raw, 0.0)
+        old = net.rest_length if self.dof == "rest_length" else net.stiffness
+        floor = self.min_rest_length if self.dof == "rest_length" else self.min_stiffness
+        if floor is None:
+            return raw
+        new = np.maximum(old + raw, np.minimum(old, floor))
+        return new - old
+
+    def _free(
+        self,
+        net: SpringNetwork,
+        task: AllosteryTask,
+        tracker: Tracker,
+        warm: Warm,
+    ) -> Equilibrium:
+        clamps = task.source_clamps(net, self.strain_reference)
+        return tracker.solve(net, task.pinned, clamps, warm.free, key="free")
+
+    def update(
+        self,
+        net: SpringNetwork,
+        task: AllosteryTask,
+        *,
+        warm: Warm | None = None,
+        tracker: Tracker | None = None,
+        noise: float = 0.0,
+        rng: np.random.Generator | None = None,
+    ) -> Step:
+        """One learning step on ``net`` for ``task``.
+
+        Parameters
+        ----------
+        net : SpringNetwork
+        task : AllosteryTask
+        warm : Warm, optional
+            Warm starts (the previous step's ``step.warm``).
+        tracker : Tracker, optional
+            Equilibrium tracker carrying reusable factorisations (one per trial). A new one
+            with this rule's ``solver`` is made when None.
+        noise : float
+            Relative read-out noise: every length the rule reads is ``r (1 + noise xi)``
+            with ``xi ~ N(0, 1)`` drawn from ``rng``.
+        rng : numpy.random.Generator, optional
+            Required when ``noise > 0``.
+
+        Returns
+        -------
+        Step
+        """
+        task.check(net)
+        if not (np.isfinite(noise) and noise >= 0):
+            raise ValueError(f"noise must be a finite value >= 0, got {noise}")
+        if noise > 0 and rng is None:
+            raise ValueError("noise > 0 needs rng, a numpy.random.Generator")
+        tracker = tracker or Tracker(self.solver)
+        return self._update(net, task, warm or Warm(), tracker, float(noise), rng)
+
+    def _update(
+        self,
+        net: SpringNetwork,
+        task: AllosteryTask,
+        warm: Warm,
+        tracker: Tracker,
+        noise: float,
+        rng: np.random.Generator | None,
+    ) -> Step:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+def _check_rate(name: str, value: float) -> None:
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be finite and > 0, got {value}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class CoupledLearning(Rule):
+    """Generalised coupled learning (Stern et al. 2021; Eq. 13-15).
+
+    Free state: sources clamped. Nudged state: targets also clamped, at strains
+    ``S^F + eta (S_T - S^F)`` (Eq. 13). Update ``dL = (alpha / eta) k (r^C - r^F)`` or
+    ``dk = (alpha / 2 eta) [(r^F - L)^2 - (r^C - L)^2]`` (signs: module docstring).
+
+    Parameters
+    ----------
+    alpha : float
+        Learning rate (> 0).
+    eta : float
+        Nudge amplitude (> 0; 1 clamps the targets at their desired strains).
+    """
+
+    alpha: float = field(kw_only=False)
+    eta: float = field(kw_only=False)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_rate("alpha", self.alpha)
+        _check_rate("eta", self.eta)
+
+    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
+        ref = self.strain_reference
+        free = self._free(net, task, tracker, warm)
+        r_free = _noisy(net.lengths(free.positions), noise, rng)
+        s_free = task.target_strains(net, r_free[task.targets], ref)
+        s_nudge = s_free + self.eta * (task.target_strain - s_free)
+        lengths = task.target_rest(net, ref) * (1.0 + s_nudge)
+        if np.any(lengths <= 0):
+            raise LearningError(f"nudged target length {lengths.min():.3g} <= 0")
+        clamps = task.source_clamps(net, ref)
+        clamps.update(zip(task.targets.tolist(), lengths.tolist()))
+        nudged = tracker.solve(net, task.pinned, clamps, free.positions, key="free")
+        r_nudged = _noisy(net.lengths(nudged.positions), noise, rng)
+        k, L = net.stiffness, net.rest_length
+        if self.dof == "rest_length":
+            raw = (self.alpha / self.eta) * k * (r_nudged - r_free)
+        else:
+            raw = (self.alpha / (2 * self.eta)) * ((r_free - L) ** 2 - (r_nudged - L) ** 2)
+        return Step(
+            delta=self._delta(net, task, raw),
+            dof=self.dof,
+            free=free,
+            clamped=nudged,
+            clamp_lengths=lengths,
+            measured_free=r_free,
+            measured_clamped=r_nudged,
+            raw=raw,
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class ProspectiveConfiguration(Rule):
+    """Generalised prospective configuration (Eq. 22-23): the clamped state only.
+
+    Sources and targets are clamped at their strains (targets at the *desired* strains,
+    not a nudge); the update descends that state's energy:
+    ``dL = alpha k (r^C - L)`` or ``dk = -(alpha / 2) (r^C - L)^2``.
+
+    Parameters
+    ----------
+    alpha : float
+        Learning rate (> 0).
+    """
+
+    alpha: float = field(kw_only=False)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_rate("alpha", self.alpha)
+
+    @property
+    def uses_free_state(self) -> bool:
+        return False
+
+    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
+        ref = self.strain_reference
+        lengths = task.desired_lengths(net, ref)
+        clamps = task.source_clamps(net, ref)
+        clamps.update(zip(task.targets.tolist(), lengths.tolist()))
+        x0 = warm.clamped if warm.clamped is not None else warm.free
+        clamped = tracker.solve(net, task.pinned, clamps, x0, key="clamped")
+        r_c = _noisy(net.lengths(clamped.positions), noise, rng)
+        k, L = net.stiffness, net.rest_length
+        if self.dof == "rest_length":
+            raw = self.alpha * k * (r_c - L)
+        else:
+            raw = -0.5 * self.alpha * (r_c - L) ** 2
+        return Step(
+            delta=self._delta(net, task, raw),
+            dof=self.dof,
+            free=None,
+            clamped=clamped,
+            clamp_lengths=lengths,
+            measured_clamped=r_c,
+            raw=raw,
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class ExactGradient(Rule):
+    """Gradient descent on the task error with the exact (adjoint) gradient.
+
+    ``d theta = -alpha dC/d theta``; ``C`` is Eq. 26 (``cost="strain"``) or the length
+    cost (``cost="length"``), measured with ``strain_reference`` and differentiated through
+    everything that depends on the learning degrees of freedom (the reference rest
+    lengths too, in the ``"current"`` convention). One free state and one extra linear
+    solve with its KKT matrix per step. The reference every local rule is measured against.
+
+    Parameters
+    ----------
+    alpha : float
+        Learning rate (> 0).
+    cost : {"strain", "length"}
+    """
+
+    alpha: float = field(kw_only=False)
+    cost: Cost = "strain"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _check_rate("alpha", self.alpha)
+        if self.cost not in ("strain", "length"):
+            raise ValueError(f"cost must be 'strain' or 'length', got {self.cost!r}")
+
+    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
+        free = self._free(net, task, tracker, warm)
+        r_free = _noisy(net.lengths(free.positions), noise, rng)
+        grad = cost_gradient(
+            net,
+            task,
+            free,
+            reference=self.strain_reference,
+            dof=self.dof,
+            cost=self.cost,
+            target_lengths=r_free[task.targets],
+        )
+        tracker.stats.factorisations += 1
+        raw = -self.alpha * grad
+        return Step(
+            delta=self._delta(net, task, raw),
+            dof=self.dof,
+            free=free,
+            clamped=None,
+            measured_free=r_free,
+            raw=raw,
+        )

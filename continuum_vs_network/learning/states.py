@@ -1,0 +1,598 @@
+"""Equilibria for learning: warm starts and factorisations reused between states and steps.
+
+A learning step needs one or two equilibria (free, nudged or clamped) of a network whose
+rest lengths or stiffnesses moved a little since the last step. :class:`Solver` says how
+they are found; :class:`Tracker` finds them and keeps what can be reused.
+
+With ``Solver(method="newton", clamp="exact", reuse=True)`` (the default) the tracker runs
+a *chord* (modified Newton) SQP iteration on the equilibrium equations::
+
+    F1 = grad E(x) + A(x)^T mu(x) = 0      (net force, mu = least-squares clamp tensions)
+    F2 = r_c(x) - l_c              = 0      (clamp lengths)
+
+with a factorisation of the augmented Lagrangian Hessian ``W = H_E + sum mu_c d2r_c +
+rho A^T A`` taken at an earlier *linearisation point* and the clamp directions
+``Z_c = W^{-1} a_c`` cached per clamped spring. One iteration costs one pair of triangular
+solves. Because learning changes the network little per step, the same factorisation
+serves the free state, the nudged state (its extra target clamps need one cached column
+each: the Schur-complement reuse) and many following learning steps; it is refreshed when
+the iteration contracts slowly (ratio > ``refactor_ratio``) and, if that fails too, the
+state is found by :func:`~continuum_vs_network.relax`. Convergence is judged exactly as
+``relax`` judges it (:meth:`Problem.residual`, relative ``tol``), so a reused factorisation
+changes the cost, never the answer.
+
+Any other solver setting (``method="paper"``, ``"fire"``, rods, ``reuse=False``) calls
+:func:`~continuum_vs_network.relax` with a warm start.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from ..network.constraints import Problem
+from ..network.energy import spring_gradient
+from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
+from ..network.model import SpringNetwork
+
+__all__ = ["Frame", "Solver", "Tracker", "lagrangian_hessian", "multipliers", "trust_region"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Solver:
+    """How learning rules find equilibria.
+
+    Parameters
+    ----------
+    method : str
+        Any :func:`~continuum_vs_network.relax` method. ``"paper"`` is the seed paper's
+        PyTorch Adagrad with rods; it does not converge to ``tol``, so use it with a fixed
+        ``max_iter`` budget and ``accept_unconverged=True`` (then the last iterate,
+        ``EquilibriumError.state``, is used as the paper's code used it).
+    tol : float
+        Relative tolerance of ``relax`` (forces over ``mean(k) mean(L)``).
+    clamp : {"exact", "rod"}
+        Exact clamps (constraints) or the paper's stiff rods.
+    rod_stiffness : float
+    max_iter : int, optional
+        Iteration budget of ``relax`` (its default when None).
+    ramp : int
+        Strain continuation steps of ``relax`` for a solve without a warm start.
+    reuse : bool
+        Reuse factorisations between states and steps (Newton with exact clamps only).
+    refactor_ratio : float
+        Refresh the factorisation when one chord iteration reduces the residual by less
+        than this factor.
+    trust_region : bool
+        When ``relax`` stalls (typically at a nearly degenerate equilibrium, where learning
+        is about to make the network snap), continue with :func:`trust_region` from the
+        stalled point and polish with ``relax``: problems of at most
+        ``trust_region_max_free`` free coordinates (dense).
+    trust_region_max_free : int
+    retry_ramps : tuple of int
+        When that fails too, try again from the start with these numbers of continuation
+        steps (``ramp``) before giving up.
+    accept_unconverged : bool
+        Return the last iterate instead of raising when ``relax`` does not converge
+        (the paper's fixed-budget relaxation). The returned state has ``converged=False``.
+    max_seconds : float
+        Time budget of one ``relax`` call.
+    """
+
+    method: str = "newton"
+    tol: float = 1e-10
+    clamp: Literal["exact", "rod"] = "exact"
+    rod_stiffness: float = 1e10
+    max_iter: int | None = None
+    ramp: int = 1
+    reuse: bool = True
+    refactor_ratio: float = 0.1
+    accept_unconverged: bool = False
+    max_seconds: float = 600.0
+    retry_ramps: tuple[int, ...] = (5, 20)
+    trust_region: bool = True
+    trust_region_max_free: int = 600
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise ValueError(f"method must be one of {sorted(METHODS)}, got {self.method!r}")
+        if self.clamp not in ("exact", "rod"):
+            raise ValueError(f"clamp must be 'exact' or 'rod', got {self.clamp!r}")
+        if not (np.isfinite(self.tol) and self.tol > 0):
+            raise ValueError(f"tol must be finite and > 0, got {self.tol}")
+        if not 0 < self.refactor_ratio < 1:
+            raise ValueError(f"refactor_ratio must be in (0, 1), got {self.refactor_ratio}")
+        if self.max_iter is not None and self.max_iter < 1:
+            raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
+
+    @property
+    def fast(self) -> bool:
+        """True when the chord iteration with reused factorisations is used."""
+        return self.reuse and self.method == "newton" and self.clamp == "exact"
+
+
+class Frame:
+    """The order of the free coordinates in assembled matrices, for one topology and pins.
+
+    The core's :func:`~continuum_vs_network.network.newton.pattern_for` may order rows for
+    fill reduction (``pattern.coords``); every vector and matrix this module builds uses
+    the same order, so factorisations match the ones ``relax`` makes.
+
+    Attributes
+    ----------
+    pattern : HessianPattern
+    coords : (n,) int array
+        Flat coordinate (index into ``x.ravel()``) of each row.
+    index : (2 n_nodes,) int array
+        Row of each flat coordinate, -1 for pinned ones.
+    ordered : bool
+        Rows are already in a fill-reducing order.
+    """
+
+    def __init__(self, net: SpringNetwork, free: NDArray) -> None:
+        from ..network import newton
+
+        free = np.asarray(free, dtype=bool)
+        try:
+            pattern = newton.pattern_for(net.springs, net.n_nodes, free, net.positions)
+        except TypeError:  # older signature without positions
+            pattern = newton.pattern_for(net.springs, net.n_nodes, free)
+        self.pattern = pattern
+        coords = getattr(pattern, "coords", None)
+        self.coords = np.flatnonzero(free.ravel()) if coords is None else np.asarray(coords)
+        self.ordered = bool(getattr(pattern, "ordered", False))
+        self.n_nodes = net.n_nodes
+        self.n = int(self.coords.size)
+        self.index = np.full(2 * net.n_nodes, -1, dtype=np.int64)
+        self.index[self.coords] = np.arange(self.n)
+
+    def take(self, full: NDArray) -> NDArray:
+        """Free entries of a (n_nodes, 2) array, in row order, (n,)."""
+        return np.asarray(full).reshape(-1)[self.coords]
+
+    def put(self, vec: NDArray) -> NDArray:
+        """A (n_nodes, 2) array that is ``vec`` on free coordinates and 0 elsewhere."""
+        out = np.zeros(2 * self.n_nodes)
+        out[self.coords] = vec
+        return out.reshape(self.n_nodes, 2)
+
+    def rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> sp.csr_matrix:
+        """Length gradients ``dr_j/dx`` of ``springs`` as a sparse (len(springs), n)."""
+        springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
+        pairs = net.springs[springs]
+        d = x[pairs[:, 1]] - x[pairs[:, 0]]
+        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
+        flat = np.stack(
+            [2 * pairs[:, 0], 2 * pairs[:, 0] + 1, 2 * pairs[:, 1], 2 * pairs[:, 1] + 1], 1
+        )
+        vals = np.stack([-u[:, 0], -u[:, 1], u[:, 0], u[:, 1]], 1)
+        cols = self.index[flat]
+        keep = cols >= 0
+        rows = np.repeat(np.arange(springs.size), 4).reshape(-1, 4)
+        return sp.csr_matrix(
+            (vals[keep], (rows[keep], cols[keep])), shape=(springs.size, self.n)
+        )
+
+    def factor(self, W: sp.csr_matrix):
+        """Positive-definite factorisation of ``W`` (None when it is not)."""
+        from ..network.newton import factor_pd
+
+        return factor_pd(W, ordered=True) if self.ordered else factor_pd(W)
+
+
+def lagrangian_hessian(
+    problem: Problem,
+    x: NDArray,
+    multipliers: NDArray,
+    *,
+    rho: float | None = None,
+    frame: Frame | None = None,
+) -> sp.csr_matrix:
+    """Hessian of the (augmented) Lagrangian on free coordinates, (n, n) CSR.
+
+    ``W = H_E(x) + sum_c mu_c d^2 r_c / dx^2 + rho sum_c a_c a_c^T`` with ``a_c = dr_c/dx``
+    the clamp directions and ``mu`` the multipliers of ``grad E + A^T mu = 0`` (minus
+    ``Equilibrium.clamp_force``). ``rho`` (default ``max(k)`` when there are clamps) adds
+    a multiple of ``A^T A`` that leaves every KKT solution unchanged but makes ``W``
+    positive definite at a stable constrained minimum. Rows in ``frame`` order (default:
+    the frame of ``problem``). Exact clamps only.
+    """
+    net = problem.net
+    frame = frame or Frame(net, problem.free)
+    springs, clamps = net.springs, problem.clamp_springs
+    d = x[springs[:, 1]] - x[springs[:, 0]]
+    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
+    axial = net.stiffness.copy()
+    tangential = net.stiffness * (1.0 - net.rest_length / r)
+    if clamps.size:
+        rho = float(np.max(net.stiffness)) if rho is None else float(rho)
+        np.add.at(axial, clamps, rho)
+        np.add.at(tangential, clamps, np.asarray(multipliers, float) / r[clamps])
+    u = d / r[:, None]
+    uu = u[:, :, None] * u[:, None, :]
+    blocks = axial[:, None, None] * uu + tangential[:, None, None] * (np.eye(2) - uu)
+    return frame.pattern.assemble(blocks)
+
+
+def multipliers(A: sp.csr_matrix, g: NDArray) -> NDArray:
+    """Least-squares clamp multipliers ``mu`` minimising ``|g + A^T mu|`` (as ``relax``)."""
+    return -np.linalg.lstsq((A @ A.T).toarray(), A @ g, rcond=None)[0]
+
+
+def trust_region(
+    problem: Problem,
+    x: NDArray,
+    *,
+    force_tol: float,
+    max_iter: int = 200,
+) -> tuple[NDArray, bool]:
+    """Dense trust-region Newton on the clamp manifold, for small stalled problems.
+
+    Newton with a positive-definite model creeps where the equilibrium is nearly degenerate
+    (a soft mode whose curvature changes sign: the warm-started branch is about to vanish
+    or has just vanished). This method uses the exact reduced Hessian
+    ``Q^T W Q`` (``Q`` a basis of the null space of the clamp Jacobian) with a trust region
+    (eigen-decomposition, so negative curvature is followed, not clipped), restores the
+    clamp lengths after every step, and accepts steps that lower the energy. It stops when
+    the residual is ``<= force_tol`` (absolute); :func:`relax` then polishes. Dense:
+    O(n_free^3) per iteration.
+
+    Returns ``(x, reached)``.
+    """
+    net = problem.net
+    frame = Frame(net, problem.free)
+    clamps = problem.clamp_springs
+    m = problem.n_clamps
+    x = _restore(problem, np.array(x, dtype=np.float64))
+    scale = float(np.mean(net.rest_length))
+    radius = 0.1 * scale
+    energy = problem.energy(x)
+    for _ in range(max_iter):
+        residual, mu = problem.residual(x)
+        if residual <= force_tol:
+            return x, True
+        g = frame.take(problem.gradient(x))
+        if m:
+            vt = np.linalg.svd(frame.rows(net, x, clamps).toarray())[2]
+            Q = vt[m:].T
+        else:
+            Q = np.eye(frame.n)
+        W = lagrangian_hessian(problem, x, mu, rho=0.0, frame=frame).toarray()
+        H = Q.T @ W @ Q
+        gr = Q.T @ g
+        vals, vecs = np.linalg.eigh(H)
+        gt = vecs.T @ gr
+
+        low = max(0.0, -vals[0])
+        p = _tr_step(vals, vecs, gt, 0.0) if vals[0] > 0 else None
+        if p is None or np.linalg.norm(p) > radius:
+            lo, hi = low, low + np.linalg.norm(gr) / radius + abs(vals[-1])
+            for _ in range(80):  # bisection on the shift: |p(shift)| = radius
+                mid = 0.5 * (lo + hi)
+                long = np.linalg.norm(_tr_step(vals, vecs, gt, mid)) > radius
+                lo, hi = (mid, hi) if long else (lo, mid)
+            p = _tr_step(vals, vecs, gt, hi)
+        predicted = float(gr @ p + 0.5 * p @ H @ p)
+        y = x + frame.put(Q @ p)
+        y = _restore(problem, y)
+        e_y = problem.energy(y)
+        ratio = (e_y - energy) / predicted if predicted < 0 else -1.0
+        if e_y < energy:
+            x, energy = y, e_y
+        radius *= 2.0 if ratio > 0.75 else (0.25 if ratio < 0.25 else 1.0)
+        radius = max(radius, 1e-12 * scale)
+    return x, False
+
+
+def _tr_step(vals: NDArray, vecs: NDArray, gt: NDArray, shift: float) -> NDArray:
+    return -vecs @ (gt / (vals + shift))
+
+
+def _restore(problem: Problem, y: NDArray) -> NDArray:
+    """Minimum-norm correction of ``y`` back onto the clamp lengths (Gauss-Newton)."""
+    if not problem.n_clamps:
+        return y
+    free = problem.free_flat
+    target = 1e-13 * float(np.mean(problem.clamp_lengths))
+    for _ in range(20):
+        c = problem.clamp_violation(y)
+        if np.max(np.abs(c)) <= target:
+            break
+        A = problem.clamp_jacobian(y)
+        y = y.copy()
+        y.ravel()[free] -= A.T @ np.linalg.solve((A @ A.T).toarray(), c)
+    return y
+
+
+class _Linearisation:
+    """A factorised ``W`` at one point and the cached columns ``W^{-1} a_c``."""
+
+    def __init__(self, factor, x: NDArray, frame: Frame) -> None:
+        self.factor = factor
+        self.x = x.copy()
+        self.frame = frame
+        self.columns: dict[int, tuple[sp.csr_matrix, NDArray]] = {}  # spring -> (a_c, W^-1 a_c)
+        self.uses = 0
+
+    def rows_and_columns(
+        self, net: SpringNetwork, springs: NDArray
+    ) -> tuple[sp.csr_matrix, NDArray]:
+        n = self.frame.n
+        missing = [int(s) for s in springs if int(s) not in self.columns]
+        if missing:
+            A = self.frame.rows(net, self.x, np.array(missing))
+            Z = np.asarray(self.factor.solve(A.T.toarray())).reshape(n, len(missing))
+            for j, s in enumerate(missing):
+                self.columns[s] = (A[j], Z[:, j].copy())
+        if not springs.size:
+            return sp.csr_matrix((0, n)), np.zeros((n, 0))
+        A = sp.vstack([self.columns[int(s)][0] for s in springs], format="csr")
+        Z = np.column_stack([self.columns[int(s)][1] for s in springs])
+        return A, Z
+
+
+@dataclass
+class TrackerStats:
+    """Work done by a :class:`Tracker` (cumulative counts)."""
+
+    solves: int = 0
+    iterations: int = 0
+    factorisations: int = 0
+    relax_calls: int = 0
+    retries: int = 0
+    trust_regions: int = 0
+    seconds: float = 0.0
+
+
+class Tracker:
+    """Finds the equilibria of one task along a learning run, reusing what it can.
+
+    A tracker holds mutable caches (warm starts are passed in by the caller; the
+    factorisations live here), so use one tracker per training trial.
+    """
+
+    def __init__(self, solver: Solver | None = None) -> None:
+        self.solver = solver or Solver()
+        self.stats = TrackerStats()
+        self._lin: dict[str, _Linearisation] = {}
+
+    def forget(self) -> None:
+        """Drop every cached factorisation."""
+        self._lin.clear()
+
+    # -- the one entry point ----------------------------------------------------------
+    def solve(
+        self,
+        net: SpringNetwork,
+        pinned: NDArray,
+        clamped: dict[int, float],
+        x0: NDArray | None,
+        *,
+        key: str = "free",
+    ) -> Equilibrium:
+        """Equilibrium of ``net`` with ``pinned`` coordinates and ``clamped`` springs.
+
+        Parameters
+        ----------
+        net : SpringNetwork
+        pinned : (n_nodes, 2) bool array
+        clamped : {spring: length}
+        x0 : (n_nodes, 2) float array or None
+            Warm start (None: ``net.positions`` with ``relax``'s ramp).
+        key : str
+            Which cached linearisation to use and refresh ("free" for the free and the
+            nudged state, "clamped" for a clamped state far from the free one).
+
+        Raises
+        ------
+        EquilibriumError
+            No equilibrium to ``tol`` (unless ``accept_unconverged``).
+        """
+        t0 = time.perf_counter()
+        self.stats.solves += 1
+        try:
+            if self.solver.fast and x0 is not None:
+                state = self._chord(net, pinned, clamped, np.asarray(x0, float), key)
+                if state is not None:
+                    return state
+            return self._relax(net, pinned, clamped, x0, key)
+        finally:
+            self.stats.seconds += time.perf_counter() - t0
+
+    # -- robust path ------------------------------------------------------------------
+    def _relax(
+        self,
+        net: SpringNetwork,
+        pinned: NDArray,
+        clamped: dict[int, float],
+        x0: NDArray | None,
+        key: str,
+    ) -> Equilibrium:
+        first = self.solver.ramp if x0 is None else 1
+        try:
+            eq = self._relax_once(net, pinned, clamped, x0, first)
+        except EquilibriumError as err:
+            eq = self._recover(net, pinned, clamped, x0, first, err)
+        self._lin.pop(key, None)
+        return eq
+
+    def _relax_once(
+        self,
+        net: SpringNetwork,
+        pinned: NDArray,
+        clamped: dict[int, float],
+        x0: NDArray | None,
+        ramp: int,
+    ) -> Equilibrium:
+        s = self.solver
+        self.stats.relax_calls += 1
+        try:
+            eq = relax(
+                net,
+                pinned=pinned,
+                clamped=clamped,
+                x0=x0,
+                method=s.method,
+                tol=s.tol,
+                clamp=s.clamp,
+                rod_stiffness=s.rod_stiffness,
+                ramp=ramp,
+                max_iter=s.max_iter,
+                max_seconds=s.max_seconds,
+            )
+        except EquilibriumError as err:
+            state = err.state
+            self.stats.iterations += 0 if state is None else state.iterations
+            if s.accept_unconverged and state is not None and np.all(np.isfinite(state.positions)):
+                return state
+            raise
+        self.stats.iterations += eq.iterations
+        return eq
+
+    def _recover(
+        self,
+        net: SpringNetwork,
+        pinned: NDArray,
+        clamped: dict[int, float],
+        x0: NDArray | None,
+        first: int,
+        err: EquilibriumError,
+    ) -> Equilibrium:
+        """After a failed relax: trust region from the stalled point, then continuation."""
+        s = self.solver
+        last = err
+        x = None if err.state is None else np.asarray(err.state.positions)
+        problem = Problem.build(net, pinned=pinned, clamped=clamped, clamp="exact")
+        if (
+            s.trust_region
+            and x is not None
+            and np.all(np.isfinite(x))
+            and 0 < problem.free_flat.size <= s.trust_region_max_free
+        ):
+            # a stall at a nearly degenerate equilibrium: follow the exact curvature, polish
+            self.stats.trust_regions += 1
+            y, reached = trust_region(problem, x, force_tol=1e-6 * net.force_scale)
+            if reached:
+                try:
+                    return self._relax_once(net, pinned, clamped, y, 1)
+                except EquilibriumError as e:
+                    last = e
+        for ramp in s.retry_ramps:
+            if ramp <= first:
+                continue
+            self.stats.retries += 1
+            try:
+                return self._relax_once(net, pinned, clamped, x0, ramp)
+            except EquilibriumError as e:
+                last = e
+        raise last
+
+    # -- fast path --------------------------------------------------------------------
+    def _linearise(
+        self, problem: Problem, frame: Frame, x: NDArray, mu: NDArray, key: str
+    ) -> _Linearisation | None:
+        W = lagrangian_hessian(problem, x, mu, frame=frame)
+        factor = frame.factor(W)
+        self.stats.factorisations += 1
+        if factor is None:
+            self._lin.pop(key, None)
+            return None
+        lin = _Linearisation(factor, x, frame)
+        self._lin[key] = lin
+        return lin
+
+    def _chord(
+        self,
+        net: SpringNetwork,
+        pinned: NDArray,
+        clamped: dict[int, float],
+        x: NDArray,
+        key: str,
+    ) -> Equilibrium | None:
+        """Chord SQP from ``x``; None when it fails (the caller then relaxes)."""
+        s = self.solver
+        problem = Problem.build(net, pinned=pinned, clamped=clamped, clamp="exact")
+        lin = self._lin.get(key)
+        if lin is not None and lin.frame.n != int(problem.free_flat.size):
+            lin = None
+        frame = lin.frame if lin is not None else Frame(net, problem.free)
+        clamps = problem.clamp_springs
+        f_tol = s.tol * net.force_scale
+        l_tol = s.tol * float(np.mean(net.rest_length))
+        trace_r: list[float] = []
+        trace_t: list[float] = []
+        t0 = time.perf_counter()
+        fresh = False  # True once this call has built its own factorisation
+        x = x.copy()
+        previous = np.inf
+        for it in range(30):
+            if not np.all(np.isfinite(x)):
+                return None
+            g = frame.take(spring_gradient(x, net.springs, net.stiffness, net.rest_length))
+            if clamps.size:
+                A = frame.rows(net, x, clamps)
+                viol = problem.clamp_violation(x)
+                mu = multipliers(A, g)
+                force = g + A.T @ mu
+            else:
+                viol, mu, force = np.empty(0), np.empty(0), g
+            residual = float(np.max(np.abs(force))) if force.size else 0.0
+            clamp_error = float(np.max(np.abs(viol))) if viol.size else 0.0
+            trace_r.append(residual)
+            trace_t.append(time.perf_counter() - t0)
+            if residual <= f_tol and clamp_error <= l_tol:
+                self.stats.iterations += it
+                return _equilibrium(net, x, residual, clamp_error, mu, it, t0, trace_r, trace_t)
+            measure = max(residual / f_tol, clamp_error / l_tol)
+            if not np.isfinite(measure):
+                return None
+            if fresh and measure >= previous:
+                return None  # even a fresh factorisation does not contract: relax instead
+            if lin is None or (measure > s.refactor_ratio * previous and not fresh):
+                lin = self._linearise(problem, frame, x, mu, key)
+                fresh = True
+                if lin is None:
+                    return None
+            previous = measure
+            z = lin.factor.solve(force)
+            if clamps.size:
+                At, Z = lin.rows_and_columns(net, clamps)
+                step = -z - Z @ np.linalg.solve(At @ Z, viol - At @ z)
+            else:
+                step = -z
+            lin.uses += 1
+            x = x + frame.put(step)
+        return None
+
+
+def _equilibrium(
+    net: SpringNetwork,
+    x: NDArray,
+    residual: float,
+    clamp_error: float,
+    mu: NDArray,
+    iterations: int,
+    t0: float,
+    trace_r: list[float],
+    trace_t: list[float],
+) -> Equilibrium:
+    x = x.copy()
+    x.setflags(write=False)
+    return Equilibrium(
+        positions=x,
+        energy=float(0.5 * np.dot(net.stiffness, (net.lengths(x) - net.rest_length) ** 2)),
+        residual=residual,
+        clamp_error=clamp_error,
+        clamp_force=-np.asarray(mu, dtype=np.float64),  # dE/dl_c, as relax reports it
+        converged=True,
+        iterations=iterations,
+        seconds=time.perf_counter() - t0,
+        method="newton-chord",
+        residual_trace=np.asarray(trace_r),
+        seconds_trace=np.asarray(trace_t),
+    )

@@ -1,0 +1,496 @@
+"""The training loop: ``cvn.train(net, task, rule, steps, ...) -> History``.
+
+Each trial builds its network and task (from callables of a seeded generator, or uses the
+ones given), then repeats ``rule.update`` / ``step.apply`` with warm-started equilibria and
+one :class:`~.states.Tracker` (reused factorisations) per trial, measuring after every
+step (see :mod:`.history` for what is recorded).
+
+Randomness: trial ``i`` uses ``SeedSequence(seeds[i]).spawn(2)``: the first child builds
+the network and the task, the second draws the read-out noise. The same seeds give the
+same history, up to the wall-clock columns.
+
+Checkpoints: with ``checkpoint=path`` the state is written to ``path`` every
+``checkpoint_every`` steps (and when a trial ends); calling ``train`` again with the same
+arguments resumes from it and returns exactly the history an uninterrupted run returns
+(wall-clock columns aside: they carry on from the saved totals). The cached factorisations
+are dropped at every checkpoint in every run, so a resumed run takes the same iterates.
+A finished run's checkpoint is kept and a repeated call just loads it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..network.equilibrium import Equilibrium, EquilibriumError
+from ..network.model import SpringNetwork
+from .history import MEASUREMENTS, UPDATES, History
+from .rules import LearningError, Rule, Step, Warm
+from .states import Tracker
+from .tasks import AllosteryTask
+
+__all__ = ["train"]
+
+NetworkSpec = SpringNetwork | Callable[[np.random.Generator], SpringNetwork]
+TaskSpec = AllosteryTask | Callable[[SpringNetwork, np.random.Generator], AllosteryTask]
+Callback = Callable[[int, int, SpringNetwork], None]
+
+_PER_TARGET = {
+    "target_strain",
+    "target_length",
+    "target_rest_length",
+    "desired_length",
+    "clamp_length",
+}
+_COUNTERS = ("solves", "factorisations", "iterations")
+
+
+def train(
+    net: NetworkSpec,
+    task: TaskSpec,
+    rule: Rule,
+    steps: int,
+    *,
+    seeds: Sequence[int] = (0,),
+    noise: float = 0.0,
+    measure: bool = True,
+    progress: bool = True,
+    checkpoint: str | Path | None = None,
+    checkpoint_every: int = 50,
+    callback: Callback | None = None,
+) -> History:
+    """Train ``net`` on ``task`` with ``rule`` for ``steps`` steps, one trial per seed.
+
+    Parameters
+    ----------
+    net : SpringNetwork or callable ``f(rng) -> SpringNetwork``
+        A callable builds each trial's network from the trial's generator (e.g.
+        ``paper_network``); a network is used as is in every trial.
+    task : AllosteryTask or callable ``f(net, rng) -> AllosteryTask``
+        Likewise (e.g. ``paper_task``).
+    rule : Rule
+        :class:`CoupledLearning`, :class:`ProspectiveConfiguration` or
+        :class:`ExactGradient`.
+    steps : int
+        Learning steps per trial (>= 0).
+    seeds : sequence of int
+        One trial per seed.
+    noise : float
+        Relative read-out noise of the lengths the rule reads (see ``Rule.update``);
+        measurements in the history are noise-free.
+    measure : bool
+        Solve the free state after every step to measure the error even when the rule
+        does not need it (prospective configuration). With False those measurements are
+        NaN and the run does only the rule's own work.
+    progress : bool
+        Show a progress bar (tqdm, imported only when True; none if it is missing).
+    checkpoint : path, optional
+        ``.npz`` file to write the state to and to resume from (see the module).
+    checkpoint_every : int
+        Steps between checkpoints.
+    callback : callable ``f(trial, step, net)``, optional
+        Called after every step with the trial index, the number of steps done and the
+        new network.
+
+    Returns
+    -------
+    History
+
+    A trial whose equilibrium cannot be found or whose step cannot be applied (a rest
+    length reaching 0 without a floor) stops there; its ``completed`` count and
+    ``stop_reason`` say so and its remaining entries are NaN.
+    """
+    if not isinstance(rule, Rule):
+        raise ValueError(f"rule must be a learning Rule, got {type(rule).__name__}")
+    if int(steps) != steps or steps < 0:
+        raise ValueError(f"steps must be an integer >= 0, got {steps}")
+    steps = int(steps)
+    seeds = np.array([int(s) for s in seeds], dtype=np.int64)
+    if seeds.size == 0:
+        raise ValueError("seeds must name at least one trial")
+    if not (np.isfinite(noise) and noise >= 0):
+        raise ValueError(f"noise must be finite and >= 0, got {noise}")
+    if int(checkpoint_every) != checkpoint_every or checkpoint_every < 1:
+        raise ValueError(f"checkpoint_every must be an integer >= 1, got {checkpoint_every}")
+
+    settings = dict(rule.settings())
+    settings.update(steps=steps, noise=float(noise), measure=bool(measure))
+    fingerprint = json.dumps(
+        {"settings": settings, "seeds": seeds.tolist(), "every": int(checkpoint_every)},
+        sort_keys=True,
+        default=str,
+    )
+    state = _Checkpoint.open(checkpoint, fingerprint)
+    if state.finished(len(seeds)):
+        return state.history(settings, steps, seeds)
+
+    bar = _progress_bar(progress, len(seeds) * steps, state.steps_done(steps))
+    try:
+        for i, seed in enumerate(seeds):
+            if i < state.trial:
+                continue
+            _run_trial(
+                i, int(seed), net, task, rule, steps, float(noise), measure, state,
+                int(checkpoint_every), callback, bar,
+            )
+    finally:
+        if bar is not None:
+            bar.close()
+    return state.history(settings, steps, seeds)
+
+
+# -- one trial --------------------------------------------------------------------------
+def _build(seed: int, net: NetworkSpec, task: TaskSpec):
+    build_ss, noise_ss = np.random.SeedSequence(seed).spawn(2)
+    build_rng = np.random.default_rng(build_ss)
+    net0 = net(build_rng) if callable(net) else net
+    if not isinstance(net0, SpringNetwork):
+        raise ValueError(f"net must be a SpringNetwork or build one, got {type(net0).__name__}")
+    task0 = task(net0, build_rng) if callable(task) else task
+    if not isinstance(task0, AllosteryTask):
+        raise ValueError(f"task must be an AllosteryTask or build one, got {type(task0).__name__}")
+    task0.check(net0)
+    return net0, task0, np.random.default_rng(noise_ss)
+
+
+def _run_trial(
+    i: int,
+    seed: int,
+    net: NetworkSpec,
+    task: TaskSpec,
+    rule: Rule,
+    steps: int,
+    noise: float,
+    measure: bool,
+    state: _Checkpoint,
+    every: int,
+    callback: Callback | None,
+    bar,
+) -> None:
+    net0, task0, noise_rng = _build(seed, net, task)
+    rec = state.start_trial(i, net0, task0, noise_rng, steps)
+    cur = state.current_network(net0)
+    warm = state.warm
+    tracker = Tracker(rule.solver)
+    mask = rule.learning_mask(net0, task0)
+    t_start = time.perf_counter() - state.seconds
+    measure_seconds = state.measure_seconds
+    base = dict(state.counters)
+
+    def counters() -> dict[str, float]:
+        s = tracker.stats
+        return {
+            "solves": base["solves"] + s.solves,
+            "factorisations": base["factorisations"] + s.factorisations,
+            "iterations": base["iterations"] + s.iterations,
+        }
+
+    def measure_free(cur: SpringNetwork, warm: Warm) -> Equilibrium | None:
+        nonlocal measure_seconds
+        if not measure:
+            return None
+        t0 = time.perf_counter()
+        clamps = task0.source_clamps(cur, rule.strain_reference)
+        eq = tracker.solve(cur, task0.pinned, clamps, warm.free, key="free")
+        measure_seconds += time.perf_counter() - t0
+        return eq
+
+    t = state.step
+    reason = ""
+    try:
+        while t < steps:
+            step = rule.update(cur, task0, warm=warm, tracker=tracker, noise=noise, rng=noise_rng)
+            free = step.free if step.free is not None else measure_free(cur, warm)
+            _record_update(rec, t, step, cur, rule, mask)
+            _record_measure(rec, t, cur, task0, rule, free, mask)
+            _record_time(rec, t, time.perf_counter() - t_start, measure_seconds, counters())
+            nxt = step.apply(cur)
+            warm = Warm(
+                free=free.positions if free is not None else warm.free,
+                clamped=step.warm.clamped if step.clamped is not None else warm.clamped,
+            )
+            cur = nxt
+            t += 1
+            if bar is not None:
+                bar.update(1)
+            if callback is not None:
+                callback(i, t, cur)
+            if t % every == 0 and t < steps:
+                tracker.forget()
+                state.save_progress(
+                    i, t, cur, warm, noise_rng, rec, time.perf_counter() - t_start,
+                    measure_seconds, counters(),
+                )
+        free = measure_free(cur, warm)
+        _record_measure(rec, steps, cur, task0, rule, free, mask)
+        _record_time(rec, steps, time.perf_counter() - t_start, measure_seconds, counters())
+    except (EquilibriumError, LearningError) as err:
+        reason = f"step {t}: {type(err).__name__}: {err}"
+    if bar is not None and t < steps:
+        bar.update(steps - t)
+    state.finish_trial(i, t, reason, cur, rec)
+
+
+def _energy_gradient(net: SpringNetwork, x: NDArray, dof: str, mask: NDArray) -> float:
+    dr = net.lengths(x) - net.rest_length
+    g = -net.stiffness * dr if dof == "rest_length" else 0.5 * dr**2
+    return float(np.linalg.norm(g[mask]))
+
+
+def _record_measure(rec, t, net, task, rule, free, mask) -> None:
+    ref = rule.strain_reference
+    rec["target_rest_length"][t] = net.rest_length[task.targets]
+    rec["desired_length"][t] = task.desired_lengths(net, ref)
+    if free is None:
+        return
+    x = free.positions
+    r_t = net.lengths(x)[task.targets]
+    rec["target_length"][t] = r_t
+    rec["target_strain"][t] = task.target_strains(net, r_t, ref)
+    rec["error"][t] = task.error(net, x, ref)
+    rec["error_current"][t] = task.error(net, x, "current")
+    rec["error_initial"][t] = task.error(net, x, "initial")
+    rec["energy_free"][t] = free.energy
+    rec["energy_gradient_free"][t] = _energy_gradient(net, x, rule.dof, mask)
+    rec["residual"][t] = free.residual
+
+
+def _record_update(rec, t, step: Step, net, rule, mask) -> None:
+    rec["update_norm"][t] = float(np.linalg.norm(step.delta))
+    if step.clamped is not None:
+        rec["energy_clamped"][t] = step.clamped.energy
+        rec["energy_gradient_clamped"][t] = _energy_gradient(
+            net, step.clamped.positions, rule.dof, mask
+        )
+    if step.clamp_lengths is not None:
+        rec["clamp_length"][t] = step.clamp_lengths
+
+
+def _record_time(rec, t, seconds, measure_seconds, counters) -> None:
+    rec["seconds"][t] = seconds
+    rec["measure_seconds"][t] = measure_seconds
+    for name in _COUNTERS:
+        rec[name][t] = counters[name]
+
+
+def _new_record(steps: int, n_targets: int) -> dict[str, NDArray]:
+    rec = {}
+    for names, length in ((MEASUREMENTS, steps + 1), (UPDATES, steps)):
+        for name in names:
+            shape = (length, n_targets) if name in _PER_TARGET else (length,)
+            rec[name] = np.full(shape, np.nan)
+    return rec
+
+
+def _progress_bar(progress: bool, total: int, done: int):
+    if not progress or total == 0:
+        return None
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:  # progress bars are optional
+        return None
+    return tqdm(total=total, initial=done, desc="train", unit="step")
+
+
+def _digest(net: SpringNetwork) -> str:
+    h = hashlib.sha1()
+    for a in (net.positions, net.springs, net.stiffness, net.rest_length):
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.hexdigest()
+
+
+# -- state of a run (and its checkpoint file) -----------------------------------------------
+class _Checkpoint:
+    """Completed trials plus the progress of the current one; optionally on disk."""
+
+    def __init__(self, path: Path | None, fingerprint: str) -> None:
+        self.path = path
+        self.fingerprint = fingerprint
+        self.trial = 0  # index of the trial in progress
+        self.step = 0
+        self.records: list[dict[str, NDArray]] = []
+        self.completed: list[int] = []
+        self.reasons: list[str] = []
+        self.initial: list[SpringNetwork] = []
+        self.final: list[SpringNetwork] = []
+        self.tasks: list[AllosteryTask] = []
+        self.digests: list[str] = []
+        self._resume: dict | None = None  # saved state of the trial in progress
+        self.warm = Warm()
+        self.seconds = 0.0
+        self.measure_seconds = 0.0
+        self.counters = dict.fromkeys(_COUNTERS, 0)
+
+    # -- opening ----------------------------------------------------------------------
+    @classmethod
+    def open(cls, path: str | Path | None, fingerprint: str) -> _Checkpoint:
+        state = cls(None if path is None else Path(path), fingerprint)
+        if state.path is not None and state.path.exists():
+            state._load()
+        return state
+
+    def finished(self, n_trials: int) -> bool:
+        return len(self.completed) == n_trials
+
+    def steps_done(self, steps: int) -> int:
+        return len(self.completed) * steps + (self._resume or {}).get("step", 0)
+
+    # -- trials -----------------------------------------------------------------------
+    def start_trial(self, i, net0, task0, noise_rng, steps) -> dict[str, NDArray]:
+        digest = _digest(net0)
+        if self._resume is not None:
+            if self._resume["digest"] != digest:
+                raise ValueError(
+                    f"checkpoint {self.path} was written for a different network in trial {i}"
+                )
+            noise_rng.bit_generator.state = self._resume["rng"]
+            rec = self._resume["record"]
+            self.step = self._resume["step"]
+            self.warm = self._resume["warm"]
+            self.seconds = self._resume["seconds"]
+            self.measure_seconds = self._resume["measure_seconds"]
+            self.counters = self._resume["counters"]
+        else:
+            rec = _new_record(steps, task0.n_targets)
+            self.step = 0
+            self.warm = Warm()
+            self.seconds = self.measure_seconds = 0.0
+            self.counters = dict.fromkeys(_COUNTERS, 0)
+        self._current = (net0, task0, digest)
+        return rec
+
+    def current_network(self, net0: SpringNetwork) -> SpringNetwork:
+        if self._resume is None:
+            return net0
+        cur = net0.with_rest_length(self._resume["rest_length"]).with_stiffness(
+            self._resume["stiffness"]
+        )
+        self._resume = None
+        return cur
+
+    def save_progress(self, i, t, cur, warm, rng, rec, seconds, measure_seconds, counters):
+        if self.path is None:
+            return
+        arrays = {
+            f"cur/{k}": v for k, v in rec.items()
+        }
+        arrays["cur/rest_length"] = cur.rest_length
+        arrays["cur/stiffness"] = cur.stiffness
+        if warm.free is not None:
+            arrays["cur/warm_free"] = np.asarray(warm.free)
+        if warm.clamped is not None:
+            arrays["cur/warm_clamped"] = np.asarray(warm.clamped)
+        progress = {
+            "trial": i,
+            "step": t,
+            "digest": self._current[2],
+            "rng": rng.bit_generator.state,
+            "seconds": seconds,
+            "measure_seconds": measure_seconds,
+            "counters": {k: int(v) for k, v in counters.items()},
+        }
+        self._write(arrays, progress)
+
+    def finish_trial(self, i, t, reason, cur, rec) -> None:
+        net0, task0, digest = self._current
+        self.records.append(rec)
+        self.completed.append(t)
+        self.reasons.append(reason)
+        self.initial.append(net0)
+        self.final.append(cur)
+        self.tasks.append(task0)
+        self.digests.append(digest)
+        self.trial = i + 1
+        self._write({}, None)
+
+    def history(self, settings, steps, seeds) -> History:
+        data = {name: np.stack([r[name] for r in self.records]) for name in self.records[0]}
+        return History(
+            steps=steps,
+            seeds=seeds.copy(),
+            completed=np.array(self.completed, dtype=np.int64),
+            stop_reason=tuple(self.reasons),
+            settings=settings,
+            data=data,
+            initial=tuple(self.initial),
+            final=tuple(self.final),
+            tasks=tuple(self.tasks),
+        )
+
+    # -- disk -------------------------------------------------------------------------
+    def _write(self, current: dict[str, NDArray], progress: dict | None) -> None:
+        if self.path is None:
+            return
+        from .history import _net_arrays, _task_arrays
+
+        arrays = dict(current)
+        for j, rec in enumerate(self.records):
+            arrays.update({f"rec/{j}/{k}": v for k, v in rec.items()})
+            arrays.update(_net_arrays(f"initial/{j}", self.initial[j]))
+            arrays.update(_net_arrays(f"final/{j}", self.final[j]))
+            arrays.update(_task_arrays(f"task/{j}", self.tasks[j]))
+        meta = {
+            "fingerprint": self.fingerprint,
+            "completed": self.completed,
+            "reasons": self.reasons,
+            "digests": self.digests,
+            "progress": progress,
+        }
+        arrays["meta"] = np.array(json.dumps(meta))
+        tmp = self.path.with_name(self.path.name + ".tmp")
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, self.path)
+
+    def _load(self) -> None:
+        from .history import _net_from, _task_from
+
+        with np.load(self.path, allow_pickle=False) as z:
+            files = {k: z[k] for k in z.files}
+        meta = json.loads(str(files["meta"]))
+        if meta["fingerprint"] != self.fingerprint:
+            raise ValueError(
+                f"checkpoint {self.path} belongs to a different run (rule, steps, seeds, noise "
+                f"or checkpoint_every differ); remove it or pass another path"
+            )
+        n = len(meta["completed"])
+        self.completed = list(meta["completed"])
+        self.reasons = list(meta["reasons"])
+        self.digests = list(meta["digests"])
+        for j in range(n):
+            prefix = f"rec/{j}/"
+            self.records.append(
+                {k[len(prefix):]: v.copy() for k, v in files.items() if k.startswith(prefix)}
+            )
+            self.initial.append(_net_from(files, f"initial/{j}"))
+            self.final.append(_net_from(files, f"final/{j}"))
+            self.tasks.append(_task_from(files, f"task/{j}"))
+        self.trial = n
+        progress = meta["progress"]
+        if progress is not None:
+            self._resume = {
+                "step": int(progress["step"]),
+                "digest": progress["digest"],
+                "rng": progress["rng"],
+                "seconds": float(progress["seconds"]),
+                "measure_seconds": float(progress["measure_seconds"]),
+                "counters": progress["counters"],
+                "record": {
+                    k[4:]: v.copy()
+                    for k, v in files.items()
+                    if k.startswith("cur/")
+                    and k[4:] not in ("rest_length", "stiffness", "warm_free", "warm_clamped")
+                },
+                "rest_length": files["cur/rest_length"],
+                "stiffness": files["cur/stiffness"],
+                "warm": Warm(
+                    free=files.get("cur/warm_free"), clamped=files.get("cur/warm_clamped")
+                ),
+            }
