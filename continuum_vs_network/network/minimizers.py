@@ -1,0 +1,521 @@
+"""First-order equilibrium methods: FIRE, L-BFGS and the seed paper's Adagrad.
+
+Each method has the signature of :data:`~.equilibrium.METHODS`:
+``f(problem, x, stop, trace) -> Outcome`` and is judged by the same residual as Newton
+(:meth:`~.constraints.Problem.residual`, the largest net force on a free coordinate after the
+clamp-normal components are removed) and the same clamp error ``max |r_c - l_c|``.
+
+Exact clamps (``problem.exact``) are handled by FIRE and L-BFGS with an augmented
+Lagrangian outer loop: the inner method minimises, over the free coordinates,
+
+    L(x) = E(x) + lam . (r - l) + rho / 2 |r - l|^2
+
+and then the multipliers are updated, ``lam += rho (r - l)``. ``rho = 10 max(k)``: the clamp
+is stiffer than any spring, so each outer step cuts the clamp error ~5-fold, while FIRE's
+stable step shrinks only ~1.5-fold. ``lam`` starts at the least-squares clamp tension of
+the starting point. Each inner solve stops at ``max |grad L| <= 1e-3 rho max|r - l|``
+(an inner gradient error well below the coming multiplier change; looser inner solves let
+the clamp error stall), tightened to half the force tolerance once the clamp error is
+met. ``rho`` grows 4-fold only when tight inner solves still halve the clamp error no
+faster. With rods (``problem.clamp == "rod"``) or no clamps the methods minimise
+``problem.energy`` directly.
+
+``paper_adagrad`` is the seed paper's method (PyTorch Adagrad, learning rate 0.1, rod
+clamps of stiffness 1e10) kept as a baseline; it is not tuned. It typically stalls far from
+equilibrium because the rods make the problem extremely ill-conditioned.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .constraints import Problem
+from .energy import spring_gradient
+from .equilibrium import Outcome, StopRule, Trace
+
+__all__ = ["fire", "lbfgs", "paper_adagrad"]
+
+# FIRE parameters of Bitzek et al., PRL 97, 170201 (2006)
+_N_MIN = 5
+_F_INC = 1.1
+_F_DEC = 0.5
+_ALPHA_START = 0.1
+_F_ALPHA = 0.99
+
+_RHO_FACTOR = 10.0  # initial augmented-Lagrangian penalty, in units of max(k)
+_RHO_GROWTH = 4.0
+_RHO_MAX_FACTOR = 1e4
+_MAX_OUTER = 60
+_INNER_FRACTION = 1e-3
+_DT_FACTOR = 1.4  # dt_max = _DT_FACTOR / sqrt(Gershgorin bound); see _fire_dt_max
+_RECORD_EVERY = 10
+_PAPER_LR = 0.1
+
+
+# -- the shared objective: energy, augmented clamp terms, residual --------------------------
+class _Objective:
+    """Energy (plus augmented-Lagrangian clamp terms in exact mode) and the stop test.
+
+    ``grad(x)`` takes full (n_nodes, 2) positions and returns the full (n_nodes, 2)
+    gradient (pinned entries are not zeroed; callers read free coordinates).
+    ``check(x, G)`` returns ``(residual, clamp_error)`` exactly as
+    :meth:`Problem.residual` defines them, from any gradient ``G`` that differs from
+    ``grad E`` by clamp-normal terms only (the projection removes them), at O(n) cost.
+    """
+
+    def __init__(self, problem: Problem) -> None:
+        self.problem = problem
+        self.springs, self.k, self.L = problem.all_springs()
+        self.free_flat = problem.free_flat
+        self.augmented = problem.exact
+        m = problem.n_clamps
+        self.lam = np.zeros(m)
+        self.rho = 0.0
+        self.ends = problem.net.springs[problem.clamp_springs]  # (m, 2)
+        # coordinates touched by clamps, restricted to free ones, for the projection
+        coords = np.stack([2 * self.ends, 2 * self.ends + 1], axis=2).reshape(m, 4)
+        free = np.zeros(2 * problem.net.n_nodes, dtype=bool)
+        free[self.free_flat] = True
+        self.touched = np.unique(coords[free[coords]]) if m else np.empty(0, np.int64)
+        other = free.copy()
+        other[self.touched] = False
+        self.other = np.flatnonzero(other)
+        # where each clamp's four coordinates (ax, ay, bx, by) sit among the touched ones
+        pos = np.searchsorted(self.touched, coords)
+        hit = self.touched[np.minimum(pos, max(self.touched.size - 1, 0))] == coords \
+            if self.touched.size else np.zeros(coords.shape, dtype=bool)
+        self._jac_rows = np.broadcast_to(np.arange(m)[:, None], (m, 4))[hit]
+        self._jac_cols = pos[hit]
+        self._jac_hit = hit
+
+    # geometry of the clamped springs
+    def _clamp_geometry(self, x: NDArray) -> tuple[NDArray, NDArray]:
+        d = x[self.ends[:, 1]] - x[self.ends[:, 0]]
+        r = np.hypot(d[:, 0], d[:, 1])
+        return d / np.maximum(r, 1e-300)[:, None], r
+
+    def violation(self, x: NDArray) -> NDArray:
+        if not self.ends.size:
+            return np.empty(0)
+        _, r = self._clamp_geometry(x)
+        return r - self.problem.clamp_lengths
+
+    def _add_clamp_terms(self, x: NDArray, G: NDArray) -> None:
+        """Add ``A^T (lam + rho c)``, the gradient of ``lam.c + rho/2 |c|^2``, to ``G``."""
+        u, r = self._clamp_geometry(x)
+        c = r - self.problem.clamp_lengths
+        t = (self.lam + self.rho * c)[:, None] * u
+        np.add.at(G, self.ends[:, 1], t)
+        np.add.at(G, self.ends[:, 0], -t)
+
+    def grad(self, x: NDArray) -> NDArray:
+        G = spring_gradient(x, self.springs, self.k, self.L)
+        if self.augmented:
+            self._add_clamp_terms(x, G)
+        return G
+
+    def reference(self, x: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """What :meth:`value_change` needs about a reference point ``x``."""
+        x = x.copy()
+        d = x[self.springs[:, 1]] - x[self.springs[:, 0]]
+        dc = x[self.ends[:, 1]] - x[self.ends[:, 0]]
+        return x, d, np.hypot(d[:, 0], d[:, 1]), np.hypot(dc[:, 0], dc[:, 1])
+
+    def value_change(self, x: NDArray, ref: tuple) -> float:
+        """The objective at ``x`` minus its value at ``ref``, free of cancellation.
+
+        A length change is ``r - r0 = (d - d0).(d + d0) / (r + r0)`` with ``d - d0`` taken
+        from the displacements ``x - x0``, and ``(r - L)^2 - (r0 - L)^2 = (r - r0)
+        (r + r0 - 2 L)``, so the round-off is relative to the change, not to ``E``. Energy
+        differences near a minimum are ~ residual^2 / k; computed as ``E(x) - E(x0)`` they
+        drown in ``eps E`` below a residual ~ sqrt(eps E k) (~1e-9 F here), which stalls
+        line searches before 1e-10.
+        """
+        x0, d0, r0, rc0 = ref
+        u = x - x0
+        s = self.springs
+        d = x[s[:, 1]] - x[s[:, 0]]
+        r = np.hypot(d[:, 0], d[:, 1])
+        du = u[s[:, 1]] - u[s[:, 0]]
+        dr = np.einsum("ij,ij->i", du, d + d0) / np.maximum(r + r0, 1e-300)
+        change = float(0.5 * np.dot(self.k, dr * (r + r0 - 2.0 * self.L)))
+        if self.augmented:
+            e = self.ends
+            dc = x[e[:, 1]] - x[e[:, 0]]
+            rc = np.hypot(dc[:, 0], dc[:, 1])
+            duc = u[e[:, 1]] - u[e[:, 0]]
+            drc = np.einsum("ij,ij->i", duc, dc + (x0[e[:, 1]] - x0[e[:, 0]]))
+            drc = drc / np.maximum(rc + rc0, 1e-300)
+            c_sum = rc + rc0 - 2.0 * self.problem.clamp_lengths
+            change += float(self.lam @ drc + 0.5 * self.rho * (drc @ c_sum))
+        return change
+
+    def check(self, x: NDArray, G: NDArray) -> tuple[float, float]:
+        """``(residual, clamp_error)`` of ``x`` given its gradient ``G`` (n_nodes, 2)."""
+        g = G.ravel()
+        rest = float(np.max(np.abs(g[self.other]))) if self.other.size else 0.0
+        if not self.ends.size:
+            return rest, 0.0
+        u, r = self._clamp_geometry(x)
+        near = 0.0
+        if self.touched.size:
+            # dense clamp Jacobian on the touched free coordinates: rows [-u, +u]
+            A = np.zeros((self.ends.shape[0], self.touched.size))
+            vals = np.concatenate([-u, u], axis=1)  # (m, 4), order ax, ay, bx, by
+            np.add.at(A, (self._jac_rows, self._jac_cols), vals[self._jac_hit])
+            gs = g[self.touched]
+            mu = -np.linalg.lstsq(A @ A.T, A @ gs, rcond=None)[0]
+            near = float(np.max(np.abs(gs + A.T @ mu)))
+        clamp_error = float(np.max(np.abs(r - self.problem.clamp_lengths)))
+        return max(rest, near), clamp_error
+
+    def multipliers(self, x: NDArray, G: NDArray) -> NDArray:
+        """Least-squares clamp tensions ``mu`` at ``x`` (the sign convention of ``lam``)."""
+        A = self.problem.clamp_jacobian(x)
+        g = G.ravel()[self.free_flat]
+        return -np.linalg.lstsq((A @ A.T).toarray(), A @ g, rcond=None)[0]
+
+    def hessian_bound(self, x: NDArray) -> float:
+        """Gershgorin bound on the largest eigenvalue of the Hessian of the objective.
+
+        Each spring's 2x2 Hessian block has eigenvalues ``k`` and ``k (1 - L/r)``, so its
+        norm is at most ``k max(1, |1 - L/r|)``; block Gershgorin gives
+        ``lambda_max <= 2 max_nodes sum_incident k max(1, |1 - L/r|)``. Augmented clamps add
+        ``rho + |lam| / r`` to the stiffness of their spring.
+        """
+        d = x[self.springs[:, 1]] - x[self.springs[:, 0]]
+        r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
+        w = self.k * np.maximum(1.0, np.abs(1.0 - self.L / r))
+        n = x.shape[0]
+        node = np.bincount(self.springs[:, 0], w, n) + np.bincount(self.springs[:, 1], w, n)
+        if self.augmented:
+            _, rc = self._clamp_geometry(x)
+            wc = self.rho + np.abs(self.lam) / np.maximum(rc, 1e-300)
+            node += np.bincount(self.ends[:, 0], wc, n) + np.bincount(self.ends[:, 1], wc, n)
+        return float(2.0 * np.max(node)) if n else 0.0
+
+
+@dataclass
+class _Inner:
+    """What an inner minimisation returns to the outer loop."""
+
+    x: NDArray
+    iterations: int
+    status: str  # "stop" (stop rule met), "tol" (inner tolerance met), "budget", "failed"
+    message: str = ""
+
+
+Inner = Callable[[_Objective, NDArray, float, StopRule, Trace, int], _Inner]
+
+
+def _minimise(problem: Problem, x: NDArray, stop: StopRule, trace: Trace, inner: Inner) -> Outcome:
+    """Run ``inner`` directly, or inside the augmented-Lagrangian loop for exact clamps."""
+    obj = _Objective(problem)
+    x = np.array(x, dtype=np.float64)
+    if not obj.augmented:
+        res = inner(obj, x, 0.0, stop, trace, stop.max_iter)
+        return Outcome(res.x, res.iterations, res.status == "stop", res.message)
+
+    kmax = float(np.max(problem.net.stiffness)) if problem.net.n_springs else 1.0
+    kmax = kmax if kmax > 0 else 1.0
+    obj.rho = _RHO_FACTOR * kmax
+    obj.lam = obj.multipliers(x, spring_gradient(x, obj.springs, obj.k, obj.L))
+    force_scale = problem.net.force_scale
+    inner_tol = max(0.5 * stop.force, 1e-3 * force_scale)
+    iterations = 0
+    c_prev = np.inf
+    for _ in range(_MAX_OUTER):
+        res = inner(obj, x, inner_tol, stop, trace, stop.max_iter - iterations)
+        x, iterations = res.x, iterations + res.iterations
+        if res.status == "stop":
+            return Outcome(x, iterations, True)
+        if res.status in ("budget", "failed"):
+            return Outcome(x, iterations, False, res.message)
+        c = obj.violation(x)
+        c_err = float(np.max(np.abs(c)))
+        obj.lam = obj.lam + obj.rho * c
+        tight = inner_tol <= 0.5 * stop.force
+        if tight and c_err > 0.5 * c_prev and obj.rho < _RHO_MAX_FACTOR * kmax:
+            obj.rho *= _RHO_GROWTH  # exact inner solves and still slow: stiffen the clamp
+        c_prev = c_err
+        # the inner gradient error must be well below the coming multiplier change rho c
+        inner_tol = max(0.5 * stop.force, min(inner_tol, _INNER_FRACTION * obj.rho * c_err))
+        if c_err <= stop.length:
+            inner_tol = 0.5 * stop.force
+    message = f"augmented Lagrangian: no convergence in {_MAX_OUTER} outer steps"
+    return Outcome(x, iterations, False, message)
+
+
+# -- FIRE -----------------------------------------------------------------------------------
+def _fire_dt_max(obj: _Objective, x: NDArray) -> float:
+    """FIRE's largest time step at ``x``: ``1.4 / sqrt(bound)`` (unit masses).
+
+    The explicit (semi-implicit Euler) step is stable for ``dt < 2 / sqrt(lambda_max)``, and
+    ``lambda_max`` is at most the Gershgorin ``bound`` of :meth:`_Objective.hessian_bound`
+    (``2 max_nodes sum_incident k`` for springs near their rest lengths, with augmented
+    clamps adding ``rho`` to their spring). At ``2 / sqrt(bound)`` itself a stiff, localised
+    mode (a clamp penalty, a rod), for which the bound is nearly tight, sits at the edge of
+    stability: its undamped period-2 oscillation dominates the power ``F.V`` and FIRE resets
+    every ~10 steps (a 32x32 lattice with one clamp did not converge in 20000 iterations).
+    With the factor 1.4 (about sqrt 2) it converges in ~4000; 1.0 costs ~25% more, 1.7 ~5%
+    less. Rods of stiffness 1e10 enter the bound and make FIRE's steps tiny.
+    """
+    return _DT_FACTOR / np.sqrt(max(obj.hessian_bound(x), 1e-300))
+
+
+@dataclass
+class _FireStats:
+    """Diagnostics of one FIRE run: velocity resets (``P = F.V <= 0``) and where the first was."""
+
+    resets: int = 0
+    first_reset_x: NDArray | None = None
+
+
+def _fire_inner(
+    obj: _Objective,
+    x: NDArray,
+    tol: float,
+    stop: StopRule,
+    trace: Trace,
+    budget: int,
+    stats: _FireStats | None = None,
+) -> _Inner:
+    """FIRE (Bitzek et al. 2006) with semi-implicit Euler steps and unit masses.
+
+    Stops when the stop rule is met (``status="stop"``) or, for the augmented inner
+    problem, when ``max |grad L| <= tol`` on free coordinates (``status="tol"``).
+    """
+    free = obj.free_flat
+    x = x.copy()
+    flat = x.ravel()  # view: writing flat[free] moves x
+    y = flat[free].copy()
+    v = np.zeros_like(y)
+    dt_max = _fire_dt_max(obj, x)
+    dt = 0.1 * dt_max
+    alpha = _ALPHA_START
+    n_pos = 0
+    moving = False
+    residual = np.inf
+    for it in range(budget + 1):
+        G = obj.grad(x)
+        g = G.ravel()[free]
+        residual, clamp_error = obj.check(x, G)
+        if not np.isfinite(residual):
+            trace.record(residual)
+            return _Inner(x, it, "failed", "FIRE: forces became non-finite")
+        if stop.met(residual, clamp_error):
+            trace.record(residual)
+            return _Inner(x, it, "stop")
+        if tol > 0 and float(np.max(np.abs(g))) <= tol:
+            trace.record(residual)
+            return _Inner(x, it, "tol")
+        if it % _RECORD_EVERY == 0:
+            trace.record(residual)
+        if it == budget:
+            break
+        if trace.elapsed() > stop.max_seconds:
+            trace.record(residual)
+            return _Inner(x, it, "budget", f"FIRE: time budget of {stop.max_seconds:g} s exceeded")
+
+        F = -g
+        P = float(F @ v)  # power: force dot velocity
+        if P > 0.0:
+            fn = float(np.linalg.norm(F))
+            v = (1.0 - alpha) * v + (alpha * float(np.linalg.norm(v)) / fn) * F
+            if n_pos > _N_MIN:
+                dt = min(dt * _F_INC, dt_max)
+                alpha *= _F_ALPHA
+            n_pos += 1
+        elif moving:  # uphill (or stopped): freeze, shrink the step, restart the mixing
+            if stats is not None:
+                stats.resets += 1
+                if stats.first_reset_x is None:
+                    stats.first_reset_x = x.copy()
+            n_pos = 0
+            dt *= _F_DEC
+            alpha = _ALPHA_START
+            v[:] = 0.0
+        v += dt * F
+        y += dt * v
+        flat[free] = y
+        moving = True
+    trace.record(residual)
+    return _Inner(x, budget, "budget", f"FIRE: no convergence in {stop.max_iter} iterations")
+
+
+def fire(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
+    """FIRE minimisation of ``problem`` from ``x`` (n_nodes, 2).
+
+    Standard parameters (Bitzek et al. 2006): ``dt_start = 0.1 dt_max``, ``N_min = 5``,
+    ``f_inc = 1.1``, ``f_dec = 0.5``, ``alpha_start = 0.1``, ``f_alpha = 0.99``, power
+    ``P = F . V``, unit masses; ``dt_max = 1.4 / sqrt(bound)`` from the Gershgorin bound on
+    the Hessian's largest eigenvalue (``2 max_nodes sum_incident k``; see ``_fire_dt_max``).
+    Exact clamps by the augmented Lagrangian of the module docstring.
+    """
+    return _minimise(problem, x, stop, trace, _fire_inner)
+
+
+# -- L-BFGS ---------------------------------------------------------------------------------
+def _one_blas_thread():
+    """Pin BLAS to one thread (multithreaded OpenBLAS slows L-BFGS-B's tiny products)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+class _StopNow(Exception):
+    pass
+
+
+def _lbfgs_inner(
+    obj: _Objective, x: NDArray, tol: float, stop: StopRule, trace: Trace, budget: int
+) -> _Inner:
+    """scipy's L-BFGS-B on the free coordinates, restarted when its line search stalls."""
+    from scipy.optimize import minimize
+
+    free = obj.free_flat
+    x = x.copy()
+    flat = x.ravel()
+    cache: dict = {}
+    done = {"iterations": 0, "status": "", "message": ""}
+
+    def fun(y: NDArray) -> tuple[float, NDArray]:
+        flat[free] = y
+        e, G = obj.value_change(x, ref), obj.grad(x)
+        cache["y"], cache["G"] = y.copy(), G
+        return e, G.ravel()[free]
+
+    def test(y: NDArray, step: bool) -> None:
+        if "y" not in cache or not np.array_equal(cache["y"], y):
+            fun(y)
+        flat[free] = y
+        residual, clamp_error = obj.check(x, cache["G"])
+        done["iterations"] += int(step)
+        it = done["iterations"]
+        final = False
+        if not np.isfinite(residual):
+            done.update(status="failed", message="L-BFGS: forces became non-finite")
+            final = True
+        elif stop.met(residual, clamp_error):
+            done["status"] = "stop"
+            final = True
+        elif tol > 0 and float(np.max(np.abs(cache["G"].ravel()[free]))) <= tol:
+            done["status"] = "tol"
+            final = True
+        elif trace.elapsed() > stop.max_seconds:
+            message = f"L-BFGS: time budget of {stop.max_seconds:g} s exceeded"
+            done.update(status="budget", message=message)
+            final = True
+        elif it >= budget:
+            message = f"L-BFGS: no convergence in {stop.max_iter} iterations"
+            done.update(status="budget", message=message)
+            final = True
+        if final or not step or it % _RECORD_EVERY == 0:
+            trace.record(residual)
+        if final:
+            raise _StopNow
+
+    def callback(intermediate_result) -> None:
+        test(np.asarray(intermediate_result.x), True)
+
+    y = flat[free].copy()
+    ref = obj.reference(x)
+    stalls = 0
+    with _one_blas_thread():
+        try:
+            test(y, False)  # the starting point may already satisfy the stop rule
+            while True:
+                start_iterations = done["iterations"]
+                flat[free] = y
+                ref = obj.reference(x)  # energies are measured from the restart point
+                res = minimize(
+                    fun, y, jac=True, method="L-BFGS-B", callback=callback,
+                    options={"maxiter": max(budget - done["iterations"], 1), "maxcor": 10,
+                             "gtol": 0.0, "ftol": 0.0, "maxfun": 20 * budget + 100},
+                )
+                y = np.asarray(res.x)
+                # scipy stopped by itself (line search at round-off): restart with fresh memory
+                test(y, False)
+                stalls = stalls + 1 if done["iterations"] - start_iterations <= 2 else 0
+                if stalls >= 3:
+                    done.update(status="failed", message=f"L-BFGS: stalled ({res.message})")
+                    raise _StopNow
+        except _StopNow:
+            pass
+    return _Inner(x, done["iterations"], done["status"], done["message"])
+
+
+def lbfgs(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
+    """L-BFGS-B (scipy, memory 10) on the free coordinates of ``problem`` from ``x``.
+
+    ``gtol`` and ``ftol`` are zero so that scipy never stops before the stop rule; our own
+    test runs in the callback after every iteration. When scipy's line search stalls at
+    round-off the method restarts with fresh memory, and reports failure after three
+    restarts without progress. BLAS is pinned to one thread when ``threadpoolctl`` is
+    installed. Exact clamps by the augmented Lagrangian of the module docstring.
+    """
+    return _minimise(problem, x, stop, trace, _lbfgs_inner)
+
+
+# -- the seed paper's method ----------------------------------------------------------------
+def paper_adagrad(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
+    """The seed paper's equilibrium method: PyTorch Adagrad, learning rate 0.1, float64.
+
+    Minimises the total energy with rod clamps (``problem.clamp == "rod"``; ``relax`` forces
+    it for ``method="paper"``) over the free coordinates, one Adagrad step per iteration,
+    until the stop rule, ``stop.max_iter`` or ``stop.max_seconds``. Kept untuned as a
+    baseline: it stalls far from equilibrium on stiff (rod) problems.
+    """
+    import torch
+
+    if problem.exact:
+        raise ValueError("paper_adagrad needs rod clamps (problem.clamp == 'rod')")
+    obj = _Objective(problem)
+    free = obj.free_flat
+    x = np.array(x, dtype=np.float64)
+    springs = torch.as_tensor(obj.springs, dtype=torch.int64)
+    a, b = springs[:, 0], springs[:, 1]
+    k = torch.as_tensor(obj.k, dtype=torch.float64)
+    L = torch.as_tensor(obj.L, dtype=torch.float64)
+    base = torch.as_tensor(x.ravel().copy(), dtype=torch.float64)
+    free_t = torch.as_tensor(free, dtype=torch.int64)
+    p = torch.nn.Parameter(base[free_t].clone())
+    opt = torch.optim.Adagrad([p], lr=_PAPER_LR)
+    G = np.zeros_like(x)
+    residual = np.inf
+    for it in range(stop.max_iter + 1):
+        opt.zero_grad()
+        pos = base.index_put((free_t,), p).view(-1, 2)
+        d = pos[b] - pos[a]
+        r = torch.sqrt((d * d).sum(dim=1))
+        energy = 0.5 * (k * (r - L) ** 2).sum()
+        energy.backward()
+        x.ravel()[free] = p.detach().numpy()
+        G.ravel()[free] = p.grad.detach().numpy()
+        residual, clamp_error = obj.check(x, G)
+        final = True
+        if not np.isfinite(residual):
+            message, converged = "paper: forces became non-finite", False
+        elif stop.met(residual, clamp_error):
+            message, converged = "", True
+        elif it == stop.max_iter:
+            message = f"paper (Adagrad): no convergence in {stop.max_iter} iterations"
+            converged = False
+        elif trace.elapsed() > stop.max_seconds:
+            message = f"paper (Adagrad): time budget of {stop.max_seconds:g} s exceeded"
+            converged = False
+        else:
+            final = False
+        if final or it % _RECORD_EVERY == 0:
+            trace.record(residual)
+        if final:
+            return Outcome(x, it, converged, message)
+        opt.step()
+    return Outcome(x, stop.max_iter, False, "paper (Adagrad): no convergence")
