@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from .constraints import Problem
 from .energy import spring_gradient
 from .equilibrium import Outcome, StopRule, Trace
+from .numerics import node_stiffness, spring_energy_change
 
 __all__ = ["fire", "lbfgs", "paper_adagrad"]
 
@@ -119,40 +120,20 @@ class _Objective:
             self._add_clamp_terms(x, G)
         return G
 
-    def reference(self, x: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-        """What :meth:`value_change` needs about a reference point ``x``."""
-        x = x.copy()
-        d = x[self.springs[:, 1]] - x[self.springs[:, 0]]
-        dc = x[self.ends[:, 1]] - x[self.ends[:, 0]]
-        return x, d, np.hypot(d[:, 0], d[:, 1]), np.hypot(dc[:, 0], dc[:, 1])
+    def value_change(self, x: NDArray, x_ref: NDArray) -> float:
+        """The objective at ``x`` minus its value at ``x_ref``, free of cancellation.
 
-    def value_change(self, x: NDArray, ref: tuple) -> float:
-        """The objective at ``x`` minus its value at ``ref``, free of cancellation.
-
-        A length change is ``r - r0 = (d - d0).(d + d0) / (r + r0)`` with ``d - d0`` taken
-        from the displacements ``x - x0``, and ``(r - L)^2 - (r0 - L)^2 = (r - r0)
-        (r + r0 - 2 L)``, so the round-off is relative to the change, not to ``E``. Energy
-        differences near a minimum are ~ residual^2 / k; computed as ``E(x) - E(x0)`` they
-        drown in ``eps E`` below a residual ~ sqrt(eps E k) (~1e-9 F here), which stalls
-        line searches before 1e-10.
+        Energy differences near a minimum are ~ residual^2 / k; computed as
+        ``E(x) - E(x_ref)`` they drown in ``eps E`` below a residual ~ sqrt(eps E k)
+        (~1e-9 F on small lattices), which stalls line searches before 1e-10. See
+        :func:`~.numerics.spring_energy_change`.
         """
-        x0, d0, r0, rc0 = ref
-        u = x - x0
-        s = self.springs
-        d = x[s[:, 1]] - x[s[:, 0]]
-        r = np.hypot(d[:, 0], d[:, 1])
-        du = u[s[:, 1]] - u[s[:, 0]]
-        dr = np.einsum("ij,ij->i", du, d + d0) / np.maximum(r + r0, 1e-300)
-        change = float(0.5 * np.dot(self.k, dr * (r + r0 - 2.0 * self.L)))
+        change = spring_energy_change(x, x_ref, self.springs, self.k, self.L)
         if self.augmented:
-            e = self.ends
-            dc = x[e[:, 1]] - x[e[:, 0]]
-            rc = np.hypot(dc[:, 0], dc[:, 1])
-            duc = u[e[:, 1]] - u[e[:, 0]]
-            drc = np.einsum("ij,ij->i", duc, dc + (x0[e[:, 1]] - x0[e[:, 0]]))
-            drc = drc / np.maximum(rc + rc0, 1e-300)
-            c_sum = rc + rc0 - 2.0 * self.problem.clamp_lengths
-            change += float(self.lam @ drc + 0.5 * self.rho * (drc @ c_sum))
+            # lam c + rho/2 c^2 is a spring of stiffness rho and rest length l - lam/rho,
+            # up to a constant
+            rest = self.problem.clamp_lengths - self.lam / self.rho
+            change += spring_energy_change(x, x_ref, self.ends, np.full(rest.size, self.rho), rest)
         return change
 
     def check(self, x: NDArray, G: NDArray) -> tuple[float, float]:
@@ -181,23 +162,18 @@ class _Objective:
         return -np.linalg.lstsq((A @ A.T).toarray(), A @ g, rcond=None)[0]
 
     def hessian_bound(self, x: NDArray) -> float:
-        """Gershgorin bound on the largest eigenvalue of the Hessian of the objective.
+        """Gershgorin bound on the largest eigenvalue of the objective's Hessian.
 
-        Each spring's 2x2 Hessian block has eigenvalues ``k`` and ``k (1 - L/r)``, so its
-        norm is at most ``k max(1, |1 - L/r|)``; block Gershgorin gives
-        ``lambda_max <= 2 max_nodes sum_incident k max(1, |1 - L/r|)``. Augmented clamps add
-        ``rho + |lam| / r`` to the stiffness of their spring.
+        :func:`~.numerics.hessian_norm_bound`; augmented clamps add ``rho + |lam| / r``
+        to the stiffness of their spring.
         """
-        d = x[self.springs[:, 1]] - x[self.springs[:, 0]]
-        r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
-        w = self.k * np.maximum(1.0, np.abs(1.0 - self.L / r))
-        n = x.shape[0]
-        node = np.bincount(self.springs[:, 0], w, n) + np.bincount(self.springs[:, 1], w, n)
+        node = node_stiffness(x, self.springs, self.k, self.L)
         if self.augmented:
             _, rc = self._clamp_geometry(x)
             wc = self.rho + np.abs(self.lam) / np.maximum(rc, 1e-300)
+            n = x.shape[0]
             node += np.bincount(self.ends[:, 0], wc, n) + np.bincount(self.ends[:, 1], wc, n)
-        return float(2.0 * np.max(node)) if n else 0.0
+        return float(2.0 * np.max(node)) if node.size else 0.0
 
 
 @dataclass
@@ -426,7 +402,7 @@ def _lbfgs_inner(
         test(np.asarray(intermediate_result.x), True)
 
     y = flat[free].copy()
-    ref = obj.reference(x)
+    ref = x.copy()
     stalls = 0
     with _one_blas_thread():
         try:
@@ -434,7 +410,7 @@ def _lbfgs_inner(
             while True:
                 start_iterations = done["iterations"]
                 flat[free] = y
-                ref = obj.reference(x)  # energies are measured from the restart point
+                ref = x.copy()  # energies are measured from the restart point
                 res = minimize(
                     fun, y, jac=True, method="L-BFGS-B", callback=callback,
                     options={"maxiter": max(budget - done["iterations"], 1), "maxcor": 10,
