@@ -308,7 +308,7 @@ def diluted_lattice(
     *,
     spacing: float = 1.0,
     noise: float = 0.0,
-    stiffness: float = 1.0,
+    stiffness: ArrayLike = 1.0,
 ) -> SpringNetwork:
     """A stress-free triangular lattice with a random ``fraction`` of springs removed, kept rigid.
 
