@@ -155,6 +155,11 @@ class Step:
         return net.with_stiffness(new)
 
 
+def _plain(value: object) -> object:
+    """Tuples as lists, so that settings survive a JSON round trip unchanged."""
+    return list(value) if isinstance(value, tuple) else value
+
+
 def _noisy(lengths: NDArray, noise: float, rng: np.random.Generator | None) -> NDArray:
     if noise == 0.0:
         return lengths
@@ -203,9 +208,9 @@ class Rule:
             value = getattr(self, f.name)
             if isinstance(value, Solver):
                 for g in dataclasses.fields(value):
-                    out[f"solver.{g.name}"] = getattr(value, g.name)
+                    out[f"solver.{g.name}"] = _plain(getattr(value, g.name))
             else:
-                out[f.name] = value
+                out[f.name] = _plain(value)
         return out
 
     def learning_mask(self, net: SpringNetwork, task: AllosteryTask) -> NDArray[np.bool_]:

@@ -42,6 +42,8 @@ from ..network.model import SpringNetwork
 
 __all__ = ["Frame", "Solver", "Tracker", "lagrangian_hessian", "multipliers", "trust_region"]
 
+_MAX_REFACTORS = 3  # per chord solve; then relax (with its line search) takes over
+
 
 @dataclass(frozen=True, kw_only=True)
 class Solver:
@@ -238,7 +240,8 @@ def trust_region(
     or has just vanished). This method uses the exact reduced Hessian
     ``Q^T W Q`` (``Q`` a basis of the null space of the clamp Jacobian) with a trust region
     (eigen-decomposition, so negative curvature is followed, not clipped), restores the
-    clamp lengths after every step, and accepts steps that lower the energy. It stops when
+    clamp lengths after every step, and accepts steps that lower the energy (or, once the
+    energy change is at round-off, the residual). It stops when
     the residual is ``<= force_tol`` (absolute); :func:`relax` then polishes. Dense:
     O(n_free^3) per iteration.
 
@@ -282,7 +285,8 @@ def trust_region(
         y = _restore(problem, y)
         e_y = problem.energy(y)
         ratio = (e_y - energy) / predicted if predicted < 0 else -1.0
-        if e_y < energy:
+        flat = abs(e_y - energy) <= 1e-12 * abs(energy)  # energy at round-off: use the force
+        if e_y < energy or (flat and problem.residual(y)[0] < residual):
             x, energy = y, e_y
         radius *= 2.0 if ratio > 0.75 else (0.25 if ratio < 0.25 else 1.0)
         radius = max(radius, 1e-12 * scale)
@@ -476,7 +480,7 @@ class Tracker:
         ):
             # a stall at a nearly degenerate equilibrium: follow the exact curvature, polish
             self.stats.trust_regions += 1
-            y, reached = trust_region(problem, x, force_tol=1e-6 * net.force_scale)
+            y, reached = trust_region(problem, x, force_tol=100 * s.tol * net.force_scale)
             if reached:
                 try:
                     return self._relax_once(net, pinned, clamped, y, 1)
@@ -527,7 +531,7 @@ class Tracker:
         trace_r: list[float] = []
         trace_t: list[float] = []
         t0 = time.perf_counter()
-        fresh = False  # True once this call has built its own factorisation
+        refactors = 0  # factorisations made by this call
         x = x.copy()
         previous = np.inf
         for it in range(30):
@@ -551,13 +555,15 @@ class Tracker:
             measure = max(residual / f_tol, clamp_error / l_tol)
             if not np.isfinite(measure):
                 return None
-            if fresh and measure >= previous:
-                return None  # even a fresh factorisation does not contract: relax instead
-            if lin is None or (measure > s.refactor_ratio * previous and not fresh):
-                lin = self._linearise(problem, frame, x, mu, key)
-                fresh = True
-                if lin is None:
-                    return None
+            if lin is None or measure > s.refactor_ratio * previous:
+                if refactors >= _MAX_REFACTORS:
+                    if measure >= previous:
+                        return None  # Newton steps do not contract here: relax instead
+                else:
+                    lin = self._linearise(problem, frame, x, mu, key)
+                    refactors += 1
+                    if lin is None:
+                        return None
             previous = measure
             z = lin.factor.solve(force)
             if clamps.size:

@@ -1,0 +1,148 @@
+"""Quantities computed from histories and trained networks.
+
+Error curves (Fig. 4, 6, 8-10 of the paper) are per-trial arrays scaled by their initial
+value; :func:`summary` reduces the final values over trials; :func:`source_sweep` is the
+response of a trained network to other source strains (Fig. 5, appendix A.2 / A.3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..network.model import SpringNetwork
+from .history import History
+from .states import Solver, Tracker
+from .tasks import AllosteryTask, Reference
+
+__all__ = [
+    "cosine",
+    "final_values",
+    "length_error",
+    "normalised",
+    "relative_error",
+    "rest_length_error",
+    "source_sweep",
+    "summary",
+]
+
+
+def normalised(values: ArrayLike) -> NDArray:
+    """``values / values[..., :1]`` per trial (curves scaled by their initial value).
+
+    ``values`` is (trials, steps + 1); a trial whose initial value is 0 gives NaN.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    first = v[..., :1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(first != 0, v / np.where(first != 0, first, 1.0), np.nan)
+
+
+def length_error(history: History) -> NDArray:
+    """Fig. 8: ``sum_T |r_T^F - l_T|``, distance of the free target lengths from the
+    lengths that give the desired strains (the GPC clamp lengths), (trials, steps + 1)."""
+    return np.sum(np.abs(history.target_length - history.desired_length), axis=-1)
+
+
+def rest_length_error(history: History) -> NDArray:
+    """Fig. 9: ``sum_T |L_T - l_T|``, distance of the target rest lengths from the
+    lengths that give the desired strains, (trials, steps + 1)."""
+    return np.sum(np.abs(history.target_rest_length - history.desired_length), axis=-1)
+
+
+def final_values(values: ArrayLike, completed: ArrayLike | None = None) -> NDArray:
+    """The last measured value of every trial, (trials,).
+
+    ``completed`` (from a history) picks entry ``completed[i]`` of trial ``i``; without it
+    the last finite entry is used.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    if completed is not None:
+        idx = np.minimum(np.asarray(completed, dtype=np.int64), v.shape[1] - 1)
+        return v[np.arange(v.shape[0]), idx]
+    out = np.full(v.shape[0], np.nan)
+    for i, row in enumerate(v):
+        finite = np.flatnonzero(np.isfinite(row))
+        if finite.size:
+            out[i] = row[finite[-1]]
+    return out
+
+
+def summary(values: ArrayLike, completed: ArrayLike | None = None) -> dict[str, float]:
+    """Median, quartiles, mean, min and max over trials of the final *normalised* values.
+
+    ``values`` (trials, steps + 1) is normalised by its initial entries first. Trials
+    without a finite final value are left out and counted in ``"missing"``.
+    """
+    final = final_values(normalised(values), completed)
+    ok = final[np.isfinite(final)]
+    if not ok.size:
+        return {"n": 0, "missing": int(final.size)}
+    return {
+        "n": int(ok.size),
+        "missing": int(final.size - ok.size),
+        "median": float(np.median(ok)),
+        "q25": float(np.quantile(ok, 0.25)),
+        "q75": float(np.quantile(ok, 0.75)),
+        "mean": float(np.mean(ok)),
+        "min": float(np.min(ok)),
+        "max": float(np.max(ok)),
+    }
+
+
+def cosine(a: ArrayLike, b: ArrayLike) -> float:
+    """Cosine of the angle between two vectors."""
+    a, b = np.ravel(a), np.ravel(b)
+    return float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+
+
+def relative_error(a: ArrayLike, reference: ArrayLike) -> float:
+    """``|a - reference| / |reference|`` (Euclidean norms)."""
+    a, ref = np.ravel(a), np.ravel(reference)
+    return float(np.linalg.norm(a - ref) / np.linalg.norm(ref))
+
+
+def source_sweep(
+    net: SpringNetwork,
+    task: AllosteryTask,
+    source_strains: ArrayLike,
+    *,
+    reference: Reference = "current",
+    solver: Solver | None = None,
+) -> NDArray:
+    """Free-state target strains of ``net`` for other source strains (Fig. 5).
+
+    Parameters
+    ----------
+    net, task : a (trained) network and its task.
+    source_strains : (n_points,) or (n_points, n_sources) float array
+        Source strains to apply (one value applies to every source).
+    reference : strain convention of clamps and read-out.
+    solver : Solver, optional
+
+    Returns
+    -------
+    (n_points, n_targets) float array
+        Target strains. Points are solved by continuation from the task's own source
+        strain outwards (warm starts), so a sweep follows one branch of equilibria.
+    """
+    s = np.asarray(source_strains, dtype=np.float64)
+    if s.ndim == 1:
+        s = np.repeat(s[:, None], task.n_sources, axis=1)
+    if s.ndim != 2 or s.shape[1] != task.n_sources:
+        raise ValueError(f"source_strains must be (n_points,) or (n_points, {task.n_sources})")
+    tracker = Tracker(solver or Solver())
+    start = tracker.solve(
+        net, task.pinned, task.source_clamps(net, reference), None, key="free"
+    ).positions
+    distance = np.linalg.norm(s - task.source_strain, axis=1)
+    out = np.empty((s.shape[0], task.n_targets))
+    above = np.mean(s - task.source_strain, axis=1) >= 0
+    for branch in (above, ~above):
+        x = start
+        for i in np.flatnonzero(branch)[np.argsort(distance[branch])]:
+            t = task.with_source_strain(s[i])
+            eq = tracker.solve(net, task.pinned, t.source_clamps(net, reference), x, key="free")
+            x = eq.positions
+            out[i] = t.target_strains(net, net.lengths(x)[task.targets], reference)
+    return out
