@@ -31,6 +31,7 @@ __all__ = [
     "eigenstrain_load",
     "elastic_body",
     "mass_matrix",
+    "near_segments",
     "pressure_load",
     "stiffness_matrix",
     "strain_energy",
@@ -349,6 +350,32 @@ def dofs_where(
         on[body.basis.get_dofs().flatten()] = True
         mask &= on
     return np.flatnonzero(mask)
+
+
+def near_segments(
+    starts: ArrayLike, ends: ArrayLike, *, tol: float = 1e-9
+) -> Callable[[NDArray, NDArray], NDArray]:
+    """A ``where(x, y)`` selecting points within ``tol`` of any segment ``starts[i] -> ends[i]``.
+
+    Use it to fix the DOFs on a network's outline edges (for example the springs between
+    the pinned nodes of a lattice's side), whatever the mesh refinement.
+    """
+    a = np.atleast_2d(np.asarray(starts, dtype=float))
+    b = np.atleast_2d(np.asarray(ends, dtype=float))
+    if a.shape != b.shape or a.shape[1] != 2:
+        raise ValueError(f"starts and ends must both have shape (m, 2), got {a.shape}, {b.shape}")
+    d = b - a
+    dd = np.maximum(np.sum(d * d, axis=1), 1e-300)
+
+    def where(x: NDArray, y: NDArray) -> NDArray:
+        p = np.stack([np.asarray(x, float).ravel(), np.asarray(y, float).ravel()], axis=1)
+        hit = np.zeros(p.shape[0], dtype=bool)
+        for k in range(a.shape[0]):
+            s = np.clip(((p - a[k]) @ d[k]) / dd[k], 0.0, 1.0)
+            hit |= np.hypot(*(p - a[k] - s[:, None] * d[k]).T) <= tol
+        return hit.reshape(np.shape(x))
+
+    return where
 
 
 def vertex_displacement(body: ElasticBody, u: ArrayLike) -> NDArray[np.float64]:

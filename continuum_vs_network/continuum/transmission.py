@@ -1,0 +1,478 @@
+"""Allosteric strain transmission: sources in a continuum and in a network, strain vs distance.
+
+Two sources:
+
+- the continuum counterpart of a clamped source spring: two small rigid patches around the
+  spring's end points, moved apart along the spring to its clamped length
+  (:func:`patch_source`, and :func:`network_patch_source` for the same source in a network);
+- a dilating circular inclusion (eigenstrain), with its closed-form (Eshelby) solution
+  (:func:`eshelby_inclusion`, solved by finite elements in :func:`solve_inclusion`).
+
+The read-out is the strain of every spring of a network against its distance from the
+source (:func:`network_transmission`, :func:`continuum_transmission`, where the continuum's
+"spring strain" is the chord strain between the spring's end points), binned by
+:func:`strain_profile` and fitted by a power law in :func:`decay_exponent`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..network.model import SpringNetwork
+from .materials import Material
+
+__all__ = [
+    "DecayFit",
+    "InclusionField",
+    "InclusionSolution",
+    "StrainProfile",
+    "Transmission",
+    "continuum_transmission",
+    "decay_exponent",
+    "eshelby_inclusion",
+    "network_patch_source",
+    "network_transmission",
+    "patch_source",
+    "solve_inclusion",
+    "strain_profile",
+]
+
+Outer = Literal["infinite", "fixed", "free"]
+
+
+# -- the circular inclusion ---------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class InclusionField:
+    """Closed-form field of a dilating circular inclusion (arrays shaped like ``r``).
+
+    Attributes
+    ----------
+    u_r : radial displacement (length units)
+    eps_rr, eps_tt : radial and hoop strains
+    coefficients : (A, C, B)
+        ``u = A r`` inside, ``u = C r + B / r`` outside.
+    """
+
+    u_r: NDArray[np.float64]
+    eps_rr: NDArray[np.float64]
+    eps_tt: NDArray[np.float64]
+    coefficients: tuple[float, float, float]
+
+
+def eshelby_inclusion(
+    r: ArrayLike,
+    *,
+    radius: float,
+    eigenstrain: float,
+    material: Material,
+    inclusion: Material | None = None,
+    outer_radius: float | None = None,
+    outer: Outer = "infinite",
+) -> InclusionField:
+    """Exact plane field of a circular inclusion with the dilation eigenstrain ``eps* I``.
+
+    Inside (``r < radius``, Lamé parameters ``inclusion``, default ``material``) the strain
+    is uniform, ``u = A r``; outside ``u = C r + B / r``. Continuity of ``u`` and of the
+    radial traction at ``r = radius`` and the outer condition fix ``A, B, C``:
+    ``outer="infinite"`` (``C = 0``; for equal moduli ``A = eps* (lam + mu) / (lam + 2 mu)``,
+    Eshelby's result), ``"fixed"`` (``u(R) = 0``) or ``"free"`` (``sigma_rr(R) = 0``) for a
+    disk of radius ``outer_radius``.
+
+    Returns
+    -------
+    InclusionField
+    """
+    a = float(radius)
+    if not a > 0:
+        raise ValueError(f"radius must be > 0, got {radius}")
+    inc = material if inclusion is None else inclusion
+    lam, mu = material.lam, material.mu
+    k1 = inc.lam + inc.mu
+    M = np.zeros((3, 3))
+    rhs = np.zeros(3)
+    M[0] = [a, -a, -1 / a]  # continuity of u at r = a
+    M[1] = [k1, -(lam + mu), mu / a**2]  # continuity of sigma_rr at r = a
+    rhs[1] = k1 * float(eigenstrain)
+    if outer == "infinite":
+        M[2] = [0, 1, 0]
+    else:
+        if outer_radius is None or not outer_radius > a:
+            raise ValueError(f"outer_radius must be > radius for outer={outer!r}")
+        R = float(outer_radius)
+        if outer == "fixed":
+            M[2] = [0, R, 1 / R]
+        elif outer == "free":
+            M[2] = [0, lam + mu, -mu / R**2]
+        else:
+            raise ValueError(f"outer must be 'infinite', 'fixed' or 'free', got {outer!r}")
+    A, C, B = np.linalg.solve(M, rhs)
+    r = np.asarray(r, dtype=float)
+    if np.any(r <= 0):
+        raise ValueError("r must be > 0")
+    inside = r < a
+    u_r = np.where(inside, A * r, C * r + B / r)
+    eps_rr = np.where(inside, A, C - B / r**2)
+    eps_tt = np.where(inside, A, C + B / r**2)
+    return InclusionField(u_r, eps_rr, eps_tt, (float(A), float(C), float(B)))
+
+
+@dataclass(frozen=True, eq=False)
+class InclusionSolution:
+    """Finite-element solution of a disk with a dilating inclusion (:func:`solve_inclusion`).
+
+    Attributes
+    ----------
+    body : ElasticBody
+    u : (n_dofs,) float array
+    exact : callable ``r -> InclusionField``
+        The closed form for the same problem.
+    l2_error : float
+        ``|u_h - u| / |u|`` in L2 over the disk.
+    seconds : float
+    """
+
+    body: object = field(repr=False)
+    u: NDArray[np.float64] = field(repr=False)
+    l2_error: float
+    seconds: float
+    radius: float
+    outer_radius: float
+    eigenstrain: float
+    material: Material
+    inclusion: Material
+    outer: str
+
+    def exact(self, r: ArrayLike) -> InclusionField:
+        return eshelby_inclusion(
+            r, radius=self.radius, eigenstrain=self.eigenstrain, material=self.material,
+            inclusion=self.inclusion, outer_radius=self.outer_radius, outer=self.outer,
+        )
+
+
+def solve_inclusion(
+    *,
+    radius: float,
+    outer_radius: float,
+    eigenstrain: float,
+    material: Material,
+    inclusion: Material | None = None,
+    h: float,
+    order: int = 2,
+    outer: Literal["fixed", "free"] = "fixed",
+) -> InclusionSolution:
+    """Solve a disk with a dilating circular inclusion by finite elements.
+
+    The mesh resolves the inclusion boundary; with ``order=2`` it is curved (isoparametric).
+    ``outer="free"`` removes rigid motion by fixing the centre and ``u_y`` on the positive
+    ``x`` axis, which the exact (radial) solution satisfies.
+    """
+    from .body import eigenstrain_load, elastic_body
+    from .mesh import disk_mesh
+    from .static import Dirichlet, fix, solve_static
+
+    t0 = time.perf_counter()
+    inc = material if inclusion is None else inclusion
+    mesh = disk_mesh(outer_radius, h=h, interfaces=[radius], curved=order == 2)
+    body = elastic_body(mesh, material, order=order)
+    r_el = np.hypot(*body.centroids.T)
+    inside = r_el < radius
+    body = body.with_material(inc, inside)
+    load = eigenstrain_load(body, np.where(inside, float(eigenstrain), 0.0))
+    tol = 1e-9 * outer_radius
+    if outer == "fixed":
+        fixed = fix(body, lambda x, y: np.hypot(x, y) > outer_radius - tol, boundary=True)
+    elif outer == "free":
+        centre = fix(body, lambda x, y: np.hypot(x, y) < tol)
+        axis = fix(body, lambda x, y: (np.abs(y) < tol) & (x > tol), component=1)
+        fixed = Dirichlet(np.concatenate([centre.dofs, axis.dofs]),
+                          np.concatenate([centre.values, axis.values]))
+    else:
+        raise ValueError(f"outer must be 'fixed' or 'free', got {outer!r}")
+    sol = solve_static(body, fixed, load=load)
+    seconds = time.perf_counter() - t0
+    basis = body.basis
+    uh = basis.interpolate(sol.u).value
+    X = basis.global_coordinates().value
+    r = np.hypot(X[0], X[1])
+    ex = eshelby_inclusion(
+        r, radius=radius, eigenstrain=eigenstrain, material=material, inclusion=inc,
+        outer_radius=outer_radius, outer=outer,
+    ).u_r
+    ux, uy = ex * X[0] / r, ex * X[1] / r
+    dx = basis.dx
+    err = np.sqrt(np.sum(((uh[0] - ux) ** 2 + (uh[1] - uy) ** 2) * dx))
+    ref = np.sqrt(np.sum((ux**2 + uy**2) * dx))
+    return InclusionSolution(
+        body=body, u=sol.u, l2_error=float(err / ref), seconds=seconds, radius=float(radius),
+        outer_radius=float(outer_radius), eigenstrain=float(eigenstrain), material=material,
+        inclusion=inc, outer=outer,
+    )
+
+
+# -- patch sources -----------------------------------------------------------------------
+def _source_geometry(
+    centre_a: ArrayLike, centre_b: ArrayLike, radius: float
+) -> tuple[NDArray, NDArray, NDArray, float]:
+    a = np.asarray(centre_a, dtype=float)
+    b = np.asarray(centre_b, dtype=float)
+    if a.shape != (2,) or b.shape != (2,):
+        raise ValueError("centre_a and centre_b must be points (x, y)")
+    d = b - a
+    dist = float(np.hypot(*d))
+    if dist == 0:
+        raise ValueError("centre_a and centre_b coincide")
+    radius = float(radius)
+    if not (0 < radius < dist / 2):
+        raise ValueError(
+            f"radius must lie in (0, {dist / 2:g}) so that the two patches do not overlap"
+        )
+    return a, b, d / dist, radius
+
+
+def patch_source(
+    body: object,
+    centre_a: ArrayLike,
+    centre_b: ArrayLike,
+    *,
+    radius: float,
+    opening: float,
+) -> object:
+    """Two rigid patches moved apart: the continuum counterpart of a clamped spring.
+
+    Every DOF within ``radius`` of ``centre_a`` is displaced by ``-opening/2 n`` and every
+    DOF within ``radius`` of ``centre_b`` by ``+opening/2 n``, with ``n`` the unit vector
+    from a to b; the distance between the patches grows by ``opening`` (clamped length
+    minus rest length). The patches also stop rigid motion.
+
+    Returns
+    -------
+    Dirichlet
+    """
+    from .static import Dirichlet, fix
+
+    a, b, n, radius = _source_geometry(centre_a, centre_b, radius)
+    half = 0.5 * float(opening)
+    parts = []
+    for c, sign in ((a, -1.0), (b, 1.0)):
+        parts.append(
+            fix(body, lambda x, y, c=c: np.hypot(x - c[0], y - c[1]) <= radius,
+                displacement=(sign * half * n[0], sign * half * n[1]))
+        )
+    return Dirichlet(np.concatenate([p.dofs for p in parts]),
+                     np.concatenate([p.values for p in parts]))
+
+
+def network_patch_source(
+    net: SpringNetwork,
+    centre_a: ArrayLike,
+    centre_b: ArrayLike,
+    *,
+    radius: float,
+    opening: float,
+) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    """The same two-patch source in a network: pinned nodes at displaced positions.
+
+    Returns
+    -------
+    pinned : (n_nodes, 2) bool array
+        Nodes within ``radius`` of either centre (both coordinates).
+    x0 : (n_nodes, 2) float array
+        Start positions with the patch nodes moved by ``-+opening/2 n``; pass both to
+        ``cvn.relax(net, pinned=pinned, x0=x0)``.
+    """
+    a, b, n, radius = _source_geometry(centre_a, centre_b, radius)
+    x0 = np.array(net.positions, dtype=float, copy=True)
+    pinned = np.zeros((net.n_nodes, 2), dtype=bool)
+    for c, sign in ((a, -1.0), (b, 1.0)):
+        near = np.hypot(*(x0 - c).T) <= radius
+        if not near.any():
+            raise ValueError(f"no node lies within radius={radius} of {c.tolist()}")
+        pinned[near] = True
+        x0[near] += sign * 0.5 * float(opening) * n
+    return pinned, x0
+
+
+# -- transmission from a clamped source spring --------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Transmission:
+    """Strain of every spring but the source, against distance from the source.
+
+    Attributes
+    ----------
+    springs : (m,) int array
+        Spring indices (the source spring excluded).
+    distance : (m,) float array
+        Distance from the source spring's midpoint to each spring's midpoint.
+    strain : (m,) float array
+        Spring strain (network: ``r/L - 1``; continuum: chord strain of the same segment).
+    seconds : float
+        Wall-clock time of the solve.
+    """
+
+    springs: NDArray[np.int64]
+    distance: NDArray[np.float64]
+    strain: NDArray[np.float64]
+    seconds: float
+
+
+def _source_spring(net: SpringNetwork, source: int) -> tuple[NDArray, NDArray]:
+    if not (0 <= int(source) < net.n_springs):
+        raise ValueError(f"source must be a spring index in 0..{net.n_springs - 1}, got {source}")
+    others = np.flatnonzero(np.arange(net.n_springs) != int(source))
+    x = net.positions
+    mid = 0.5 * (x[net.springs[:, 0]] + x[net.springs[:, 1]])
+    dist = np.hypot(*(mid[others] - mid[int(source)]).T)
+    return others, dist
+
+
+def network_transmission(
+    net: SpringNetwork, source: int, strain: float, *, tol: float = 1e-10
+) -> Transmission:
+    """Clamp spring ``source`` at ``strain`` (Eq. 25), relax, read every other spring's strain.
+
+    Uses ``cvn.relax`` (exact clamp, default far pins).
+    """
+    from ..network.equilibrium import relax
+
+    others, dist = _source_spring(net, source)
+    length = float(net.clamp_length(int(source), strain))
+    t0 = time.perf_counter()
+    eq = relax(net, clamped={int(source): length}, tol=tol)
+    seconds = time.perf_counter() - t0
+    return Transmission(others, dist, net.strains(eq.positions)[others], seconds)
+
+
+def continuum_transmission(
+    net: SpringNetwork,
+    source: int,
+    strain: float,
+    *,
+    material: Material | None = None,
+    refine: int = 2,
+    order: int = 2,
+    patch_radius: float | None = None,
+) -> Transmission:
+    """The continuum of the network's shape with a two-patch source at the source spring.
+
+    The body is the network's outline (:func:`~.mesh.network_mesh`, ``refine`` times
+    refined) with ``material`` (default: the network's relaxed homogenised moduli,
+    :func:`~.materials.network_moduli`). Patches of radius ``patch_radius`` (default a
+    quarter of the source spring's length) around the source's end nodes are moved apart
+    by ``L strain + L - r`` so that the source reaches its clamped length; the linear
+    solution is read as the chord strain of every other spring.
+    """
+    from .body import elastic_body
+    from .materials import network_moduli
+    from .mesh import network_mesh
+    from .probes import chord_strain_probe
+    from .static import solve_static
+
+    others, dist = _source_spring(net, source)
+    x = net.positions
+    i, j = net.springs[int(source)]
+    r0 = float(np.hypot(*(x[j] - x[i])))
+    opening = float(net.clamp_length(int(source), strain)) - r0
+    radius = 0.25 * r0 if patch_radius is None else float(patch_radius)
+    t0 = time.perf_counter()
+    mat = network_moduli(net).material if material is None else material
+    body = elastic_body(network_mesh(net, refine=refine), mat, order=order)
+    fixed = patch_source(body, x[i], x[j], radius=radius, opening=opening)
+    sol = solve_static(body, fixed)
+    s = net.springs[others]
+    probe = chord_strain_probe(body, x[s[:, 0]], x[s[:, 1]])
+    seconds = time.perf_counter() - t0
+    return Transmission(others, dist, probe(sol.u), seconds)
+
+
+# -- strain against distance --------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class StrainProfile:
+    """Mean absolute strain in distance bins.
+
+    Attributes
+    ----------
+    r : (n_bins,) float array
+        Mean distance of the samples in each non-empty bin.
+    strain : (n_bins,) float array
+        Mean ``|strain|`` in each bin.
+    count : (n_bins,) int array
+    """
+
+    r: NDArray[np.float64]
+    strain: NDArray[np.float64]
+    count: NDArray[np.int64]
+
+
+def strain_profile(distance: ArrayLike, strain: ArrayLike, *, bins: ArrayLike) -> StrainProfile:
+    """Bin ``|strain|`` by ``distance`` (bin edges ``bins``); empty bins are dropped."""
+    d = np.asarray(distance, dtype=float).ravel()
+    s = np.abs(np.asarray(strain, dtype=float).ravel())
+    if d.shape != s.shape:
+        raise ValueError(f"distance and strain must have the same size, got {d.size}, {s.size}")
+    edges = np.asarray(bins, dtype=float)
+    if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
+        raise ValueError("bins must be an increasing 1D array of at least two edges")
+    idx = np.digitize(d, edges) - 1
+    ok = (idx >= 0) & (idx < edges.size - 1)
+    count = np.bincount(idx[ok], minlength=edges.size - 1)
+    r_sum = np.bincount(idx[ok], weights=d[ok], minlength=edges.size - 1)
+    s_sum = np.bincount(idx[ok], weights=s[ok], minlength=edges.size - 1)
+    keep = count > 0
+    return StrainProfile(r_sum[keep] / count[keep], s_sum[keep] / count[keep], count[keep])
+
+
+@dataclass(frozen=True)
+class DecayFit:
+    """Power law ``|strain| = prefactor * r**(-exponent)`` fitted on ``[r_min, r_max]``.
+
+    Attributes
+    ----------
+    exponent, prefactor : float
+    r_min, r_max : float
+    n_bins : int
+        Bins used in the fit.
+    rms_log_residual : float
+        Root-mean-square residual of ``log |strain|`` about the fit.
+    """
+
+    exponent: float
+    prefactor: float
+    r_min: float
+    r_max: float
+    n_bins: int
+    rms_log_residual: float
+
+
+def decay_exponent(
+    distance: ArrayLike,
+    strain: ArrayLike,
+    *,
+    r_min: float,
+    r_max: float,
+    n_bins: int = 12,
+) -> DecayFit:
+    """Fit ``|strain| ~ r**(-exponent)`` to strains binned in ``n_bins`` log-spaced bins.
+
+    A far-field source of zero net force and torque (a force dipole, a dilating inclusion)
+    gives strain decaying as ``r**-2`` in an infinite 2D elastic body.
+    """
+    if not (0 < r_min < r_max):
+        raise ValueError(f"need 0 < r_min < r_max, got {r_min}, {r_max}")
+    prof = strain_profile(distance, strain, bins=np.geomspace(r_min, r_max, int(n_bins) + 1))
+    good = prof.strain > 0
+    if good.sum() < 3:
+        raise ValueError("fewer than 3 non-empty bins with non-zero strain in [r_min, r_max]")
+    lr, ls = np.log(prof.r[good]), np.log(prof.strain[good])
+    slope, intercept = np.polyfit(lr, ls, 1)
+    res = ls - (slope * lr + intercept)
+    return DecayFit(
+        exponent=float(-slope), prefactor=float(math.exp(intercept)), r_min=float(r_min),
+        r_max=float(r_max), n_bins=int(good.sum()),
+        rms_log_residual=float(np.sqrt(np.mean(res**2))),
+    )
