@@ -184,17 +184,25 @@ class Problem:
         d = x[s[:, 1]] - x[s[:, 0]]
         return np.hypot(d[:, 0], d[:, 1]) - self.clamp_lengths
 
-    def clamp_jacobian(self, x: NDArray) -> sp.csr_matrix:
-        """``d(r_c)/d(x_free)`` as a sparse (m, n_free) matrix: rows ``[-u_c, +u_c]``."""
+    def clamp_jacobian(self, x: NDArray, coords: NDArray | None = None) -> sp.csr_matrix:
+        """``d(r_c)/d(x_free)`` as a sparse (m, n_free) matrix: rows ``[-u_c, +u_c]``.
+
+        Columns follow ``coords`` (flat coordinate indices; default ``free_flat``).
+        """
+        coords = self.free_flat if coords is None else coords
         m = self.n_clamps
         s = self.net.springs[self.clamp_springs]
         d = x[s[:, 1]] - x[s[:, 0]]
         u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
-        cols = np.concatenate([2 * s[:, 0], 2 * s[:, 0] + 1, 2 * s[:, 1], 2 * s[:, 1] + 1])
+        flat = np.concatenate([2 * s[:, 0], 2 * s[:, 0] + 1, 2 * s[:, 1], 2 * s[:, 1] + 1])
         vals = np.concatenate([-u[:, 0], -u[:, 1], u[:, 0], u[:, 1]])
         rows = np.tile(np.arange(m), 4)
-        full = sp.csr_matrix((vals, (rows, cols)), shape=(m, 2 * self.net.n_nodes))
-        return full[:, self.free_flat]
+        column = np.full(2 * self.net.n_nodes, -1, dtype=np.int64)
+        column[coords] = np.arange(coords.size)
+        keep = column[flat] >= 0
+        return sp.csr_matrix(
+            (vals[keep], (rows[keep], column[flat][keep])), shape=(m, coords.size)
+        )
 
     # -- the one residual used by every method ----------------------------------------
     def residual(self, x: NDArray) -> tuple[float, NDArray]:
@@ -205,14 +213,23 @@ class Problem:
         reactions are removed by looking at free coordinates only. The same definition
         holds for exact clamps and rods (whose axial force is a clamp-normal component).
         """
-        g = self.gradient(x).ravel()[self.free_flat]
-        if not self.n_clamps:
-            return (float(np.max(np.abs(g))) if g.size else 0.0), np.empty(0)
-        A = self.clamp_jacobian(x)
-        AAt = (A @ A.T).toarray()
-        mu = -np.linalg.lstsq(AAt, A @ g, rcond=None)[0]
-        r = g + A.T @ mu
+        r, mu = self.unbalanced_force(x, self.free_flat)
         return float(np.max(np.abs(r))) if r.size else 0.0, mu
+
+    def unbalanced_force(self, x: NDArray, coords: NDArray) -> tuple[NDArray, NDArray]:
+        """``grad E + A^T mu`` at flat coordinates ``coords``, with least-squares ``mu``.
+
+        Uses the network's springs only: a rod's force lies along its clamp normal and is
+        projected out anyway, so ``mu`` holds the clamp forces in both clamp modes.
+        Returns ``((len(coords),) array, (m,) multipliers)``.
+        """
+        net = self.net
+        g = spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel()[coords]
+        if not self.n_clamps:
+            return g, np.empty(0)
+        A = self.clamp_jacobian(x, coords)
+        mu = -np.linalg.lstsq((A @ A.T).toarray(), A @ g, rcond=None)[0]
+        return g + A.T @ mu, mu
 
     # -- counting ---------------------------------------------------------------------
     def maxwell_zero_modes(self) -> int:

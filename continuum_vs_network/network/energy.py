@@ -84,21 +84,31 @@ class HessianPattern:
         Coordinates kept in the assembled matrix (default all). Pinned coordinates are
         dropped, so the matrix is the Hessian restricted to free coordinates, in the order
         of ``np.flatnonzero(free.ravel())``.
+    coords : (n_free,) int array, optional
+        Flat coordinate index (into ``x.ravel()``) of each matrix row, to assemble in a
+        chosen elimination order; overrides ``free``. ``self.coords`` holds the order used.
 
     ``assemble(blocks)`` scatters per-spring 2x2 blocks into a CSR matrix in O(nnz) with one
     ``np.bincount``.
     """
 
-    def __init__(self, springs: NDArray, n_nodes: int, free: NDArray | None = None) -> None:
+    def __init__(
+        self,
+        springs: NDArray,
+        n_nodes: int,
+        free: NDArray | None = None,
+        coords: NDArray | None = None,
+    ) -> None:
         springs = np.asarray(springs, dtype=np.int64)
-        free = np.ones((n_nodes, 2), dtype=bool) if free is None else np.asarray(free, bool)
+        if coords is None:
+            free = np.ones((n_nodes, 2), dtype=bool) if free is None else np.asarray(free, bool)
+            coords = np.flatnonzero(free.ravel())
         self.springs = springs
         self.n_nodes = n_nodes
-        self.free = free
+        self.coords = np.asarray(coords, dtype=np.int64)
         index = np.full(2 * n_nodes, -1, dtype=np.int64)
-        free_flat = np.flatnonzero(free.ravel())
-        index[free_flat] = np.arange(free_flat.size)
-        self.size = int(free_flat.size)
+        index[self.coords] = np.arange(self.coords.size)
+        self.size = int(self.coords.size)
 
         a, b = springs[:, 0], springs[:, 1]
         # coordinates of the four node pairs (aa, bb, ab, ba), each with 2x2 entries
@@ -120,6 +130,7 @@ class HessianPattern:
         row_of = uniq // self.size
         self._indptr = np.searchsorted(row_of, np.arange(self.size + 1)).astype(np.int32)
         self.free_index = index
+        self.ordered = False
 
     def assemble(self, blocks: NDArray, shift: float = 0.0) -> sp.csr_matrix:
         """CSR matrix from per-spring blocks (n_springs, 2, 2), plus ``shift * I``."""

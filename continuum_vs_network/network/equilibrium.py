@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .constraints import ClampMode, Pins, Problem
+from .constraints import ClampMode, Pins, Problem, default_pins
 from .energy import spring_energy
 from .model import SpringNetwork
 
@@ -249,7 +249,31 @@ def relax(
         iterations += outcome.iterations
         if not outcome.converged:
             break
+    # Default pins only remove rigid motion, so they must carry no load. After a large
+    # deformation two of them can line up and act as a strut: choose them anew at the
+    # deformed positions and relax again from there.
+    for _ in range(3):
+        if pinned is not None or not outcome.converged:
+            break
+        if _pin_reaction(problem, outcome.x) <= stop.force:
+            break
+        avoid = problem.clamp_springs
+        free = ~default_pins(net.with_positions(outcome.x), avoid)
+        problem = Problem(net, free, problem.clamp_springs, problem.clamp_lengths,
+                          problem.clamp, problem.rod_stiffness)
+        outcome = solve(problem, outcome.x, stop, trace)
+        iterations += outcome.iterations
     return _finish(problem, outcome, iterations, method, stop, trace)
+
+
+def _pin_reaction(problem: Problem, x: NDArray) -> float:
+    """Largest force the pins exert on the network at ``x``, clamp forces removed."""
+    pinned = np.flatnonzero(~problem.free.ravel())
+    if not pinned.size:
+        return 0.0
+    everywhere = np.arange(problem.free.size)
+    force, _ = problem.unbalanced_force(x, everywhere)
+    return float(np.max(np.abs(force[pinned])))
 
 
 def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:

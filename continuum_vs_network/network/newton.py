@@ -11,7 +11,7 @@ each step solves::
 with one factorisation of ``W`` and ``m + 1`` triangular solves. Adding ``rho A^T A``
 leaves the step unchanged (it is the same KKT system) but makes ``W`` positive definite at a
 stable constrained minimum, so positive definiteness can be checked with a factorisation:
-if ``W`` is indefinite a Levenberg shift ``mu I`` grows until it is not. The step is
+if ``W`` is indefinite a Levenberg-Marquardt shift ``mu diag(W)`` grows until it is not. The step is
 accepted by an Armijo line search on the augmented Lagrangian merit function
 ``E + lam.(r - l) + rho |r - l|^2 / 2``, for which ``dx`` is a descent direction, or when it
 halves the residual (the quadratic regime, where the merit is below round-off).
@@ -23,6 +23,7 @@ then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves ``W
 
 from __future__ import annotations
 
+import time
 import weakref
 
 import numpy as np
@@ -34,18 +35,25 @@ from numpy.typing import NDArray
 from .constraints import Problem
 from .energy import HessianPattern, spring_energy, spring_gradient
 from .equilibrium import Outcome, StopRule, Trace
+from .ordering import coordinate_order, nested_dissection
 
 __all__ = ["DENSE_MAX", "factor_pd", "newton", "pattern_for"]
 
 DENSE_MAX = 400
+DAMP_UP = 10.0
+DAMP_MIN = 1e-6
 _PATTERNS: dict[int, dict] = {}
 
 
-def pattern_for(springs: NDArray, n_nodes: int, free: NDArray) -> HessianPattern:
+def pattern_for(
+    springs: NDArray, n_nodes: int, free: NDArray, positions: NDArray
+) -> HessianPattern:
     """The Hessian pattern of a topology and pin mask, cached while the springs array lives.
 
-    Networks made with ``with_*`` share their (read-only) springs array, so a learning
-    loop builds the pattern once.
+    Above ``DENSE_MAX`` free coordinates the rows follow a nested-dissection elimination
+    order computed from ``positions`` (n_nodes, 2); ``pattern.ordered`` says so. Networks
+    made with ``with_*`` share their read-only springs array, so a learning loop builds the
+    pattern once.
     """
     key_array = id(springs)
     if key_array not in _PATTERNS:
@@ -54,30 +62,55 @@ def pattern_for(springs: NDArray, n_nodes: int, free: NDArray) -> HessianPattern
     per_topology = _PATTERNS[key_array]
     key = (n_nodes, free.tobytes())
     if key not in per_topology:
-        per_topology[key] = HessianPattern(springs, n_nodes, free)
+        coords = None
+        if int(free.sum()) > DENSE_MAX:
+            coords = coordinate_order(nested_dissection(positions, springs), free)
+        per_topology[key] = HessianPattern(springs, n_nodes, free, coords)
+        per_topology[key].ordered = coords is not None
     return per_topology[key]
 
 
+class _SolveFailed(RuntimeError):
+    """A reused factorisation did not solve the new system (indefinite or too far off)."""
+
+
 class _Factor:
-    """A positive-definite factorisation with ``solve`` for vectors and matrices."""
+    """A solver for ``W s = b`` (vectors or (n, m) matrices).
 
-    def __init__(self, solve) -> None:
-        self.solve = solve
+    ``seconds`` is what building it cost, ``solve_seconds`` what one solve costs (both
+    measured), so that a cheaper reuse can be budgeted against a new factorisation.
+    """
+
+    def __init__(self, solve, seconds: float = 0.0) -> None:
+        self._solve = solve
+        self.seconds = seconds
+        self.solve_seconds = 0.0
+
+    def solve(self, b: NDArray) -> NDArray:
+        t0 = time.perf_counter()
+        out = self._solve(b)
+        self.solve_seconds = (time.perf_counter() - t0) / (1 if b.ndim == 1 else b.shape[1])
+        return out
 
 
-def factor_pd(W: sp.csr_matrix) -> _Factor | None:
-    """Factorise symmetric ``W``; None when it is not positive definite."""
+def factor_pd(W: sp.csr_matrix, *, ordered: bool = False) -> _Factor | None:
+    """Factorise symmetric ``W``; None when it is not positive definite.
+
+    ``ordered``: the rows are already in a fill-reducing order (see :func:`pattern_for`);
+    otherwise SuperLU orders them by minimum degree on ``A^T + A``.
+    """
     n = W.shape[0]
+    t0 = time.perf_counter()
     if n <= DENSE_MAX:
         try:
             c = sla.cho_factor(W.toarray(), lower=True, check_finite=False)
         except sla.LinAlgError:
             return None
-        return _Factor(lambda b: sla.cho_solve(c, b, check_finite=False))
+        return _Factor(lambda b: sla.cho_solve(c, b, check_finite=False), time.perf_counter() - t0)
     try:
         lu = spla.splu(
             W.tocsc(),
-            permc_spec="MMD_AT_PLUS_A",
+            permc_spec="NATURAL" if ordered else "MMD_AT_PLUS_A",
             diag_pivot_thresh=0.0,
             options={"SymmetricMode": True},
         )
@@ -85,30 +118,80 @@ def factor_pd(W: sp.csr_matrix) -> _Factor | None:
         return None
     if not np.array_equal(lu.perm_r, lu.perm_c) or not np.all(lu.U.diagonal() > 0):
         return None
-    return _Factor(lu.solve)
+    return _Factor(lu.solve, time.perf_counter() - t0)
+
+
+def _pcg(W: sp.csr_matrix, preconditioner: _Factor, *, rtol: float, max_iter: int) -> _Factor:
+    """Conjugate gradients on ``W`` preconditioned by an earlier factorisation.
+
+    ``max_iter`` bounds the iterations of all right-hand sides together.
+
+    Raises :class:`_SolveFailed` on negative curvature (``W`` not positive definite) or when
+    ``max_iter`` iterations do not reach ``rtol``.
+    """
+
+    budget = [max_iter]
+
+    def solve_one(b: NDArray) -> NDArray:
+        x = preconditioner.solve(b)
+        r = b - W @ x
+        b_norm = np.linalg.norm(b)
+        if np.linalg.norm(r) <= rtol * b_norm:
+            return x
+        z = preconditioner.solve(r)
+        p = z.copy()
+        rz = r @ z
+        while budget[0] > 0:
+            budget[0] -= 1
+            Wp = W @ p
+            curvature = p @ Wp
+            if curvature <= 0:
+                raise _SolveFailed("negative curvature")
+            a = rz / curvature
+            x += a * p
+            r -= a * Wp
+            if np.linalg.norm(r) <= rtol * b_norm:
+                return x
+            z = preconditioner.solve(r)
+            rz, rz_old = r @ z, rz
+            p = z + (rz / rz_old) * p
+        raise _SolveFailed("no convergence")
+
+    def solve(b: NDArray) -> NDArray:
+        if b.ndim == 1:
+            return solve_one(b)
+        return np.column_stack([solve_one(col) for col in b.T])
+
+    return _Factor(solve)
 
 
 def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
-    """Minimise ``problem`` from ``x`` (n_nodes, 2) by shifted sparse Newton (see module)."""
+    """Minimise ``problem`` from ``x`` (n_nodes, 2) by shifted sparse Newton (see module).
+
+    After a full step with an exact, positive-definite Hessian the next step first tries
+    conjugate gradients preconditioned by that factorisation (a few triangular solves
+    instead of a new factorisation); it refactorises when that fails.
+    """
     net = problem.net
     springs, k = net.springs, net.stiffness
     all_springs = problem.all_springs()
-    free = problem.free_flat
-    pattern = pattern_for(springs, net.n_nodes, problem.free)
+    pattern = pattern_for(springs, net.n_nodes, problem.free, net.positions)
+    coords = pattern.coords
     m = problem.n_clamps if problem.exact else 0
-    rho = float(np.max(k)) if m else 0.0
+    rho0 = rho = float(np.max(k)) if m else 0.0
     shift = 0.0
     exact_ok = True
+    reusable: _Factor | None = None
     x = np.array(x, dtype=np.float64)
 
     for it in range(stop.max_iter + 1):
-        grad = spring_gradient(x, *all_springs).ravel()[free]
+        grad = spring_gradient(x, *all_springs).ravel()[coords]
         if problem.n_clamps:
-            A = problem.clamp_jacobian(x)
+            A = problem.clamp_jacobian(x, coords)
             lam_ls = -np.linalg.solve((A @ A.T).toarray(), A @ grad)
             force = grad + A.T @ lam_ls  # clamp-normal (rod or constraint) forces removed
         else:
-            lam_ls, force = np.empty(0), grad
+            A, lam_ls, force = None, np.empty(0), grad
         viol = problem.clamp_violation(x) if m else np.empty(0)
         residual = float(np.max(np.abs(force))) if force.size else 0.0
         clamp_error = float(np.max(np.abs(viol))) if m else 0.0
@@ -120,35 +203,57 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
         if trace.elapsed() > stop.max_seconds:
             return Outcome(x, it, False, f"time budget of {stop.max_seconds:g} s exceeded")
 
-        # Hessian of the augmented Lagrangian, in the spring-block pattern
-        factor, shift, exact_ok = _factor_lagrangian_hessian(
-            problem, pattern, x, lam_ls[:m], rho, shift, try_exact=exact_ok or shift == 0.0
-        )
-        if factor is None:
-            return Outcome(x, it, False, "Hessian could not be made positive definite")
-
-        z = factor.solve(grad)
-        if m:
-            Z = factor.solve(A.T.toarray())
-            if Z.ndim == 1:
-                Z = Z[:, None]
-            lam = np.linalg.solve(A @ Z, viol - A @ z)
-            step = -z - Z @ lam
-        else:
-            lam, step = np.empty(0), -z
-        x, ok = _line_search(problem, x, step, grad, A if m else None, viol, lam, rho, residual)
-        if not ok:
+        step = lam = None
+        if reusable is not None:
+            # inexact Newton: a relative solve error eta leaves a residual ~ eta * residual
+            eta = min(1e-2, residual / net.force_scale)
+            budget = int(0.5 * reusable.seconds / max(reusable.solve_seconds, 1e-9))
+            W = pattern.assemble(_lagrangian_blocks(problem, x, lam_ls[:m], rho))
+            try:
+                solver = _pcg(W, reusable, rtol=eta, max_iter=budget - (m + 1))
+                step, lam = _kkt_step(solver, grad, A if m else None, viol, m)
+            except _SolveFailed:
+                step = None
+        if step is None:
+            factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
+                problem, pattern, x, lam_ls[:m], rho0, shift
+            )
+            if factor is None:
+                return Outcome(x, it, False, "Hessian could not be made positive definite")
+            step, lam = _kkt_step(factor, grad, A if m else None, viol, m)
+            reusable = factor if exact_ok else None
+        x, alpha = _line_search(problem, x, coords, step, grad, A if m else None, viol, lam, rho,
+                                residual)
+        if alpha == 0.0:
             return Outcome(x, it + 1, False, "line search found no decrease")
+        # Levenberg-Marquardt: a cut step asks for more damping next time, a full one less
+        if alpha < 1.0:
+            reusable = None
+            shift = max(DAMP_UP * shift, DAMP_MIN)
+        else:
+            shift = shift / 10 if shift > 10 * DAMP_MIN else 0.0
     return Outcome(x, stop.max_iter, False, "no convergence")
 
 
-def _lagrangian_blocks(
-    problem: Problem, x: NDArray, lam: NDArray, rho: float, *, clip: bool
-) -> NDArray:
+def _kkt_step(
+    solver: _Factor, grad: NDArray, A: sp.csr_matrix | None, viol: NDArray, m: int
+) -> tuple[NDArray, NDArray]:
+    """Range-space solution of the KKT system: returns ``(step, multipliers)``."""
+    z = solver.solve(grad)
+    if not m:
+        return -z, np.empty(0)
+    Z = solver.solve(A.T.toarray())
+    if Z.ndim == 1:
+        Z = Z[:, None]
+    lam = np.linalg.solve(A @ Z, viol - A @ z)
+    return -z - Z @ lam, lam
+
+
+def _lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) -> NDArray:
     """Per-spring 2x2 blocks of the augmented Lagrangian's Hessian, (n_springs, 2, 2).
 
-    With ``clip`` every tangential coefficient ``k (1 - L/r)`` (and ``lam / r`` of a
-    compressed clamp) is floored at 0: a sum of positive semi-definite blocks.
+    Axial ``k (+ rho)`` along ``u u^T`` and tangential ``k (1 - L/r) (+ lam / r)`` along
+    ``I - u u^T``; rods add theirs on their spring's node pair.
     """
     net = problem.net
     springs, clamps = net.springs, problem.clamp_springs
@@ -163,8 +268,6 @@ def _lagrangian_blocks(
     elif lam.size:
         axial[clamps] += rho
         tangential[clamps] += lam / r[clamps]
-    if clip:
-        tangential = np.maximum(tangential, 0.0)
     u = d / r[:, None]
     uu = u[:, :, None] * u[:, None, :]
     return axial[:, None, None] * uu + tangential[:, None, None] * (np.eye(2) - uu)
@@ -177,38 +280,49 @@ def _factor_lagrangian_hessian(
     lam: NDArray,
     rho: float,
     shift: float,
-    *,
-    try_exact: bool,
-) -> tuple[_Factor | None, float, bool]:
-    """Factorise a positive-definite Hessian model: exact if possible, else modified.
+) -> tuple[_Factor | None, float, float, bool]:
+    """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
-    Order: the exact Hessian (when ``try_exact``); then the tangentially clipped one, which is
-    positive semi-definite by construction; then the clipped one with a Levenberg shift that
-    grows tenfold until the factorisation is positive definite. Returns ``(factor, shift,
-    exact_used)``. The exact Hessian is used whenever it is positive definite, so the last
-    iterations are pure Newton steps and converge quadratically.
+    Order: the exact Hessian (when ``try_exact``), also with a larger augmentation ``rho``
+    when there are clamps (at a stable constrained minimum a large enough ``rho`` makes it
+    positive definite, Finsler's lemma, and the step does not depend on ``rho``); then the
+    exact Hessian plus a Levenberg-Marquardt shift ``mu diag(W)`` that starts at a tenth of
+    the last ``mu`` (at least 1e-6) and grows tenfold until the factorisation is positive
+    definite. Clipping each spring's negative tangential curvature instead crept
+    for hundreds of iterations on the paper's network under strain continuation.
+
+    Returns ``(factor, rho, shift, exact_used)``. The exact Hessian is used whenever it is
+    positive definite, so the last iterations are pure Newton steps.
     """
-    if try_exact:
-        W = pattern.assemble(_lagrangian_blocks(problem, x, lam, rho, clip=False))
-        factor = factor_pd(W)
+    W = pattern.assemble(_lagrangian_blocks(problem, x, lam, rho))
+    if shift == 0.0:
+        factor = factor_pd(W, ordered=pattern.ordered)
         if factor is not None:
-            return factor, 0.0, True
-    W = pattern.assemble(_lagrangian_blocks(problem, x, lam, rho, clip=True))
-    scale = float(np.max(np.abs(W.diagonal()))) if W.shape[0] else 1.0
-    floor = 1e-12 * scale
-    shift = shift / 10 if shift > 10 * floor else 0.0
-    eye = sp.identity(W.shape[0], format="csr")
-    while shift <= 1e8 * scale:
-        factor = factor_pd(W + shift * eye if shift else W)
+            return factor, rho, 0.0, True
+        if lam.size:
+            d = problem.net.lengths(x)[problem.clamp_springs]
+            rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
+            W = pattern.assemble(_lagrangian_blocks(problem, x, lam, rho))
+            factor = factor_pd(W, ordered=pattern.ordered)
+            if factor is not None:
+                return factor, rho, 0.0, True
+    # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
+    # not freeze soft springs (stiffness ratios up to 1e12 are supported)
+    diag = np.abs(W.diagonal())
+    scaling = sp.diags(np.where(diag > 0, diag, max(float(diag.max(initial=0.0)), 1.0)))
+    shift = max(shift, DAMP_MIN)
+    while shift <= 1e8:
+        factor = factor_pd(W + shift * scaling, ordered=pattern.ordered)
         if factor is not None:
-            return factor, shift, False
-        shift = max(floor, 10 * shift)
-    return None, shift, False
+            return factor, rho, shift, False
+        shift *= 10
+    return None, rho, shift, False
 
 
 def _line_search(
     problem: Problem,
     x: NDArray,
+    coords: NDArray,
     step: NDArray,
     grad: NDArray,
     A: sp.csr_matrix | None,
@@ -216,10 +330,22 @@ def _line_search(
     lam: NDArray,
     rho: float,
     residual: float,
-) -> tuple[NDArray, bool]:
-    """Armijo backtracking on the augmented Lagrangian; accepts any step halving the residual."""
-    free = problem.free_flat
+) -> tuple[NDArray, float]:
+    """Armijo backtracking on the augmented Lagrangian; accepts any step halving the residual.
+
+    With clamps, the full step is also tried with a second-order correction: the minimum-norm
+    move back onto the clamp lengths, which keeps the curvature of ``r_c`` along the step
+    from blocking full steps (the Maratos effect; Nocedal & Wright, Sec. 18.3).
+
+    Returns the new positions and the step length taken (0 when none was accepted).
+    """
     all_springs = problem.all_springs()
+
+    def corrected(y: NDArray) -> NDArray:
+        c = problem.clamp_violation(y)
+        z = y.copy()
+        z.ravel()[coords] -= A.T @ np.linalg.solve((A @ A.T).toarray(), c)
+        return z
 
     def merit(y: NDArray) -> float:
         e = spring_energy(y, *all_springs)
@@ -234,14 +360,18 @@ def _line_search(
     alpha = 1.0
     for _ in range(60):
         y = x.copy()
-        y.ravel()[free] += alpha * step
+        y.ravel()[coords] += alpha * step
         if np.all(np.isfinite(y)):
             phi = merit(y)
             if phi <= phi0 + 1e-4 * alpha * min(slope, 0.0) and (slope < 0 or phi < phi0):
-                return y, True
+                return y, alpha
             if alpha == 1.0:
+                if A is not None:
+                    z = corrected(y)
+                    if merit(z) <= phi0 + 1e-4 * min(slope, 0.0):
+                        return z, alpha
                 trial, _ = problem.residual(y)
                 if trial < 0.5 * residual:
-                    return y, True
+                    return y, alpha
         alpha *= 0.5
-    return x, False
+    return x, 0.0

@@ -1,0 +1,75 @@
+"""Fill-reducing elimination order for 2D networks: geometric nested dissection."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+__all__ = ["coordinate_order", "nested_dissection"]
+
+
+def nested_dissection(
+    positions: NDArray, springs: NDArray, *, leaf: int = 64
+) -> NDArray[np.int64]:
+    """Node elimination order by recursive coordinate bisection with vertex separators.
+
+    The node set is split at the median of its longer extent; the nodes of one half that
+    touch the other form the separator and are eliminated last. On 2D lattices this gives
+    less fill than SuperLU's minimum degree and about 1.1-1.8x faster factorisations at
+    N = 1e5 (benchmarks/bench_relax.py).
+
+    Parameters
+    ----------
+    positions : (n_nodes, 2) float array
+    springs : (n_springs, 2) int array
+    leaf : int
+        Sets of at most this many nodes are not split further.
+
+    Returns
+    -------
+    (n_nodes,) int array, a permutation of the nodes.
+    """
+    n = positions.shape[0]
+    adj = sp.coo_matrix(
+        (np.ones(2 * len(springs)), (springs.ravel(), springs[:, ::-1].ravel())), shape=(n, n)
+    ).tocsr()
+    on_right = np.zeros(n, dtype=bool)
+    pieces: list[NDArray] = []
+    stack: list[tuple[NDArray, bool]] = [(np.arange(n), False)]
+    # iterative post-order: (set, expanded) — a separator is emitted after both halves
+    while stack:
+        idx, expanded = stack.pop()
+        if expanded:
+            pieces.append(idx)
+            continue
+        p = positions[idx]
+        if idx.size <= leaf or np.ptp(p, axis=0).max() == 0.0:
+            pieces.append(idx)
+            continue
+        axis = int(np.argmax(np.ptp(p, axis=0)))
+        cut = np.median(p[:, axis])
+        right_mask = p[:, axis] >= cut
+        if right_mask.all() or not right_mask.any():
+            pieces.append(idx)
+            continue
+        left, right = idx[~right_mask], idx[right_mask]
+        on_right[right] = True
+        rows = adj[left]
+        row_of = np.repeat(np.arange(left.size), np.diff(rows.indptr))
+        touches = np.bincount(row_of, weights=on_right[rows.indices], minlength=left.size)
+        on_right[right] = False
+        separator, left = left[touches > 0], left[touches == 0]
+        stack.append((separator, True))
+        stack.append((right, False))
+        stack.append((left, False))
+    return np.concatenate(pieces).astype(np.int64)
+
+
+def coordinate_order(node_order: NDArray, free: NDArray) -> NDArray[np.int64]:
+    """Flat free-coordinate indices (into ``x.ravel()``) in node elimination order.
+
+    ``free`` is the (n_nodes, 2) mask of coordinates that move.
+    """
+    coords = np.stack([2 * node_order, 2 * node_order + 1], axis=1).ravel()
+    return coords[free.ravel()[coords]]
