@@ -6,29 +6,63 @@ meshio, pyvista and matplotlib are imported inside the functions that use them.
 
 from __future__ import annotations
 
+from .learning import (
+    AllosteryTask,
+    CoupledLearning,
+    ExactGradient,
+    History,
+    ProspectiveConfiguration,
+    paper_task,
+    stern_task,
+    train,
+)
 from .network import (
     Equilibrium,
     EquilibriumError,
     SpringNetwork,
     default_pins,
+    diluted_lattice,
     energy,
     forces,
     gradient,
     hessian,
+    is_rigid,
+    jammed_network,
+    paper_network,
     relax,
+    rigidity_matrix,
+    strain_tunable,
+    triangular_lattice,
+    zero_modes,
 )
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "AllosteryTask",
+    "CoupledLearning",
     "Equilibrium",
     "EquilibriumError",
+    "ExactGradient",
+    "History",
+    "ProspectiveConfiguration",
     "SpringNetwork",
     "__version__",
     "default_pins",
+    "diluted_lattice",
     "energy",
     "forces",
     "gradient",
     "hessian",
+    "is_rigid",
+    "jammed_network",
+    "paper_network",
+    "paper_task",
     "relax",
+    "rigidity_matrix",
+    "stern_task",
+    "strain_tunable",
+    "train",
+    "triangular_lattice",
+    "zero_modes",
 ]

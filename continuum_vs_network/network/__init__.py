@@ -1,9 +1,17 @@
 """Mass-spring networks: model, builders, energy, constraints, equilibrium and dynamics."""
 
+from .builders import (
+    diluted_lattice,
+    jammed_network,
+    paper_network,
+    strain_tunable,
+    triangular_lattice,
+)
 from .constraints import Problem, default_pins, pin_mask
 from .energy import HessianPattern, energy, forces, gradient, hessian
 from .equilibrium import Equilibrium, EquilibriumError, relax
 from .model import SpringNetwork
+from .rigidity import is_rigid, rigidity_matrix, self_stress_support, self_stresses, zero_modes
 
 __all__ = [
     "Equilibrium",
@@ -12,10 +20,20 @@ __all__ = [
     "Problem",
     "SpringNetwork",
     "default_pins",
+    "diluted_lattice",
     "energy",
     "forces",
     "gradient",
     "hessian",
+    "is_rigid",
+    "jammed_network",
+    "paper_network",
     "pin_mask",
     "relax",
+    "rigidity_matrix",
+    "self_stress_support",
+    "self_stresses",
+    "strain_tunable",
+    "triangular_lattice",
+    "zero_modes",
 ]
