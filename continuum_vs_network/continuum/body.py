@@ -199,6 +199,11 @@ def elastic_body(
             f"mesh has an element with an interior angle of {quality.min_angle:.3g} degrees "
             f"(< min_angle={min_angle}); it is degenerate. Remesh, or lower min_angle"
         )
+    if quality.tangled:
+        raise ValueError(
+            f"mesh is tangled: {quality.tangled} interior edges have both their triangles on "
+            "one side (inverted, overlapping elements). Untangle or remesh"
+        )
     basis = Basis(mesh, element)
     n_el = int(mesh.t.shape[1])
     lam = np.full(n_el, material.lam)

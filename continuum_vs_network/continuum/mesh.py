@@ -322,6 +322,9 @@ class MeshQuality:
         Element areas (length**2).
     h : float
         Mean edge length.
+    tangled : int
+        Interior edges whose two triangles lie on the same side (inverted, overlapping
+        elements); a valid mesh has none.
     """
 
     min_angle: float
@@ -329,6 +332,7 @@ class MeshQuality:
     min_area: float
     max_area: float
     h: float
+    tangled: int
 
 
 def mesh_quality(mesh: Any) -> MeshQuality:
@@ -345,6 +349,17 @@ def mesh_quality(mesh: Any) -> MeshQuality:
         u, v = -e[:, k - 1], e[:, k]
         cosang = np.sum(u * v, axis=1) / np.maximum(lengths[:, k - 1] * lengths[:, k], 1e-300)
         angles.append(np.degrees(np.arccos(np.clip(cosang, -1.0, 1.0))))
+    # each interior edge: its two triangles' third vertices must lie on opposite sides
+    f2t = mesh.f2t
+    inner = np.flatnonzero(f2t[1] >= 0)
+    fa, fb = p[mesh.facets[0, inner]], p[mesh.facets[1, inner]]
+    side = []
+    for k in (0, 1):
+        tri = t[f2t[k, inner]]
+        third = tri.sum(axis=1) - mesh.facets[0, inner] - mesh.facets[1, inner]
+        d, e_ = fb - fa, p[third] - fa
+        side.append(np.sign(d[:, 0] * e_[:, 1] - d[:, 1] * e_[:, 0]))
+    tangled = int(np.sum(side[0] * side[1] >= 0))
     longest = lengths.max(axis=1)
     altitude = 2 * area / np.maximum(longest, 1e-300)
     return MeshQuality(
@@ -353,4 +368,5 @@ def mesh_quality(mesh: Any) -> MeshQuality:
         min_area=float(area.min()),
         max_area=float(area.max()),
         h=float(lengths.mean()),
+        tangled=tangled,
     )

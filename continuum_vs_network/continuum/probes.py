@@ -166,7 +166,7 @@ def displacement_probe(body: ElasticBody, points: ArrayLike) -> Probe:
         for c in range(2):
             rows.append(2 * np.arange(n) + c)
             cols.append(dofs[j])
-            vals.append(phi.value[c, :, 0])
+            vals.append(np.asarray(phi)[c, :, 0])
     op = sp.csr_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
         shape=(2 * n, body.n_dofs),

@@ -197,8 +197,8 @@ def solve_inclusion(
     sol = solve_static(body, fixed, load=load)
     seconds = time.perf_counter() - t0
     basis = body.basis
-    uh = basis.interpolate(sol.u).value
-    X = basis.global_coordinates().value
+    uh = np.asarray(basis.interpolate(sol.u))
+    X = np.asarray(basis.global_coordinates())
     r = np.hypot(X[0], X[1])
     ex = eshelby_inclusion(
         r, radius=radius, eigenstrain=eigenstrain, material=material, inclusion=inc,
