@@ -1,0 +1,159 @@
+"""Time to equilibrium (residual <= 1e-10 F) of every relax method, side by side.
+
+For each size and source strain: a triangular lattice with 10% position noise (stress-free,
+or with random rest lengths with ``--random-rest``), one clamped spring near the centre
+held at the strain, default pins. Methods: ``newton``, ``fire``, ``lbfgs`` (time to
+``tol = 1e-10``; capped by ``--max-seconds``), ``paper`` (the residual it reaches in 10x
+Newton's time), and the limit "one Hessian assembly + one sparse factorisation" of the same
+problem, measured in the same run.
+
+    python benchmarks/bench_relax.py                 # N ~ 10, 1e3, 1e4
+    python benchmarks/bench_relax.py --sizes 10,1024
+    python benchmarks/bench_relax.py --big           # adds N ~ 1e5 (316 x 316)
+
+BLAS is pinned to one thread (``--blas-threads``) before numpy is imported: on a shared
+2-core machine multithreaded OpenBLAS made scipy's L-BFGS-B 10-30x slower.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+
+def _parse() -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--sizes", default="10,1024,10000",
+                   help="node counts, comma separated (10 -> 10-node patch, else ~n x n lattice)")
+    p.add_argument("--big", action="store_true", help="add N ~ 1e5 (316 x 316)")
+    p.add_argument("--strains", default="0.05,5", help="source strains, comma separated")
+    p.add_argument("--methods", default="newton,fire,lbfgs,paper")
+    p.add_argument("--max-seconds", type=float, default=120.0,
+                   help="time cap for fire and lbfgs (per run)")
+    p.add_argument("--random-rest", action="store_true",
+                   help="rest lengths uniform in 0.9-1.1 x the noisy lengths (prestressed)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--blas-threads", default="1")
+    return p.parse_args()
+
+
+def main() -> None:
+    args = _parse()
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", args.blas_threads)
+    os.environ.setdefault("OMP_NUM_THREADS", args.blas_threads)
+    os.environ.setdefault("MKL_NUM_THREADS", args.blas_threads)
+
+    import numpy as np
+
+    import continuum_vs_network as cvn
+    from continuum_vs_network.network.builders import paper_network, triangular_lattice
+    from continuum_vs_network.network.constraints import Problem
+    from continuum_vs_network.network.energy import spring_hessian_blocks
+    from continuum_vs_network.network.newton import factor_pd, pattern_for
+
+    sizes = [int(s) for s in args.sizes.split(",") if s]
+    if args.big and 100_000 not in sizes:
+        sizes.append(100_000)
+    strains = [float(s) for s in args.strains.split(",") if s]
+    methods = [m for m in args.methods.split(",") if m]
+    have_torch = False
+    if "paper" in methods:
+        try:
+            import torch  # noqa: F401  (imported here so its import time is not timed)
+
+            have_torch = True
+        except ImportError:
+            print("torch not installed: skipping 'paper'")
+            methods.remove("paper")
+
+    def build(n_nodes: int, rng: np.random.Generator) -> cvn.SpringNetwork:
+        if n_nodes <= 10:
+            net = paper_network(rng, noise=0.1, spacing=1.0)  # the 4-3-2-1 patch
+            net = net.with_stiffness(np.ones(net.n_springs)).with_rest_length(net.lengths())
+        else:
+            side = round(float(np.sqrt(n_nodes)))
+            net = triangular_lattice(side, side, noise=0.1, rng=rng)
+        if args.random_rest:
+            net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
+        return net
+
+    def limit(net: cvn.SpringNetwork, clamp: dict) -> tuple[float, float]:
+        problem = Problem.build(net, clamped=clamp)
+        x = problem.start(net.positions)
+        pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
+        ordered = bool(getattr(pattern, "ordered", False))
+        best_a = best_f = np.inf
+        for _ in range(3):
+            t0 = time.perf_counter()
+            W = pattern.assemble(spring_hessian_blocks(x, net.springs, net.stiffness,
+                                                       net.rest_length))
+            t1 = time.perf_counter()
+            factor_pd(W, ordered=ordered)  # may be None at an indefinite start: same cost
+            t2 = time.perf_counter()
+            best_a, best_f = min(best_a, t1 - t0), min(best_f, t2 - t1)
+        return best_a, best_f
+
+    print(f"# bench_relax: {' '.join(sys.argv[1:]) or '(defaults)'}; cores={os.cpu_count()}, "
+          f"BLAS threads={os.environ['OPENBLAS_NUM_THREADS']}, torch={have_torch}")
+    print(f"# residual target 1e-10 F (F = mean k mean L); fire/lbfgs capped at "
+          f"{args.max_seconds:g} s; paper given 10x newton's time")
+    header = f"{'N':>7} {'S':>5} {'method':>8} {'seconds':>9} {'iters':>7} {'residual/F':>11}  note"
+    print(header)
+    summary = []
+    for n_nodes in sizes:
+        rng = np.random.default_rng(args.seed)
+        net = build(n_nodes, rng)
+        mid = net.positions[net.springs].mean(axis=1)
+        centre = int(np.argmin(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1)))
+        F = net.force_scale
+        for strain in strains:
+            clamp = {centre: float(net.clamp_length(centre, strain))}
+            times: dict[str, float] = {}
+            t_assemble, t_factor = limit(net, clamp)
+            times["limit"] = t_assemble + t_factor
+            print(f"{net.n_nodes:>7} {strain:>5g} {'limit':>8} {times['limit']:>9.4f} {'':>7} "
+                  f"{'':>11}  assembly {t_assemble:.4f} s + factorisation {t_factor:.4f} s")
+            for method in methods:
+                try:  # warm-up (pattern and ordering caches, lazy imports), not timed
+                    cvn.relax(net, clamped=clamp, method=method, max_iter=2)
+                except cvn.EquilibriumError:
+                    pass
+                kw: dict = {}
+                if method == "paper":
+                    kw = {"max_seconds": 10 * times.get("newton", 1.0), "max_iter": 10**9}
+                elif method != "newton":
+                    kw = {"max_seconds": args.max_seconds, "max_iter": 10**9}
+                t0 = time.perf_counter()
+                try:
+                    eq = cvn.relax(net, clamped=clamp, method=method, tol=1e-10, **kw)
+                    note = "converged"
+                except cvn.EquilibriumError as err:
+                    eq = err.state
+                    note = f"not converged in {time.perf_counter() - t0:.3g} s"
+                    if eq is None:
+                        print(f"{net.n_nodes:>7} {strain:>5g} {method:>8} failed: {err}")
+                        continue
+                except ValueError as err:
+                    print(f"{net.n_nodes:>7} {strain:>5g} {method:>8} refused: {err}")
+                    continue
+                seconds = time.perf_counter() - t0
+                if eq.converged:
+                    times[method] = seconds
+                print(f"{net.n_nodes:>7} {strain:>5g} {method:>8} {seconds:>9.4f} "
+                      f"{eq.iterations:>7} {eq.residual / F:>11.2e}  {note}"
+                      + (f", clamp error {eq.clamp_error:.1e}" if not eq.converged else ""))
+            summary.append((net.n_nodes, strain, times))
+
+    print("\n# ratios (same run): newton/limit, fire/newton, lbfgs/newton")
+    for n_nodes, strain, times in summary:
+        def ratio(a: str, b: str, times=times) -> str:
+            return f"{times[a] / times[b]:8.1f}" if a in times and b in times else f"{'-':>8}"
+
+        print(f"{n_nodes:>7} {strain:>5g} {ratio('newton', 'limit')} {ratio('fire', 'newton')} "
+              f"{ratio('lbfgs', 'newton')}")
+
+
+if __name__ == "__main__":
+    main()
