@@ -23,8 +23,9 @@ from continuum_vs_network.learning.metrics import (
 )
 from continuum_vs_network.network.builders import paper_network, strain_tunable
 
-# wall-clock columns differ between runs; everything else must not
-_TIMING = {"seconds", "measure_seconds"}
+# wall-clock columns differ between runs, and so does the core Newton's iteration count
+# (it budgets conjugate-gradient solves by measured time); everything else must not
+_TIMING = {"seconds", "measure_seconds", "iterations"}
 
 
 def _assert_same(h1: History, h2: History, rtol: float = 0.0) -> None:
@@ -36,7 +37,10 @@ def _assert_same(h1: History, h2: History, rtol: float = 0.0) -> None:
     for name in h1.data:
         if name in _TIMING:
             continue
-        np.testing.assert_allclose(h1.data[name], h2.data[name], rtol=rtol, err_msg=name)
+        # residuals below the tolerance are round-off: equal up to the tolerance itself
+        atol = 1e-10 * h1.initial[0].force_scale if name == "residual" and rtol else 0.0
+        np.testing.assert_allclose(h1.data[name], h2.data[name], rtol=rtol, atol=atol,
+                                   err_msg=name)
     for a, b in zip(h1.final + h1.initial, h2.final + h2.initial):
         np.testing.assert_allclose(a.rest_length, b.rest_length, rtol=rtol)
         np.testing.assert_array_equal(a.springs, b.springs)

@@ -82,10 +82,20 @@ class Warm:
     ----------
     free, clamped : (n_nodes, 2) float arrays or None
         The last free and clamped equilibria.
+    previous_free : (n_nodes, 2) float array or None
+        The free equilibrium one step earlier: with ``free`` it extrapolates the next free
+        state (a guess for the fast solver; the warm start stays ``free``).
     """
 
     free: NDArray | None = None
     clamped: NDArray | None = None
+    previous_free: NDArray | None = None
+
+    def free_guess(self) -> NDArray | None:
+        """Linear extrapolation ``2 free - previous_free`` (or ``free``)."""
+        if self.free is None or self.previous_free is None:
+            return None
+        return 2.0 * np.asarray(self.free) - np.asarray(self.previous_free)
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,13 +127,16 @@ class Step:
     measured_free: NDArray | None = field(default=None, repr=False)
     measured_clamped: NDArray | None = field(default=None, repr=False)
     raw: NDArray | None = field(default=None, repr=False)
+    previous: Warm | None = field(default=None, repr=False)
 
     @property
     def warm(self) -> Warm:
-        """Warm starts for the next step."""
+        """Warm starts for the next step (this step's states; the older ones kept)."""
+        before = self.previous or Warm()
         return Warm(
-            free=None if self.free is None else self.free.positions,
-            clamped=None if self.clamped is None else self.clamped.positions,
+            free=before.free if self.free is None else self.free.positions,
+            clamped=before.clamped if self.clamped is None else self.clamped.positions,
+            previous_free=before.free if self.free is not None else before.previous_free,
         )
 
     def apply(self, net: SpringNetwork) -> SpringNetwork:
@@ -240,7 +253,9 @@ class Rule:
         warm: Warm,
     ) -> Equilibrium:
         clamps = task.source_clamps(net, self.strain_reference)
-        return tracker.solve(net, task.pinned, clamps, warm.free, key="free")
+        return tracker.solve(
+            net, task.pinned, clamps, warm.free, key="free", guess=warm.free_guess()
+        )
 
     def update(
         self,
@@ -279,7 +294,9 @@ class Rule:
         if noise > 0 and rng is None:
             raise ValueError("noise > 0 needs rng, a numpy.random.Generator")
         tracker = tracker or Tracker(self.solver)
-        return self._update(net, task, warm or Warm(), tracker, float(noise), rng)
+        warm = warm or Warm()
+        step = self._update(net, task, warm, tracker, float(noise), rng)
+        return dataclasses.replace(step, previous=warm)
 
     def _update(
         self,
@@ -333,7 +350,11 @@ class CoupledLearning(Rule):
             raise LearningError(f"nudged target length {lengths.min():.3g} <= 0")
         clamps = task.source_clamps(net, ref)
         clamps.update(zip(task.targets.tolist(), lengths.tolist()))
-        nudged = tracker.solve(net, task.pinned, clamps, free.positions, key="free")
+        guess = None
+        if warm.clamped is not None and warm.free is not None:
+            # the nudge moves the network about as much as it did one step earlier
+            guess = free.positions + (np.asarray(warm.clamped) - np.asarray(warm.free))
+        nudged = tracker.solve(net, task.pinned, clamps, free.positions, key="free", guess=guess)
         r_nudged = _noisy(net.lengths(nudged.positions), noise, rng)
         k, L = net.stiffness, net.rest_length
         if self.dof == "rest_length":

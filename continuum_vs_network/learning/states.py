@@ -36,7 +36,6 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from ..network.constraints import Problem
-from ..network.energy import spring_gradient
 from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
 from ..network.model import SpringNetwork
 
@@ -70,6 +69,8 @@ class Solver:
     refactor_ratio : float
         Refresh the factorisation when one chord iteration reduces the residual by less
         than this factor.
+    anderson : int
+        Depth of the Anderson acceleration of the chord iteration (0: plain chord).
     trust_region : bool
         When ``relax`` stalls (typically at a nearly degenerate equilibrium, where learning
         is about to make the network snap), continue with :func:`trust_region` from the
@@ -97,6 +98,7 @@ class Solver:
     accept_unconverged: bool = False
     max_seconds: float = 600.0
     retry_ramps: tuple[int, ...] = (5, 20)
+    anderson: int = 4
     trust_region: bool = True
     trust_region_max_free: int = 600
 
@@ -152,6 +154,7 @@ class Frame:
         self.n = int(self.coords.size)
         self.index = np.full(2 * net.n_nodes, -1, dtype=np.int64)
         self.index[self.coords] = np.arange(self.n)
+        self._incidence: tuple[sp.csr_matrix, sp.csr_matrix] | None = None
 
     def take(self, full: NDArray) -> NDArray:
         """Free entries of a (n_nodes, 2) array, in row order, (n,)."""
@@ -179,6 +182,38 @@ class Frame:
         return sp.csr_matrix(
             (vals[keep], (rows[keep], cols[keep])), shape=(springs.size, self.n)
         )
+
+    def gradient(self, net: SpringNetwork, x: NDArray) -> NDArray:
+        """``dE/dx`` on free coordinates in row order, (n,), by two sparse products.
+
+        Same values as :func:`~continuum_vs_network.network.energy.spring_gradient`
+        (round-off aside); the incidence matrices are built once per frame.
+        """
+        if self._incidence is None:
+            s = net.n_springs
+            rows = np.concatenate([np.arange(s), np.arange(s)])
+            cols = np.concatenate([net.springs[:, 0], net.springs[:, 1]])
+            vals = np.concatenate([-np.ones(s), np.ones(s)])
+            D = sp.csr_matrix((vals, (rows, cols)), shape=(s, net.n_nodes))
+            self._incidence = (D, D.T.tocsr())
+        D, Dt = self._incidence
+        d = D @ x
+        r = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)
+        t = (net.stiffness * (r - net.rest_length) / np.maximum(r, 1e-300))[:, None] * d
+        return (Dt @ t).reshape(-1)[self.coords]
+
+    def dense_rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> NDArray:
+        """Length gradients ``dr_j/dx`` of ``springs`` as a dense (len(springs), n) array."""
+        springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
+        pairs = net.springs[springs]
+        d = x[pairs[:, 1]] - x[pairs[:, 0]]
+        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
+        out = np.zeros((springs.size, self.n + 1))  # column n collects pinned entries
+        rows = np.arange(springs.size)
+        for k, (node, c, sign) in enumerate(((0, 0, -1), (0, 1, -1), (1, 0, 1), (1, 1, 1))):
+            del k
+            out[rows, self.index[2 * pairs[:, node] + c]] = sign * u[:, c]
+        return out[:, : self.n]
 
     def factor(self, W: sp.csr_matrix):
         """Positive-definite factorisation of ``W`` (None when it is not)."""
@@ -314,30 +349,35 @@ def _restore(problem: Problem, y: NDArray) -> NDArray:
 
 
 class _Linearisation:
-    """A factorised ``W`` at one point and the cached columns ``W^{-1} a_c``."""
+    """A factorised ``W`` at one point, cached columns ``W^{-1} a_c`` and Schur matrices."""
 
     def __init__(self, factor, x: NDArray, frame: Frame) -> None:
         self.factor = factor
         self.x = x.copy()
         self.frame = frame
-        self.columns: dict[int, tuple[sp.csr_matrix, NDArray]] = {}  # spring -> (a_c, W^-1 a_c)
+        self.columns: dict[int, tuple[NDArray, NDArray]] = {}  # spring -> (a_c, W^-1 a_c)
+        self.sets: dict[tuple[int, ...], tuple[NDArray, NDArray, NDArray]] = {}
         self.uses = 0
 
     def rows_and_columns(
         self, net: SpringNetwork, springs: NDArray
-    ) -> tuple[sp.csr_matrix, NDArray]:
+    ) -> tuple[NDArray, NDArray, NDArray]:
+        """``(A, Z, S)`` for a clamp set: rows ``a_c`` at the linearisation point (m, n),
+        ``Z = W^{-1} A^T`` (n, m) and the Schur complement ``S = A Z`` (m, m)."""
+        key = tuple(int(s) for s in springs)
+        if key in self.sets:
+            return self.sets[key]
         n = self.frame.n
-        missing = [int(s) for s in springs if int(s) not in self.columns]
+        missing = [s for s in key if s not in self.columns]
         if missing:
-            A = self.frame.rows(net, self.x, np.array(missing))
-            Z = np.asarray(self.factor.solve(A.T.toarray())).reshape(n, len(missing))
+            A = self.frame.dense_rows(net, self.x, np.array(missing))
+            Z = np.asarray(self.factor.solve(A.T.copy())).reshape(n, len(missing))
             for j, s in enumerate(missing):
                 self.columns[s] = (A[j], Z[:, j].copy())
-        if not springs.size:
-            return sp.csr_matrix((0, n)), np.zeros((n, 0))
-        A = sp.vstack([self.columns[int(s)][0] for s in springs], format="csr")
-        Z = np.column_stack([self.columns[int(s)][1] for s in springs])
-        return A, Z
+        A = np.array([self.columns[s][0] for s in key]).reshape(len(key), n)
+        Z = np.array([self.columns[s][1] for s in key]).reshape(len(key), n).T
+        self.sets[key] = (A, Z, A @ Z)
+        return self.sets[key]
 
 
 @dataclass
@@ -378,6 +418,7 @@ class Tracker:
         x0: NDArray | None,
         *,
         key: str = "free",
+        guess: NDArray | None = None,
     ) -> Equilibrium:
         """Equilibrium of ``net`` with ``pinned`` coordinates and ``clamped`` springs.
 
@@ -391,6 +432,10 @@ class Tracker:
         key : str
             Which cached linearisation to use and refresh ("free" for the free and the
             nudged state, "clamped" for a clamped state far from the free one).
+        guess : (n_nodes, 2) float array, optional
+            A predicted equilibrium (extrapolated from earlier steps) for the fast path to
+            start from; ``relax`` always starts from ``x0``. Pinned coordinates are taken
+            from ``x0``.
 
         Raises
         ------
@@ -401,7 +446,10 @@ class Tracker:
         self.stats.solves += 1
         try:
             if self.solver.fast and x0 is not None:
-                state = self._chord(net, pinned, clamped, np.asarray(x0, float), key)
+                start = np.asarray(x0, float)
+                if guess is not None:
+                    start = np.where(pinned, start, np.asarray(guess, float))
+                state = self._chord(net, pinned, clamped, start, key)
                 if state is not None:
                     return state
             return self._relax(net, pinned, clamped, x0, key)
@@ -534,14 +582,16 @@ class Tracker:
         refactors = 0  # factorisations made by this call
         x = x.copy()
         previous = np.inf
+        xs: list[NDArray] = []  # Anderson memory: free coordinates and chord steps
+        fs: list[NDArray] = []
         for it in range(30):
             if not np.all(np.isfinite(x)):
                 return None
-            g = frame.take(spring_gradient(x, net.springs, net.stiffness, net.rest_length))
+            g = frame.gradient(net, x)
             if clamps.size:
-                A = frame.rows(net, x, clamps)
+                A = frame.dense_rows(net, x, clamps)
                 viol = problem.clamp_violation(x)
-                mu = multipliers(A, g)
+                mu = -np.linalg.lstsq(A @ A.T, A @ g, rcond=None)[0]
                 force = g + A.T @ mu
             else:
                 viol, mu, force = np.empty(0), np.empty(0), g
@@ -562,17 +612,36 @@ class Tracker:
                 else:
                     lin = self._linearise(problem, frame, x, mu, key)
                     refactors += 1
+                    xs.clear()
+                    fs.clear()
                     if lin is None:
                         return None
+            if measure >= previous:
+                xs.clear()
+                fs.clear()
             previous = measure
             z = lin.factor.solve(force)
             if clamps.size:
-                At, Z = lin.rows_and_columns(net, clamps)
-                step = -z - Z @ np.linalg.solve(At @ Z, viol - At @ z)
+                At, Z, S = lin.rows_and_columns(net, clamps)
+                step = -z - Z @ np.linalg.solve(S, viol - At @ z)
             else:
                 step = -z
             lin.uses += 1
-            x = x + frame.put(step)
+            xf = frame.take(x)
+            new = xf + step
+            if s.anderson and xs:
+                # Anderson acceleration of the chord iteration (GMRES-like on its error)
+                dX = np.column_stack([xf - xo for xo in xs])
+                dF = np.column_stack([step - fo for fo in fs])
+                gamma = np.linalg.lstsq(dF, step, rcond=None)[0]
+                new = new - (dX + dF) @ gamma
+            xs.append(xf)
+            fs.append(step)
+            if len(xs) > s.anderson:
+                xs.pop(0)
+                fs.pop(0)
+            x = x.copy()
+            x.reshape(-1)[frame.coords] = new
         return None
 
 

@@ -50,6 +50,7 @@ _PER_TARGET = {
     "clamp_length",
 }
 _COUNTERS = ("solves", "factorisations", "iterations")
+_CURRENT_STATE = ("rest_length", "stiffness", "warm_free", "warm_clamped", "warm_previous_free")
 
 
 def train(
@@ -214,7 +215,8 @@ def _run_trial(
             nxt = step.apply(cur)
             warm = Warm(
                 free=free.positions if free is not None else warm.free,
-                clamped=step.warm.clamped if step.clamped is not None else warm.clamped,
+                clamped=step.warm.clamped,
+                previous_free=warm.free if free is not None else warm.previous_free,
             )
             cur = nxt
             t += 1
@@ -387,6 +389,8 @@ class _Checkpoint:
             arrays["cur/warm_free"] = np.asarray(warm.free)
         if warm.clamped is not None:
             arrays["cur/warm_clamped"] = np.asarray(warm.clamped)
+        if warm.previous_free is not None:
+            arrays["cur/warm_previous_free"] = np.asarray(warm.previous_free)
         progress = {
             "trial": i,
             "step": t,
@@ -486,11 +490,13 @@ class _Checkpoint:
                     k[4:]: v.copy()
                     for k, v in files.items()
                     if k.startswith("cur/")
-                    and k[4:] not in ("rest_length", "stiffness", "warm_free", "warm_clamped")
+                    and k[4:] not in _CURRENT_STATE
                 },
                 "rest_length": files["cur/rest_length"],
                 "stiffness": files["cur/stiffness"],
                 "warm": Warm(
-                    free=files.get("cur/warm_free"), clamped=files.get("cur/warm_clamped")
+                    free=files.get("cur/warm_free"),
+                    clamped=files.get("cur/warm_clamped"),
+                    previous_free=files.get("cur/warm_previous_free"),
                 ),
             }
