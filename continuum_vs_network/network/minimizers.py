@@ -72,6 +72,8 @@ class _Objective:
     def __init__(self, problem: Problem) -> None:
         self.problem = problem
         self.springs, self.k, self.L = problem.all_springs()
+        self.a = np.ascontiguousarray(self.springs[:, 0])
+        self.b = np.ascontiguousarray(self.springs[:, 1])
         self.free_flat = problem.free_flat
         self.augmented = problem.exact
         m = problem.n_clamps
@@ -114,27 +116,54 @@ class _Objective:
         np.add.at(G, self.ends[:, 1], t)
         np.add.at(G, self.ends[:, 0], -t)
 
+    def _spring_vectors(self, x: NDArray) -> tuple[NDArray, NDArray]:
+        # np.take along axis 0 gathers rows ~10x faster than x[index] (30k springs: 0.06
+        # against 0.7 ms), which dominated the cost of an iteration
+        d = np.take(x, self.b, axis=0) - np.take(x, self.a, axis=0)
+        return d, np.hypot(d[:, 0], d[:, 1])
+
+    def _spring_gradient(self, d: NDArray, r: NDArray, n: int) -> NDArray:
+        """``spring_gradient`` from precomputed spring vectors ``d`` and lengths ``r``."""
+        t = (self.k * (r - self.L) / np.maximum(r, 1e-300))[:, None] * d
+        G = np.empty((n, 2))
+        for c in range(2):
+            G[:, c] = np.bincount(self.b, t[:, c], n) - np.bincount(self.a, t[:, c], n)
+        return G
+
     def grad(self, x: NDArray) -> NDArray:
-        G = spring_gradient(x, self.springs, self.k, self.L)
+        G = self._spring_gradient(*self._spring_vectors(x), x.shape[0])
         if self.augmented:
             self._add_clamp_terms(x, G)
         return G
 
-    def value_change(self, x: NDArray, x_ref: NDArray) -> float:
-        """The objective at ``x`` minus its value at ``x_ref``, free of cancellation.
+    def reference(self, x: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """``(x_ref, d_ref, r_ref)``: a copy of ``x`` and its spring vectors and lengths."""
+        x = x.copy()
+        return (x, *self._spring_vectors(x))
+
+    def change_and_grad(self, x: NDArray, ref: tuple) -> tuple[float, NDArray]:
+        """The objective at ``x`` minus its value at ``ref``, and its full gradient.
 
         Energy differences near a minimum are ~ residual^2 / k; computed as
         ``E(x) - E(x_ref)`` they drown in ``eps E`` below a residual ~ sqrt(eps E k)
-        (~1e-9 F on small lattices), which stalls line searches before 1e-10. See
-        :func:`~.numerics.spring_energy_change`.
+        (~1e-9 F on small lattices), which stalls line searches before 1e-10. The change
+        is computed as in :func:`~.numerics.spring_energy_change`, fused with the
+        gradient so that the spring vectors are gathered once.
         """
-        change = spring_energy_change(x, x_ref, self.springs, self.k, self.L)
+        x_ref, d0, r0 = ref
+        u = x - x_ref
+        d, r = self._spring_vectors(x)
+        du = np.take(u, self.b, axis=0) - np.take(u, self.a, axis=0)
+        dr = np.einsum("ij,ij->i", du, d + d0) / np.maximum(r + r0, 1e-300)
+        change = float(0.5 * np.dot(self.k, dr * (r + r0 - 2.0 * self.L)))
+        G = self._spring_gradient(d, r, x.shape[0])
         if self.augmented:
             # lam c + rho/2 c^2 is a spring of stiffness rho and rest length l - lam/rho,
             # up to a constant
             rest = self.problem.clamp_lengths - self.lam / self.rho
             change += spring_energy_change(x, x_ref, self.ends, np.full(rest.size, self.rho), rest)
-        return change
+            self._add_clamp_terms(x, G)
+        return change, G
 
     def check(self, x: NDArray, G: NDArray) -> tuple[float, float]:
         """``(residual, clamp_error)`` of ``x`` given its gradient ``G`` (n_nodes, 2)."""
@@ -364,7 +393,7 @@ def _lbfgs_inner(
 
     def fun(y: NDArray) -> tuple[float, NDArray]:
         flat[free] = y
-        e, G = obj.value_change(x, ref), obj.grad(x)
+        e, G = obj.change_and_grad(x, ref)
         cache["y"], cache["G"] = y.copy(), G
         return e, G.ravel()[free]
 
@@ -402,7 +431,7 @@ def _lbfgs_inner(
         test(np.asarray(intermediate_result.x), True)
 
     y = flat[free].copy()
-    ref = x.copy()
+    ref = obj.reference(x)
     stalls = 0
     with _one_blas_thread():
         try:
@@ -410,7 +439,7 @@ def _lbfgs_inner(
             while True:
                 start_iterations = done["iterations"]
                 flat[free] = y
-                ref = x.copy()  # energies are measured from the restart point
+                ref = obj.reference(x)  # energies are measured from the restart point
                 res = minimize(
                     fun, y, jac=True, method="L-BFGS-B", callback=callback,
                     options={"maxiter": max(budget - done["iterations"], 1), "maxcor": 10,
