@@ -52,7 +52,7 @@ def run_demo(
             note = ""
         except EquilibriumError as err:
             eq = err.state
-            note = err.reason.split(" (wanted")[0]
+            note = err.reason.split(" (wanted")[0].removeprefix(f"{method}: ")
         rows.append(
             DemoRow(
                 method=method,
