@@ -450,15 +450,18 @@ class ExactGradient(Rule):
     def _update(self, net, task, warm, tracker, noise, rng) -> Step:
         free = self._free(net, task, tracker, warm)
         r_free = _noisy(net.lengths(free.positions), noise, rng)
-        grad = cost_gradient(
-            net,
-            task,
-            free,
-            reference=self.strain_reference,
-            dof=self.dof,
-            cost=self.cost,
-            target_lengths=r_free[task.targets],
-        )
+        try:
+            grad = cost_gradient(
+                net,
+                task,
+                free,
+                reference=self.strain_reference,
+                dof=self.dof,
+                cost=self.cost,
+                target_lengths=r_free[task.targets],
+            )
+        except (np.linalg.LinAlgError, RuntimeError) as err:
+            raise LearningError(f"exact gradient: singular KKT system ({err})") from err
         tracker.stats.factorisations += 1
         raw = -self.alpha * grad
         return Step(

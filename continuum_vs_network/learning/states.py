@@ -39,7 +39,7 @@ from ..network.constraints import Problem
 from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
 from ..network.model import SpringNetwork
 
-__all__ = ["Frame", "Solver", "Tracker", "lagrangian_hessian", "multipliers", "trust_region"]
+__all__ = ["Frame", "Solver", "Tracker", "lagrangian_hessian", "trust_region"]
 
 _MAX_REFACTORS = 3  # per chord solve; then relax (with its line search) takes over
 
@@ -189,6 +189,10 @@ class Frame:
         Same values as :func:`~continuum_vs_network.network.energy.spring_gradient`
         (round-off aside); the incidence matrices are built once per frame.
         """
+        return self.gradient_and_lengths(net, x)[0]
+
+    def gradient_and_lengths(self, net: SpringNetwork, x: NDArray) -> tuple[NDArray, NDArray]:
+        """:meth:`gradient` and the spring lengths ``r`` (n_springs,) it used."""
         if self._incidence is None:
             s = net.n_springs
             rows = np.concatenate([np.arange(s), np.arange(s)])
@@ -200,7 +204,7 @@ class Frame:
         d = D @ x
         r = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)
         t = (net.stiffness * (r - net.rest_length) / np.maximum(r, 1e-300))[:, None] * d
-        return (Dt @ t).reshape(-1)[self.coords]
+        return (Dt @ t).reshape(-1)[self.coords], r
 
     def dense_rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> NDArray:
         """Length gradients ``dr_j/dx`` of ``springs`` as a dense (len(springs), n) array."""
@@ -254,11 +258,6 @@ def lagrangian_hessian(
     uu = u[:, :, None] * u[:, None, :]
     blocks = axial[:, None, None] * uu + tangential[:, None, None] * (np.eye(2) - uu)
     return frame.pattern.assemble(blocks)
-
-
-def multipliers(A: sp.csr_matrix, g: NDArray) -> NDArray:
-    """Least-squares clamp multipliers ``mu`` minimising ``|g + A^T mu|`` (as ``relax``)."""
-    return -np.linalg.lstsq((A @ A.T).toarray(), A @ g, rcond=None)[0]
 
 
 def trust_region(
@@ -449,7 +448,11 @@ class Tracker:
                 start = np.asarray(x0, float)
                 if guess is not None:
                     start = np.where(pinned, start, np.asarray(guess, float))
-                state = self._chord(net, pinned, clamped, start, key)
+                try:
+                    state = self._chord(net, pinned, clamped, start, key)
+                except (np.linalg.LinAlgError, FloatingPointError, RuntimeError):
+                    self._lin.pop(key, None)  # degenerate linear algebra: relax instead
+                    state = None
                 if state is not None:
                     return state
             return self._relax(net, pinned, clamped, x0, key)
@@ -497,6 +500,12 @@ class Tracker:
                 max_iter=s.max_iter,
                 max_seconds=s.max_seconds,
             )
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as err:
+            if isinstance(err, ValueError) and "floppy" not in str(err):
+                raise
+            # the core solver hit a degenerate or non-finite iterate (learning drove the
+            # network there): a failed equilibrium, not a bug in the caller
+            raise EquilibriumError(f"{s.method}: {type(err).__name__}: {err}") from err
         except EquilibriumError as err:
             state = err.state
             self.stats.iterations += 0 if state is None else state.iterations
@@ -587,11 +596,11 @@ class Tracker:
         for it in range(30):
             if not np.all(np.isfinite(x)):
                 return None
-            g = frame.gradient(net, x)
+            g, r = frame.gradient_and_lengths(net, x)
             if clamps.size:
                 A = frame.dense_rows(net, x, clamps)
-                viol = problem.clamp_violation(x)
-                mu = -np.linalg.lstsq(A @ A.T, A @ g, rcond=None)[0]
+                viol = r[clamps] - problem.clamp_lengths
+                mu = _least_squares_multipliers(A, g)
                 force = g + A.T @ mu
             else:
                 viol, mu, force = np.empty(0), np.empty(0), g
@@ -601,7 +610,8 @@ class Tracker:
             trace_t.append(time.perf_counter() - t0)
             if residual <= f_tol and clamp_error <= l_tol:
                 self.stats.iterations += it
-                return _equilibrium(net, x, residual, clamp_error, mu, it, t0, trace_r, trace_t)
+                return _equilibrium(net, x, r, residual, clamp_error, mu, it, t0, trace_r,
+                                    trace_t)
             measure = max(residual / f_tol, clamp_error / l_tol)
             if not np.isfinite(measure):
                 return None
@@ -645,9 +655,18 @@ class Tracker:
         return None
 
 
+def _least_squares_multipliers(A: NDArray, g: NDArray) -> NDArray:
+    """``mu`` minimising ``|g + A^T mu|`` (normal equations; lstsq if they are singular)."""
+    try:
+        return -np.linalg.solve(A @ A.T, A @ g)
+    except np.linalg.LinAlgError:
+        return -np.linalg.lstsq(A @ A.T, A @ g, rcond=None)[0]
+
+
 def _equilibrium(
     net: SpringNetwork,
     x: NDArray,
+    r: NDArray,
     residual: float,
     clamp_error: float,
     mu: NDArray,
@@ -660,7 +679,7 @@ def _equilibrium(
     x.setflags(write=False)
     return Equilibrium(
         positions=x,
-        energy=float(0.5 * np.dot(net.stiffness, (net.lengths(x) - net.rest_length) ** 2)),
+        energy=float(0.5 * np.dot(net.stiffness, (r - net.rest_length) ** 2)),
         residual=residual,
         clamp_error=clamp_error,
         clamp_force=-np.asarray(mu, dtype=np.float64),  # dE/dl_c, as relax reports it
