@@ -50,6 +50,7 @@ __all__ = [
     "run",
     "sweeps",
     "table",
+    "verification",
 ]
 
 
@@ -304,3 +305,63 @@ def markdown(rows: Sequence[dict[str, str]]) -> str:
     for row in rows:
         lines.append("| " + " | ".join(str(row[k]).replace("|", "/") for k in keys) + " |")
     return "\n".join(lines)
+
+
+def verification(
+    *,
+    trials: int = 10,
+    etas: Sequence[float] = (1e-1, 1e-2, 1e-3, 1e-4),
+    fd_step: float = 1e-5,
+) -> dict[str, NDArray]:
+    """Coupled learning against the exact gradient on ``trials`` paper networks.
+
+    Returns arrays (trials, len(etas)) ``rel_initial`` / ``cos_initial``: relative error
+    and cosine of ``GCL / alpha`` against ``-K L0^2 dC/dL`` (strains against the initial
+    ``L``, where ``C`` is a length cost; ``K`` is the target's effective stiffness);
+    ``rel_frozen`` / ``cos_strain``: with strains against the learning ``L``, against
+    the gradient of the frozen-reference length cost (:func:`~.sensitivity.gcl_limit`)
+    and the cosine with ``-dC/dL`` of Eq. 26 itself; and ``fd`` (trials,): the median
+    relative error of the exact gradient of Eq. 26 (learning ``L``) against central
+    finite differences with step ``fd_step * mean(L)``.
+    """
+    from ..network.equilibrium import relax
+    from .metrics import cosine, relative_error
+    from .sensitivity import Sensitivity, cost_gradient, gcl_limit
+    from .states import Tracker
+
+    out = {k: np.full((trials, len(etas)), np.nan)
+           for k in ("rel_initial", "cos_initial", "rel_frozen", "cos_strain")}
+    out["fd"] = np.full(trials, np.nan)
+    for i in range(trials):
+        rng = np.random.default_rng(np.random.SeedSequence(i).spawn(2)[0])
+        net = _network(rng)
+        task = paper_task(net, rng)
+        for j, eta in enumerate(etas):
+            for ref in ("initial", "current"):
+                step = CoupledLearning(1.0, eta, strain_reference=ref).update(net, task)
+                if ref == "initial":
+                    sens = Sensitivity(net, task.pinned, task.source_clamps(net, ref), step.free)
+                    K = 1.0 / sens.compliance(task.targets)[0, 0]
+                    grad = cost_gradient(net, task, step.free, reference=ref, sensitivity=sens)
+                    reference = -K * task.target_rest_length[0] ** 2 * grad
+                    out["rel_initial"][i, j] = relative_error(step.raw, reference)
+                    out["cos_initial"][i, j] = cosine(step.raw, reference)
+                else:
+                    limit, _ = gcl_limit(net, task, step.free, reference=ref)
+                    out["rel_frozen"][i, j] = relative_error(step.raw, limit)
+                    grad = cost_gradient(net, task, step.free, reference=ref)
+                    out["cos_strain"][i, j] = cosine(step.raw, -grad)
+        free = Tracker().solve(net, task.pinned, task.source_clamps(net, "current"), None)
+        grad = cost_gradient(net, task, free, reference="current")
+        h = fd_step * float(np.mean(net.rest_length))
+
+        def error(L, net=net, task=task, free=free):
+            n = net.with_rest_length(L)
+            eq = relax(n, pinned=task.pinned, clamped=task.source_clamps(n, "current"),
+                       x0=free.positions, tol=1e-13)
+            return task.error(n, eq.positions, "current")
+
+        fd = np.array([(error(net.rest_length + h * e) - error(net.rest_length - h * e)) / (2 * h)
+                       for e in np.eye(net.n_springs)])
+        out["fd"][i] = np.median(np.abs(grad - fd) / np.max(np.abs(fd)))
+    return out
