@@ -501,8 +501,9 @@ class Tracker:
                 max_seconds=s.max_seconds,
             )
         except (np.linalg.LinAlgError, FloatingPointError, ValueError) as err:
-            if isinstance(err, ValueError) and "floppy" not in str(err):
-                raise
+            degenerate = isinstance(err, (np.linalg.LinAlgError, FloatingPointError))
+            if not degenerate and "floppy" not in str(err):
+                raise  # a ValueError about the input
             # the core solver hit a degenerate or non-finite iterate (learning drove the
             # network there): a failed equilibrium, not a bug in the caller
             raise EquilibriumError(f"{s.method}: {type(err).__name__}: {err}") from err
