@@ -104,6 +104,7 @@ def test_final_state_matches_relax(inertia):
     eq = cvn.relax(net, pinned=pins, tol=1e-12)
     assert np.max(np.abs(tr.positions[-1] - eq.positions)) < 1e-8
     assert tr.residual[-1] < 1e-9
+    assert np.all(np.diff(tr.seconds) >= 0)
 
 
 def test_clamp_as_prescribed_end_displacement_matches_relax_with_pinned_ends():

@@ -56,6 +56,7 @@ k ~ 1) that must rotate during a step make Newton zig-zag along a curved valley
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Literal
@@ -88,9 +89,12 @@ class Trajectory:
     energy : (T,) float array
         Elastic energy of the network (Eq. 11).
     kinetic : (T,) float array
-        ``|v|^2 / 2`` (unit masses); zero-mass overdamped runs report it for ``x'`` too.
+        ``|v|^2 / 2`` (unit masses). Overdamped runs report it for the drift velocity
+        ``x'``; it is then not part of the mechanical energy.
     residual : (T,) float array
         Largest net spring force on a free coordinate (force units).
+    seconds : (T,) float array
+        Wall-clock time at which each frame was reached (for cost-against-accuracy plots).
     free : (n_nodes, 2) bool array
         Coordinates that moved (not pinned, prescribed or clamped).
     scheme : str
@@ -106,6 +110,7 @@ class Trajectory:
     energy: NDArray[np.float64] = field(repr=False)
     kinetic: NDArray[np.float64] = field(repr=False)
     residual: NDArray[np.float64] = field(repr=False)
+    seconds: NDArray[np.float64] = field(repr=False)
     free: NDArray[np.bool_] = field(repr=False)
     scheme: str
     dt: float
@@ -399,6 +404,7 @@ def simulate(
     if int(max_newton) != max_newton or max_newton < 1:
         raise ValueError(f"max_newton must be an integer >= 1, got {max_newton}")
     inertia = bool(inertia)
+    t0 = time.perf_counter()
 
     x, free = _boundary(net, pinned, prescribed, clamped, x0)
     fixed_flat = ~free.ravel()
@@ -443,7 +449,7 @@ def simulate(
     def record(step: int, x: NDArray, v: NDArray, G: NDArray) -> None:
         residual = float(np.max(np.abs(G))) if free.any() else 0.0
         frames.append((step * dt, x.copy(), v.copy(), spring_energy(x, springs, k, L),
-                       0.5 * float(np.sum(v * v)), residual))
+                       0.5 * float(np.sum(v * v)), residual, time.perf_counter() - t0))
 
     record(0, x, v, G)
     for step in range(1, n_steps + 1):
@@ -481,14 +487,15 @@ def simulate(
                     )
             record(step, x, v, G)
 
-    times, pos, vel, energy, kinetic, residual = (np.asarray(z) for z in zip(*frames))
-    for arr in (times, pos, vel, energy, kinetic, residual):
+    times, pos, vel, energy, kinetic, residual, seconds = (np.asarray(z) for z in zip(*frames))
+    for arr in (times, pos, vel, energy, kinetic, residual, seconds):
         arr.setflags(write=False)
     free = free.copy()
     free.setflags(write=False)
     return Trajectory(
         times=times, positions=pos, velocities=vel, energy=energy, kinetic=kinetic,
-        residual=residual, free=free, scheme=scheme, dt=dt, damping=c, inertia=inertia,
+        residual=residual, seconds=seconds, free=free, scheme=scheme, dt=dt, damping=c,
+        inertia=inertia,
         factorisations=solver.factorisations if solver is not None else 0,
     )
 
