@@ -101,7 +101,8 @@ def paper_experiments(
     Returns experiments named ``gcl`` (Fig. 4, A.2; all springs learn, no floor),
     ``gcl_floor`` (the same with a rest-length floor), ``gcl_frozen`` (target frozen,
     floor), ``gpc`` (Fig. 6-9, A.3), ``gpc_frozen`` (Fig. 10) and ``exact`` (the exact
-    gradient of Eq. 26 with a floor: what the task allows).
+    gradient of Eq. 26 with a floor: what the task allows) and ``exact_frozen`` (the same
+    with the target frozen, the reference for ``gcl_frozen`` and ``gpc_frozen``).
     """
     solver = solver or exact_solver()
     if alpha_exact is None:  # about the largest stable rate in a pilot run of each convention
@@ -140,6 +141,11 @@ def paper_experiments(
             "exact", "(reference)",
             "(not in the paper: gradient descent with the exact gradient of Eq. 26)",
             ExactGradient(alpha_exact, min_rest_length=floor, **common),
+        ),
+        Experiment(
+            "exact_frozen", "(reference)",
+            "(not in the paper: exact gradient of Eq. 26, target frozen, floor)",
+            ExactGradient(alpha_exact, learn_targets=False, min_rest_length=floor, **common),
         ),
     )
 
@@ -237,10 +243,10 @@ def _ratio(values: NDArray, history: History) -> dict:
 
 def _fmt(s: dict) -> str:
     if not s.get("n"):
-        return "no trial finished"
+        return "no trial measured"
     text = f"{s['median']:.3g} [{s['q25']:.3g}, {s['q75']:.3g}]"
     if s.get("missing"):
-        text += f" ({s['missing']} stopped)"
+        text += f" ({s['missing']} trials without a value)"
     return text
 
 
@@ -286,7 +292,7 @@ def table(histories: dict[str, History], experiments: Sequence[Experiment], *,
             "figures": exp.figures,
             "claim": exp.claim,
             "measured": "; ".join(measured),
-            "trials": f"{h.trials} ({stopped} stopped early)",
+            "trials": f"{h.trials} ({stopped} stopped early; their last values are used)",
             "settings": ", ".join(
                 f"{k}={settings[k]}" for k in (
                     "rule", "strain_reference", "alpha", "eta", "learn_targets",
