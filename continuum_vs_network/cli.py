@@ -1,12 +1,53 @@
-"""The ``cvn`` command."""
+"""The ``cvn`` command.
+
+::
+
+    cvn report [SCENE ...]        run scenes (default: the default set) and write their reports
+    cvn run SCENE [--out DIR]     run one scene (a .toml file or a built-in name), write its report
+    cvn export SCENE              write the scene's meshes (VTU, PVD series) for ParaView
+    cvn scenes [--keys]           list the built-in scenes (--keys: every scene key)
+    cvn demo                      relax the paper's network with every method
+
+Outputs go under ``--out`` (default: the current folder): ``results/<scene>/`` (computed
+units and checkpoints: an interrupted run resumes from them), ``reports/<scene>/``,
+``meshes/<scene>/``.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
+import time
 from collections.abc import Sequence
+from pathlib import Path
 
-__all__ = ["main"]
+__all__ = ["EXIT", "build_parser", "main"]
+
+#: Exit codes.
+EXIT = {
+    "ok": 0,
+    "not_converged": 1,  # cvn demo: a method did not converge
+    "usage": 2,  # bad command line or scene file
+    "run": 3,  # a scene's computation failed
+    "report": 4,  # writing a report failed
+    "export": 5,  # writing meshes failed
+    "interrupted": 130,
+}
+
+_EPILOG = (
+    "exit codes: 0 ok; 1 demo: a method did not converge; 2 bad command line or scene file; "
+    "3 a scene's computation failed; 4 writing a report failed; 5 writing meshes failed; "
+    "130 interrupted (rerun to resume)."
+)
+
+
+def _err(msg: str) -> None:
+    print(f"cvn: {msg}", file=sys.stderr)
+
+
+def _info(args: argparse.Namespace, msg: str) -> None:
+    if not getattr(args, "quiet", False):
+        print(msg, file=sys.stderr)
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -14,12 +55,132 @@ def _demo(args: argparse.Namespace) -> int:
 
     rows, info = run_demo(args.seed, strain=args.strain, paper_seconds=args.paper_seconds)
     print(format_table(rows, info))
-    return 0 if all(r.converged for r in rows if r.method != "paper") else 1
+    return EXIT["ok"] if all(r.converged for r in rows if r.method != "paper") else 1
+
+
+def _scenes(args: argparse.Namespace) -> int:
+    from .scenes.schema import builtin_names, key_reference, load_scene
+
+    if args.keys:
+        print(key_reference())
+        return EXIT["ok"]
+    scenes = [load_scene(name) for name in builtin_names()]
+    width = max(len(s.name) for s in scenes)
+    print(f"{'scene':{width}}  {'kind':12}  default  description")
+    for s in scenes:
+        print(f"{s.name:{width}}  {s.kind:12}  {'yes' if s.report.default else 'no':7}  "
+              f"{s.description}")
+    print("\n`cvn report` runs the default set; `cvn run NAME` or `cvn report NAME ...` any "
+          "scene; `cvn scenes --keys` lists every key a scene file may set.")
+    return EXIT["ok"]
+
+
+def _load(names: Sequence[str]):
+    from .scenes.schema import load_scene
+
+    return [load_scene(n) for n in names]
+
+
+def _default_scenes():
+    from .scenes.schema import builtin_names, load_scene
+
+    return [s for s in (load_scene(n) for n in builtin_names()) if s.report.default]
+
+
+def _process(args: argparse.Namespace, scene, *, report: bool, force_export: bool) -> int:
+    """Run one scene, export its meshes and write its report; returns an exit code."""
+    from .scenes.meshes import export_meshes
+    from .scenes.runner import SceneRunError, run_scene
+
+    out = Path(args.out)
+    if force_export and scene.export is None:
+        scene = scene.with_export()
+    t0 = time.perf_counter()
+    try:
+        result = run_scene(scene, out / "results" / scene.name, workers=args.workers,
+                           progress=not args.quiet, fresh=getattr(args, "fresh", False),
+                           command=" ".join(["cvn", *args.argv]),
+                           log=lambda m: _info(args, m))
+    except SceneRunError as err:
+        _err(f"{err} (completed units are kept; rerun to resume)")
+        return EXIT["run"]
+    _info(args, f"{scene.name}: computed in {time.perf_counter() - t0:.1f} s")
+    meshes = []
+    if scene.export is not None:
+        try:
+            meshes = export_meshes(result, out / "meshes" / scene.name)
+        except Exception as err:  # the exit code says which stage failed
+            _err(f"scene {scene.name!r}: writing meshes failed: {type(err).__name__}: {err}")
+            return EXIT["export"]
+        _info(args, f"{scene.name}: {len(meshes)} mesh file(s) in {out / 'meshes' / scene.name}")
+    if report:
+        from .report.writer import write_report
+
+        try:
+            path = write_report(result, out / "reports" / scene.name, meshes=meshes,
+                                render=False if args.no_render else None)
+        except Exception as err:  # the exit code says which stage failed
+            _err(f"scene {scene.name!r}: writing the report failed: {type(err).__name__}: "
+                 f"{err}")
+            return EXIT["report"]
+        _info(args, f"{scene.name}: report {path}")
+    return EXIT["ok"]
+
+
+def _index(args: argparse.Namespace, note: str = "") -> None:
+    from .report.writer import write_index
+
+    write_index(Path(args.out) / "reports", note=note)
+
+
+def _run(args: argparse.Namespace) -> int:
+    (scene,) = _load([args.scene])
+    code = _process(args, scene, report=not args.no_report, force_export=False)
+    if code == EXIT["ok"] and not args.no_report:
+        _index(args)
+    return code
+
+
+def _report(args: argparse.Namespace) -> int:
+    scenes = _load(args.scenes) if args.scenes else _default_scenes()
+    t0 = time.perf_counter()
+    first_failure = EXIT["ok"]
+    for scene in scenes:
+        code = _process(args, scene, report=True, force_export=False)
+        if code != EXIT["ok"] and first_failure == EXIT["ok"]:
+            first_failure = code
+    total = time.perf_counter() - t0
+    note = ""
+    if not args.scenes:
+        note = (f"Last `cvn report` (default set: {', '.join(s.name for s in scenes)}) took "
+                f"{total:.0f} s with {args.workers} worker process(es).")
+    _index(args, note)
+    _info(args, f"{len(scenes)} scene(s) in {total:.1f} s; index {Path(args.out) / 'reports'}")
+    return first_failure
+
+
+def _export(args: argparse.Namespace) -> int:
+    (scene,) = _load([args.scene])
+    return _process(args, scene, report=False, force_export=True)
+
+
+def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
+    p.add_argument("--out", default=".", metavar="DIR",
+                   help="root of results/, reports/ and meshes/ (default: current folder)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="processes for learning trials and lattice sizes (default 1; results "
+                   "are the same as with 1)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars or messages")
+    p.add_argument("--fresh", action="store_true",
+                   help="discard earlier results of the scene instead of resuming")
+    if report:
+        p.add_argument("--no-render", action="store_true", help="skip pyvista renders")
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="cvn", description="Mass-spring networks that learn, against an elastic continuum."
+        prog="cvn", description="Mass-spring networks that learn, against an elastic continuum.",
+        epilog=_EPILOG,
     )
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser(
@@ -31,13 +192,50 @@ def build_parser() -> argparse.ArgumentParser:
         "--paper-seconds", type=float, default=5.0, help="time budget of the paper's Adagrad"
     )
     demo.set_defaults(func=_demo)
+
+    run = sub.add_parser("run", help="run one scene and write its report", epilog=_EPILOG)
+    run.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    _common(run)
+    run.add_argument("--no-report", action="store_true", help="compute (and export) only")
+    run.set_defaults(func=_run)
+
+    report = sub.add_parser("report", help="run scenes (default: the default set) and write "
+                            "their reports and the index", epilog=_EPILOG)
+    report.add_argument("scenes", nargs="*", metavar="SCENE",
+                        help="scene files or built-in names (none: the default set)")
+    _common(report)
+    report.set_defaults(func=_report)
+
+    export = sub.add_parser("export", help="write a scene's meshes (VTU, PVD) for ParaView",
+                            epilog=_EPILOG)
+    export.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    _common(export, report=False)
+    export.set_defaults(func=_export)
+
+    scenes = sub.add_parser("scenes", help="list the built-in scenes")
+    scenes.add_argument("--keys", action="store_true", help="list every key a scene may set")
+    scenes.set_defaults(func=_scenes)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``cvn``; returns the exit code."""
+    from .scenes.schema import SceneError
+
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
-    return int(args.func(args))
+    args.argv = argv
+    if getattr(args, "workers", 1) < 1:
+        _err(f"--workers must be >= 1, got {args.workers}")
+        return EXIT["usage"]
+    try:
+        return int(args.func(args))
+    except SceneError as err:
+        _err(str(err))
+        return EXIT["usage"]
+    except KeyboardInterrupt:
+        _err("interrupted; rerun the same command to resume")
+        return EXIT["interrupted"]
 
 
 if __name__ == "__main__":  # pragma: no cover

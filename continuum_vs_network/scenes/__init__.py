@@ -1,0 +1,29 @@
+"""Scenes: TOML files that say what to build, compute, export and report.
+
+* :mod:`.schema`: the file format, validated into frozen dataclasses
+  (:func:`load_scene`, :class:`Scene`, :class:`SceneError`);
+* :mod:`.runner`: :func:`run_scene` computes only what a scene names, in units that are
+  checkpointed and resumed, optionally in parallel processes; :class:`SceneResult`;
+* :mod:`.meshes`: the meshes of a result (:func:`export_meshes`);
+* ``builtin/*.toml``: the built-in scenes (:func:`builtin_names`).
+
+Importing this package needs only numpy and scipy.
+"""
+
+from __future__ import annotations
+
+from .runner import SceneResult, SceneRunError, load_result, run_scene
+from .schema import Scene, SceneError, builtin_names, builtin_path, load_scene, parse_scene
+
+__all__ = [
+    "Scene",
+    "SceneError",
+    "SceneResult",
+    "SceneRunError",
+    "builtin_names",
+    "builtin_path",
+    "load_result",
+    "load_scene",
+    "parse_scene",
+    "run_scene",
+]

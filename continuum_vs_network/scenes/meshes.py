@@ -1,0 +1,91 @@
+"""The meshes of a scene result, written for ParaView with :mod:`continuum_vs_network.io.export`.
+
+Only a scene with an ``[export]`` table writes meshes (``cvn export`` adds a default table).
+What is written (``meshes/<scene>/`` by default):
+
+* learning: ``<solver>_<rule>_t<k>_initial.vtu`` / ``_final.vtu`` (free states of the
+  exported trials, springs with a ``role`` array: 0 hidden, 1 source, 2 target) and, with
+  ``series = true``, ``<solver>_<rule>_t<k>_trajectory.pvd`` (one frame per ``every``
+  learning steps; time = learning step);
+* transmission (largest lattice): ``network_n<n>.vtu`` and ``continuum_n<n>.vtu``
+  (displacement, strain and stress tensors, largest principal strain);
+* relaxation (largest lattice): ``network_n<n>_final.vtu``, ``continuum_n<n>_final.vtu`` and,
+  with ``series = true``, ``network_n<n>_relaxation.pvd`` (time = physical time).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .runner import SceneResult
+
+__all__ = ["export_meshes"]
+
+
+def _net(a: dict, prefix: str):
+    from ..network.model import SpringNetwork
+
+    return SpringNetwork(a[prefix + "positions"], a[prefix + "springs"], a[prefix + "stiffness"],
+                         a[prefix + "rest_length"])
+
+
+def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[Path]:
+    """Write the meshes of ``result`` to ``folder``; returns the files written (indices of
+    series, not their frames). Nothing is written when the scene has no ``[export]``."""
+    export = result.scene.export
+    if export is None:
+        return []
+    from ..io.export import continuum_mesh, network_mesh, spring_roles, write_mesh, write_series
+
+    folder = Path(folder)
+    written: list[Path] = []
+    for key, unit in result.units.items():
+        a = unit.arrays
+        if key.startswith("fields/"):
+            _, solver, rule = key.split("/")
+            for k in unit.meta["trials"]:
+                roles = None
+                for stage in ("initial", "final"):
+                    p = f"t{k}/{stage}/"
+                    if p + "x" not in a:
+                        continue
+                    net = _net(a, p)
+                    roles = spring_roles(net.n_springs, sources=a[f"t{k}/sources"],
+                                         targets=a[f"t{k}/targets"])
+                    if export.networks:
+                        written.append(write_mesh(network_mesh(net, a[p + "x"],
+                                                               fields={"role": roles}),
+                                                  folder / f"{solver}_{rule}_t{k}_{stage}.vtu"))
+                s = f"t{k}/series/"
+                if export.series and s + "x" in a and roles is not None:
+                    base = _net(a, f"t{k}/initial/")
+                    frames = (
+                        network_mesh(base.with_rest_length(L).with_stiffness(kk), x,
+                                     fields={"role": roles})
+                        for L, kk, x in zip(a[s + "rest_length"], a[s + "stiffness"], a[s + "x"])
+                    )
+                    written.append(write_series(frames, a[s + "steps"].astype(float), folder,
+                                                f"{solver}_{rule}_t{k}_trajectory"))
+        elif "net/x" in a:
+            n = unit.meta["n"]
+            net = _net(a, "net/")
+            sources = a["net/sources"] if "net/sources" in a else ()
+            roles = spring_roles(net.n_springs, sources=sources)
+            stage = "" if result.scene.kind == "transmission" else "_final"
+            if export.networks:
+                written.append(write_mesh(network_mesh(net, a["net/x"], fields={"role": roles}),
+                                          folder / f"network_n{n}{stage}.vtu"))
+            if export.continuum and "cont/points" in a:
+                mesh = continuum_mesh(a["cont/points"], a["cont/triangles"],
+                                      a["cont/displacement"], a["cont/strain"], a["cont/stress"],
+                                      cell_fields={"principal_strain": a["cont/principal"]})
+                written.append(write_mesh(mesh, folder / f"continuum_n{n}{stage}.vtu"))
+            if export.series and "net/series_x" in a:
+                times = np.asarray(a["net/series_times"], dtype=float)
+                frames = (network_mesh(net, x, fields={"role": roles})
+                          for x in a["net/series_x"])
+                written.append(write_series(frames, times, folder, f"network_n{n}_relaxation"))
+    return written

@@ -1,0 +1,605 @@
+"""Run a scene: compute only what it names, checkpoint every unit, resume after a kill.
+
+A scene is split into *units* (one training trial, one lattice size, one solver on one
+case, ...). Each unit writes its result atomically to ``<directory>/units/`` (an ``.npz``
+payload and a ``.json`` record written last, holding a fingerprint of every setting the
+unit depends on). Running the scene again skips the units whose record matches, so a run
+that was killed resumes where it stopped, and a unit whose settings changed is recomputed.
+Learning trials also checkpoint inside the trial (``train(..., checkpoint=...)``) so a
+killed trial resumes at its last checkpoint; a resumed run returns the same numbers as an
+uninterrupted one (wall-clock columns aside).
+
+Units of a phase run in parallel processes with ``workers > 1`` (learning trials,
+transmission and relaxation sizes); timing scenes (stability, solvers) always run serially
+so their wall-clock times are not measured under load. Results are identical to a serial
+run: every unit draws its randomness from its own seed.
+
+Testing hook: the environment variable ``CVN_TEST_KILL_AFTER`` (``"units:N"`` or
+``"steps:N"``) makes the process kill itself with SIGKILL after ``N`` completed units or
+learning steps, to test resuming.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import platform
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..io.atomic import atomic_path, write_text_atomic
+from .schema import Scene
+
+__all__ = [
+    "Provenance",
+    "SceneResult",
+    "SceneRunError",
+    "Unit",
+    "UnitContext",
+    "UnitResult",
+    "load_result",
+    "plan",
+    "run_scene",
+]
+
+KILL_ENV = "CVN_TEST_KILL_AFTER"
+
+
+class SceneRunError(RuntimeError):
+    """A unit of a scene failed; carries the scene name, the unit key and the cause."""
+
+    def __init__(self, scene: str, unit: str, cause: BaseException) -> None:
+        self.scene, self.unit, self.cause = scene, unit, cause
+        super().__init__(f"scene {scene!r}, unit {unit!r}: {type(cause).__name__}: {cause}")
+
+
+@dataclass(frozen=True, eq=False)
+class Unit:
+    """One piece of a scene's work.
+
+    Attributes
+    ----------
+    key : str
+        Unique within the scene, ``/``-separated (``"train/newton/gcl/noise0/trial3"``).
+    func : callable ``f(scene, params, ctx) -> (arrays, meta)`` or ``-> History``
+        A module-level function (it is sent to worker processes by reference).
+    params : dict
+        JSON-able parameters of this unit.
+    depends : dict
+        JSON-able settings the result depends on besides ``params`` (fingerprinted).
+    phase : int
+        Units of phase ``p`` run after every unit of the phases before.
+    weight : int
+        Progress-bar weight (learning steps of a trial, 1 otherwise).
+    parallel : bool
+        May run in a worker process (False for timed units).
+    """
+
+    key: str
+    func: Callable[..., Any]
+    params: Mapping[str, Any]
+    depends: Mapping[str, Any] = field(default_factory=dict)
+    phase: int = 0
+    weight: int = 1
+    parallel: bool = True
+
+    @property
+    def fingerprint(self) -> str:
+        text = json.dumps(
+            {"func": f"{self.func.__module__}.{self.func.__qualname__}",
+             "params": self.params, "depends": self.depends},
+            sort_keys=True, default=str,
+        )
+        return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+    @property
+    def stem(self) -> str:
+        return self.key.replace("/", "__")
+
+
+@dataclass(frozen=True, eq=False)
+class UnitResult:
+    """The stored result of one unit.
+
+    Attributes
+    ----------
+    key : str
+    arrays : dict of str -> array
+        Empty for units that return a history (see :attr:`SceneResult.histories`).
+    meta : dict
+        Plain values (numbers, strings, lists).
+    seconds : float
+        Wall-clock time of the unit when it was computed.
+    """
+
+    key: str
+    arrays: Mapping[str, NDArray]
+    meta: Mapping[str, Any]
+    seconds: float
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where a result comes from.
+
+    Attributes
+    ----------
+    version : str
+        Package version.
+    commit : str
+        Git commit of the package source ("unknown" outside a git checkout), with
+        ``+dirty`` when tracked files were modified.
+    python, numpy, scipy, platform : str
+    command : str
+        The command line of the run that completed the result.
+    seeds : tuple of int
+        The seeds the scene used.
+    started : str
+        ISO time the completing run started.
+    wall_seconds : float
+        Wall-clock time of the completing run (units reused from earlier runs excluded).
+    compute_seconds : float
+        Sum of every unit's own wall-clock time (across resumed runs).
+    units : int
+    reused : int
+        Units taken from an earlier (interrupted or finished) run.
+    workers : int
+    """
+
+    version: str
+    commit: str
+    python: str
+    numpy: str
+    scipy: str
+    platform: str
+    command: str
+    seeds: tuple[int, ...]
+    started: str
+    wall_seconds: float
+    compute_seconds: float
+    units: int
+    reused: int
+    workers: int
+
+
+@dataclass(frozen=True, eq=False)
+class SceneResult:
+    """Everything a scene computed, read back from its result directory.
+
+    Attributes
+    ----------
+    scene : Scene
+    directory : pathlib.Path
+    units : dict of key -> UnitResult
+        Every unit, in plan order.
+    histories : dict of str -> History
+        Learning runs, trials merged: key ``"<solver>/<rule>/noise<i>"``.
+    provenance : Provenance
+    """
+
+    scene: Scene
+    directory: Path
+    units: Mapping[str, UnitResult]
+    histories: Mapping[str, Any]
+    provenance: Provenance
+
+    def select(self, prefix: str) -> dict[str, UnitResult]:
+        """Units whose key starts with ``prefix``."""
+        return {k: u for k, u in self.units.items() if k.startswith(prefix)}
+
+
+@dataclass
+class UnitContext:
+    """What a unit function may use besides its scene and parameters.
+
+    Attributes
+    ----------
+    key : str
+        The unit's key.
+    directory : pathlib.Path
+        The scene's result directory.
+    checkpoint : pathlib.Path
+        A file the unit may use to checkpoint itself (removed when the unit completes).
+    on_step : callable or None
+        Call once per learning step (progress bar, kill hook).
+    """
+
+    key: str
+    directory: Path
+    checkpoint: Path
+    on_step: Callable[[], None] | None = None
+
+    def history(self, group: str):
+        """The merged history of the learning group ``"<solver>/<rule>/noise<i>"``."""
+        return _merged_history(self.directory, group)
+
+    def unit(self, key: str) -> UnitResult:
+        """The stored result of an earlier unit."""
+        return _read_unit(self.directory, key)
+
+
+# -- planning --------------------------------------------------------------------------------
+def plan(scene: Scene) -> list[Unit]:
+    """The units of ``scene``, in order (only what the scene names)."""
+    if scene.kind == "learning":
+        from .units_learning import plan_learning
+
+        return plan_learning(scene)
+    if scene.kind in ("transmission", "relaxation"):
+        from .units_physics import plan_physics
+
+        return plan_physics(scene)
+    from .units_solvers import plan_solvers
+
+    return plan_solvers(scene)
+
+
+# -- storage ---------------------------------------------------------------------------------
+def _units_dir(directory: Path) -> Path:
+    return directory / "units"
+
+
+def _record_path(directory: Path, key: str) -> Path:
+    return _units_dir(directory) / (key.replace("/", "__") + ".json")
+
+
+def _payload_path(directory: Path, key: str) -> Path:
+    return _units_dir(directory) / (key.replace("/", "__") + ".npz")
+
+
+def _is_done(directory: Path, unit: Unit) -> bool:
+    rec = _record_path(directory, unit.key)
+    if not (rec.exists() and _payload_path(directory, unit.key).exists()):
+        return False
+    try:
+        return json.loads(rec.read_text())["fingerprint"] == unit.fingerprint
+    except (OSError, ValueError, KeyError):
+        return False
+
+
+def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None:
+    from ..learning.history import History
+
+    payload = _payload_path(directory, unit.key)
+    if isinstance(output, History):
+        with atomic_path(payload) as tmp:
+            output.save(tmp)
+        record = {"history": True, "meta": {}}
+    else:
+        arrays, meta = output
+        with atomic_path(payload) as tmp, open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **{k: np.asarray(v) for k, v in arrays.items()})
+        record = {"history": False, "meta": meta}
+    record.update(key=unit.key, fingerprint=unit.fingerprint, seconds=float(seconds))
+    write_text_atomic(_record_path(directory, unit.key),
+                      json.dumps(record, sort_keys=True, default=_json_default))
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _read_record(directory: Path, key: str) -> dict:
+    return json.loads(_record_path(directory, key).read_text())
+
+
+def _read_unit(directory: Path, key: str) -> UnitResult:
+    rec = _read_record(directory, key)
+    if rec["history"]:
+        return UnitResult(key, {}, {}, rec["seconds"])
+    with np.load(_payload_path(directory, key), allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    return UnitResult(key, arrays, rec["meta"], rec["seconds"])
+
+
+def _trial_keys(directory: Path, group: str) -> list[str]:
+    prefix = "train/" + group + "/trial"
+    keys = []
+    for rec in _units_dir(directory).glob("train__*.json"):
+        key = json.loads(rec.read_text())["key"]
+        if key.startswith(prefix):
+            keys.append(key)
+    return sorted(keys, key=lambda k: int(k.rsplit("trial", 1)[1]))
+
+
+def _merged_history(directory: Path, group: str, keys: Iterable[str] | None = None):
+    """Concatenate the one-trial histories of a learning group along the trial axis."""
+    from ..learning.history import History
+
+    keys = list(keys) if keys is not None else _trial_keys(directory, group)
+    if not keys:
+        raise KeyError(f"no trials of {group!r} in {directory}")
+    parts = [History.load(_payload_path(directory, k)) for k in keys]
+    first = parts[0]
+    return dataclasses.replace(
+        first,
+        seeds=np.concatenate([h.seeds for h in parts]),
+        completed=np.concatenate([h.completed for h in parts]),
+        stop_reason=tuple(r for h in parts for r in h.stop_reason),
+        data={name: np.concatenate([h.data[name] for h in parts]) for name in first.data},
+        initial=tuple(n for h in parts for n in h.initial),
+        final=tuple(n for h in parts for n in h.final),
+        tasks=tuple(t for h in parts for t in h.tasks),
+    )
+
+
+# -- running ---------------------------------------------------------------------------------
+class _Killer:
+    """The ``CVN_TEST_KILL_AFTER`` hook: SIGKILL this process after N units or steps."""
+
+    def __init__(self) -> None:
+        spec = os.environ.get(KILL_ENV, "")
+        self.what, _, n = spec.partition(":")
+        self.limit = int(n) if n.isdigit() else -1
+        self.count = 0
+
+    def tick(self, what: str) -> None:
+        if self.limit < 0 or what != self.what:
+            return
+        self.count += 1
+        if self.count >= self.limit:
+            os.kill(os.getpid(), signal.SIGKILL)
+
+
+def _compute(scene: Scene, unit: Unit, directory: Path, on_step: Callable | None) -> float:
+    """Run one unit and store its result; returns its wall-clock seconds."""
+    ckpt = directory / "checkpoints" / f"{unit.stem}-{unit.fingerprint[:12]}.npz"
+    ckpt.parent.mkdir(parents=True, exist_ok=True)
+    ctx = UnitContext(key=unit.key, directory=directory, checkpoint=ckpt, on_step=on_step)
+    t0 = time.perf_counter()
+    output = unit.func(scene, dict(unit.params), ctx)
+    seconds = time.perf_counter() - t0
+    _save_unit(directory, unit, output, seconds)
+    for stale in ckpt.parent.glob(f"{unit.stem}-*"):
+        stale.unlink(missing_ok=True)
+    return seconds
+
+
+def _worker(scene: Scene, unit: Unit, directory: str) -> tuple[str, float]:
+    killer = _Killer()
+    seconds = _compute(scene, unit, Path(directory), lambda: killer.tick("steps"))
+    killer.tick("units")
+    return unit.key, seconds
+
+
+def run_scene(
+    scene: Scene,
+    directory: str | os.PathLike[str],
+    *,
+    workers: int = 1,
+    progress: bool = True,
+    fresh: bool = False,
+    command: str | None = None,
+    log: Callable[[str], None] | None = None,
+) -> SceneResult:
+    """Compute every unit of ``scene`` not already in ``directory``; return the result.
+
+    Parameters
+    ----------
+    scene : Scene
+    directory : path
+        The scene's result folder (created), e.g. ``results/<scene>``.
+    workers : int
+        Processes for the parallel units (1: everything in this process).
+    progress : bool
+        Show a tqdm progress bar (tqdm is imported only then).
+    fresh : bool
+        Discard earlier results and checkpoints of this scene first.
+    command : str, optional
+        Recorded in the provenance (default: this process's command line).
+    log : callable, optional
+        Receives one-line messages (resumed units, ...).
+
+    Raises
+    ------
+    SceneRunError
+        A unit failed (the units completed before it are kept).
+    """
+    if int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers}")
+    directory = Path(directory)
+    if fresh:
+        for sub in ("units", "checkpoints", "frames"):
+            shutil.rmtree(directory / sub, ignore_errors=True)
+        (directory / "run.json").unlink(missing_ok=True)
+    _units_dir(directory).mkdir(parents=True, exist_ok=True)
+    write_text_atomic(directory / "scene.json",
+                      json.dumps(scene.to_dict(), indent=1, sort_keys=True))
+    units = plan(scene)
+    keys = [u.key for u in units]
+    if len(set(keys)) != len(keys):  # pragma: no cover - a planning bug
+        raise AssertionError("duplicate unit keys")
+    started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    t_start = time.perf_counter()
+    done = {u.key for u in units if _is_done(directory, u)}
+    reused = len(done)
+    if log and done:
+        log(f"{scene.name}: resuming, {len(done)} of {len(units)} units already computed")
+    bar = _bar(progress, scene.name, units, done)
+    killer = _Killer()
+    try:
+        for phase in sorted({u.phase for u in units}):
+            todo = [u for u in units if u.phase == phase and u.key not in done]
+            serial = [u for u in todo if workers == 1 or not u.parallel]
+            pooled = [u for u in todo if workers > 1 and u.parallel]
+            if pooled:
+                _run_pool(scene, pooled, directory, workers, bar)
+            for unit in serial:
+                _run_serial(scene, unit, directory, bar, killer)
+    finally:
+        if bar is not None:
+            bar.close()
+    _clean(directory, units)
+    wall = time.perf_counter() - t_start
+    compute = sum(_read_record(directory, k)["seconds"] for k in keys)
+    prov = Provenance(
+        version=_version(),
+        commit=_git_commit(),
+        python=platform.python_version(),
+        numpy=np.__version__,
+        scipy=_scipy_version(),
+        platform=platform.platform(terse=True),
+        command=command if command is not None else " ".join(
+            [Path(sys.argv[0]).name, *sys.argv[1:]]),
+        seeds=_seeds(scene),
+        started=started,
+        wall_seconds=wall,
+        compute_seconds=compute,
+        units=len(units),
+        reused=reused,
+        workers=int(workers),
+    )
+    write_text_atomic(directory / "run.json",
+                      json.dumps(dataclasses.asdict(prov), indent=1, sort_keys=True))
+    return load_result(scene, directory, units=units)
+
+
+def _run_serial(scene: Scene, unit: Unit, directory: Path, bar, killer: _Killer) -> None:
+    ticks = 0
+
+    def on_step() -> None:
+        nonlocal ticks
+        ticks += 1
+        if bar is not None:
+            bar.update(1)
+        killer.tick("steps")
+
+    try:
+        _compute(scene, unit, directory, on_step)
+    except Exception as err:
+        raise SceneRunError(scene.name, unit.key, err) from err
+    if bar is not None:
+        bar.update(max(unit.weight - ticks, 0))
+    killer.tick("units")
+
+
+def _run_pool(scene: Scene, units: list[Unit], directory: Path, workers: int, bar) -> None:
+    import multiprocessing
+    from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        futures = {pool.submit(_worker, scene, u, str(directory)): u for u in units}
+        try:
+            pending = set(futures)
+            while pending:
+                finished, pending = wait(pending, return_when=FIRST_EXCEPTION)
+                for fut in finished:
+                    unit = futures[fut]
+                    err = fut.exception()
+                    if err is not None:
+                        for other in pending:
+                            other.cancel()
+                        raise SceneRunError(scene.name, unit.key, err) from err
+                    if bar is not None:
+                        bar.update(unit.weight)
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+
+
+def _bar(progress: bool, name: str, units: list[Unit], done: set[str]):
+    if not progress:
+        return None
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:  # progress bars are optional
+        return None
+    total = sum(u.weight for u in units)
+    initial = sum(u.weight for u in units if u.key in done)
+    return tqdm(total=total, initial=initial, desc=name, unit="step", leave=True,
+                dynamic_ncols=True)
+
+
+def _clean(directory: Path, units: list[Unit]) -> None:
+    """Remove unit files and checkpoints that belong to no unit of the plan."""
+    stems = {u.stem for u in units}
+    for path in _units_dir(directory).iterdir():
+        if path.name.startswith("."):
+            continue
+        stem = path.name.rsplit(".", 1)[0]
+        if stem not in stems:
+            path.unlink(missing_ok=True)
+    ckpts = directory / "checkpoints"
+    if ckpts.exists():
+        for path in ckpts.iterdir():
+            path.unlink(missing_ok=True)
+        ckpts.rmdir()
+
+
+def load_result(
+    scene: Scene, directory: str | os.PathLike[str], *, units: list[Unit] | None = None
+) -> SceneResult:
+    """Read a completed scene's results from ``directory``.
+
+    Raises ``FileNotFoundError`` when a unit of the scene's plan is missing or out of date
+    (run the scene first).
+    """
+    directory = Path(directory)
+    units = plan(scene) if units is None else units
+    missing = [u.key for u in units if not _is_done(directory, u)]
+    if missing:
+        raise FileNotFoundError(
+            f"{directory}: {len(missing)} unit(s) of scene {scene.name!r} missing or out of "
+            f"date (first: {missing[0]}); run the scene"
+        )
+    results = {u.key: _read_unit(directory, u.key) for u in units}
+    groups: dict[str, list[str]] = {}
+    for u in units:
+        if u.key.startswith("train/"):
+            groups.setdefault(u.key[len("train/"):].rsplit("/trial", 1)[0], []).append(u.key)
+    histories = {g: _merged_history(directory, g, ks) for g, ks in groups.items()}
+    prov = json.loads((directory / "run.json").read_text())
+    prov["seeds"] = tuple(prov["seeds"])
+    return SceneResult(scene, directory, results, histories, Provenance(**prov))
+
+
+# -- provenance --------------------------------------------------------------------------
+def _version() -> str:
+    from importlib import metadata
+
+    try:
+        return metadata.version("continuum_vs_network")
+    except metadata.PackageNotFoundError:  # pragma: no cover - not installed
+        return "unknown"
+
+
+def _scipy_version() -> str:
+    import scipy
+
+    return scipy.__version__
+
+
+def _git_commit() -> str:
+    src = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=src, capture_output=True,
+                              text=True, timeout=10, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
+                               cwd=src, capture_output=True, text=True, timeout=10,
+                               check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return head + ("+dirty" if dirty else "")
+
+
+def _seeds(scene: Scene) -> tuple[int, ...]:
+    if scene.learning is not None:
+        return tuple(range(scene.seed, scene.seed + scene.learning.trials))
+    return (scene.seed,)

@@ -1,0 +1,639 @@
+"""Scene files: TOML validated into frozen dataclasses.
+
+A scene is data only (no code is executed from it). Top-level keys::
+
+    name = "paper"            # plain name: letters, digits, '_', '-', '.'; names the folders
+    description = "one line"  # shown by ``cvn scenes`` and in the report
+    seed = 0                  # first seed; trial i uses seed + i
+    kind = "learning"         # learning | transmission | relaxation | stability | solvers
+
+and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
+``[continuum]``, ``[dynamics]``, ``[export]``, ``[report]``. Which tables a kind needs and
+which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an error (a scene
+never carries settings that are silently ignored). Every key of every table is listed, with
+its type, default and meaning, in the dataclasses below (``cvn scenes --keys`` prints them).
+
+Unknown keys, wrong types and impossible values raise :class:`SceneError`, a ``ValueError``
+whose message and attributes name the file, the table and the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import re
+import tomllib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+__all__ = [
+    "KINDS",
+    "KIND_TABLES",
+    "RULES",
+    "SOLVER_METHODS",
+    "ContinuumSpec",
+    "DynamicsSpec",
+    "ExportSpec",
+    "LearningSpec",
+    "NetworkSpec",
+    "ReportSpec",
+    "Scene",
+    "SceneError",
+    "SolverSpec",
+    "TaskSpec",
+    "builtin_names",
+    "builtin_path",
+    "key_reference",
+    "load_scene",
+    "parse_scene",
+]
+
+KINDS = ("learning", "transmission", "relaxation", "stability", "solvers")
+
+#: For each kind: (tables it needs, tables it also accepts).
+KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
+    "learning": (
+        frozenset({"network", "task", "learning"}),
+        frozenset({"solver", "export", "report"}),
+    ),
+    "transmission": (
+        frozenset({"network", "task"}),
+        frozenset({"continuum", "solver", "export", "report"}),
+    ),
+    "relaxation": (
+        frozenset({"network", "dynamics"}),
+        frozenset({"continuum", "export", "report"}),
+    ),
+    "stability": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
+    "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
+}
+
+#: Learning runs a scene can name (the paper's experiments, see
+#: :func:`continuum_vs_network.learning.replication.paper_experiments`).
+RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact")
+#: Equilibrium methods of :func:`continuum_vs_network.relax`.
+SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
+
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
+_REQUIRED = object()
+
+
+class SceneError(ValueError):
+    """A scene file that cannot be used: names the file, the table and the key.
+
+    Attributes
+    ----------
+    file : str
+    table : str
+        ``"(top level)"`` for the top-level keys, ``"(syntax)"`` for a TOML syntax error.
+    key : str
+        The offending key ("" when the problem is the whole table or file).
+    problem : str
+    """
+
+    def __init__(self, file: str, table: str, key: str, problem: str) -> None:
+        self.file, self.table, self.key, self.problem = str(file), table, key, problem
+        where = f"[{table}]" if table and not table.startswith("(") else table
+        loc = f"{where} {key}".strip() if key else where
+        super().__init__(f"{self.file}: {loc}: {problem}" if loc else f"{self.file}: {problem}")
+
+
+# -- key declarations ----------------------------------------------------------------------
+def _key(
+    type_: str,
+    default: Any = _REQUIRED,
+    doc: str = "",
+    *,
+    choices: tuple | None = None,
+    check: Callable[[Any], str | None] | None = None,
+) -> Any:
+    """A scene key: TOML type (``int``, ``float``, ``bool``, ``str``, ``list[...]``)."""
+    meta = {"type": type_, "doc": doc, "choices": choices, "check": check}
+    if default is _REQUIRED:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def _positive(v: float) -> str | None:
+    return None if v > 0 else "must be > 0"
+
+
+def _non_negative(v: float) -> str | None:
+    return None if v >= 0 else "must be >= 0"
+
+
+def _open_unit(v: float) -> str | None:
+    return None if 0 < v < 1 else "must lie strictly between 0 and 1"
+
+
+def _at_least(n: float) -> Callable[[Any], str | None]:
+    return lambda v: None if v >= n else f"must be >= {n}"
+
+
+def _between(lo: float, hi: float) -> Callable[[Any], str | None]:
+    return lambda v: None if lo <= v <= hi else f"must lie in [{lo}, {hi}]"
+
+
+def _strain(v: float) -> str | None:
+    return None if v > -1 else "a strain must be > -1 (a spring cannot have negative length)"
+
+
+def _each(check: Callable[[Any], str | None]) -> Callable[[tuple], str | None]:
+    def run(values: tuple) -> str | None:
+        for i, v in enumerate(values):
+            msg = check(v)
+            if msg:
+                return f"entry {i} ({v!r}) {msg}"
+        return None
+
+    return run
+
+
+def _unique_nonempty(values: tuple) -> str | None:
+    if not values:
+        return "must list at least one entry"
+    if len(set(values)) != len(values):
+        return "must not repeat entries"
+    return None
+
+
+def _all(*checks: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
+    def run(v: Any) -> str | None:
+        for c in checks:
+            msg = c(v)
+            if msg:
+                return msg
+        return None
+
+    return run
+
+
+def _increasing(values: tuple) -> str | None:
+    if any(b <= a for a, b in itertools.pairwise(values)):
+        return "must be strictly increasing"
+    return None
+
+
+# -- tables ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class NetworkSpec:
+    """``[network]``: which network to build.
+
+    ``builder``: ``"paper"`` (the paper's N = 10, S = 18 patch), ``"triangular"`` (a
+    triangular lattice), ``"diluted"`` (a rigid diluted lattice) or ``"jammed"`` (a jammed
+    packing's contact network).
+    """
+
+    builder: str = _key("str", doc="network builder", choices=("paper", "triangular", "diluted",
+                                                                 "jammed"))
+    n_nodes: int | None = _key("int", None, "about this many nodes (learning on lattices, "
+                               "diluted or jammed networks)", check=_at_least(4))
+    size: int | None = _key("int", None, "one n x n triangular lattice (stability)",
+                            check=_at_least(3))
+    sizes: tuple[int, ...] | None = _key(
+        "list[int]", None, "n x n triangular lattices, one per entry (transmission, relaxation, "
+        "solvers)", check=_all(_unique_nonempty, _each(_at_least(3)), _increasing))
+    noise: float | None = _key("float", None, "position noise as a fraction of the spacing "
+                               "(default 0.1 for learning and stability, 0 otherwise)",
+                               check=_non_negative)
+    fraction: float = _key("float", 0.2, "fraction of springs removed (diluted)",
+                           check=_open_unit)
+    stiffness_ratios: tuple[float, ...] = _key(
+        "list[float]", (), "stiffness ratios k_stiff / k_soft (stability)",
+        check=_each(_at_least(1.0)))
+    stiff_fraction: float = _key("float", 0.2, "fraction of springs made stiff (stability)",
+                                 check=_open_unit)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """``[task]``: what is clamped and what should respond.
+
+    ``kind``: ``"paper"`` (one source, one target, Sec. 7.1), ``"stern"`` (``n_sources``
+    sources and ``n_targets`` targets, Sec. 6.4) or ``"source"`` (one spring, the one nearest
+    the centre, clamped at ``strain``; transmission, stability, solvers).
+    """
+
+    kind: str = _key("str", doc="task kind", choices=("paper", "stern", "source"))
+    n_sources: int = _key("int", 10, "source springs (stern)", check=_at_least(1))
+    n_targets: int = _key("int", 3, "target springs (stern)", check=_at_least(1))
+    source_std: float = _key("float", 0.1, "std of the source strains (stern)", check=_positive)
+    target_std: float = _key("float", 0.1, "std of the desired target strains (stern)",
+                             check=_positive)
+    strain: float = _key("float", 0.1, "strain of the clamped source spring (source)",
+                         check=_strain)
+    strains: tuple[float, ...] = _key("list[float]", (), "extreme source strains (stability)",
+                                      check=_each(_strain))
+
+
+@dataclass(frozen=True)
+class LearningSpec:
+    """``[learning]``: the training runs (every rule x solver x noise level, ``trials`` each)."""
+
+    rules: tuple[str, ...] = _key("list[str]", doc="learning runs", choices=RULES,
+                                  check=_unique_nonempty)
+    trials: int = _key("int", 10, "independent trials (seeds seed, seed + 1, ...)",
+                       check=_at_least(1))
+    steps: int = _key("int", 300, "learning steps per trial", check=_at_least(1))
+    reference: str = _key("str", "current", "strain convention of clamps and error",
+                          choices=("current", "initial"))
+    alpha_gcl: float = _key("float", 1e-3, "GCL learning rate", check=_positive)
+    eta: float = _key("float", 0.1, "GCL nudge amplitude", check=_positive)
+    alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
+    alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
+    floor: float = _key("float", 0.1, "rest-length floor of the *_floor, *_frozen, gpc and "
+                        "exact runs", check=_positive)
+    noise: tuple[float, ...] = _key(
+        "list[float]", (0.0,), "relative read-out noise levels (one run per level)",
+        check=_all(_unique_nonempty, _each(_non_negative)))
+    measure: bool = _key("bool", True, "solve the free state after every step to measure the "
+                         "error even when the rule does not need it (GPC)")
+    sweeps: bool = _key("bool", False, "source sweeps of the trained networks (Fig. 5)")
+    sweep_span: float = _key("float", 5.0, "sweep source strains S +- span", check=_positive)
+    sweep_points: int = _key("int", 11, "points per sweep", check=_at_least(2))
+    compare_gradient: bool = _key("bool", False, "cosine of each rule's step with the exact "
+                                  "gradient, at the initial and final networks")
+    checkpoint_every: int = _key("int", 25, "steps between checkpoints", check=_at_least(1))
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """``[solver]``: equilibrium methods and their budgets.
+
+    Learning scenes accept ``"newton"`` (exact equilibria) and ``"paper"`` (the paper's
+    Adagrad with rods, ``paper_iterations`` per state); stability and solver scenes compare
+    every method listed.
+    """
+
+    methods: tuple[str, ...] = _key("list[str]", ("newton",), "equilibrium methods",
+                                    choices=SOLVER_METHODS, check=_unique_nonempty)
+    tol: float = _key("float", 1e-10, "relative residual tolerance (forces / mean(k) mean(L))",
+                      check=_open_unit)
+    max_seconds: float = _key("float", 60.0, "time budget of one solve (s)", check=_positive)
+    paper_iterations: int = _key("int", 300, "Adagrad iterations per state (learning with "
+                                 "'paper')", check=_at_least(1))
+    rod_stiffnesses: tuple[float, ...] = _key(
+        "list[float]", (), "stiffness of the paper's clamp rods (stability)",
+        check=_each(_positive))
+    ramp: int = _key("int", 4, "strain continuation steps (stability)", check=_at_least(1))
+
+
+@dataclass(frozen=True)
+class ContinuumSpec:
+    """``[continuum]``: the finite-element continuum compared with the network."""
+
+    refine: int = _key("int", 1, "uniform refinements of the network's faces",
+                       check=_between(0, 4))
+    order: int = _key("int", 2, "polynomial order of the displacement", choices=(1, 2))
+    patch_radius: float = _key("float", 0.3, "source patch radius / source spring length",
+                               check=_open_unit)
+    material: str = _key("str", "homogenised", "'homogenised' (relaxed moduli of the network) "
+                         "or 'lattice' (lam = mu = sqrt(3) k / 4)",
+                         choices=("homogenised", "lattice"))
+
+
+@dataclass(frozen=True)
+class DynamicsSpec:
+    """``[dynamics]``: damped relaxation after a step displacement of one side."""
+
+    damping: float = _key("float", 1.0, "node drag c (force per velocity)", check=_positive)
+    inertia: bool = _key("bool", False, "unit node masses (True) or overdamped (False)")
+    scheme: str = _key("str", "implicit", "time stepping", choices=("implicit", "newmark",
+                                                                     "explicit"))
+    step: float = _key("float", 0.01, "step displacement of the right side / width",
+                       check=_between(1e-6, 0.2))
+    fraction: float = _key("float", 0.01, "relaxed when the displacement to the final state "
+                           "stays below this fraction of its start", check=_open_unit)
+    steps_per_tau: int = _key("int", 20, "time steps per slowest-mode time", check=_at_least(2))
+    duration: float = _key("float", 12.0, "run length in slowest-mode times", check=_positive)
+    frames: int = _key("int", 25, "frames of the exported series", check=_at_least(2))
+
+
+@dataclass(frozen=True)
+class ExportSpec:
+    """``[export]``: meshes written to ``meshes/<scene>/`` (VTU, PVD series)."""
+
+    networks: bool = _key("bool", True, "networks (initial and final free states)")
+    continuum: bool = _key("bool", True, "continuum fields")
+    series: bool = _key("bool", False, "time series (learning trajectory, relaxation)")
+    every: int = _key("int", 10, "learning steps between series frames", check=_at_least(1))
+    trials: tuple[int, ...] = _key("list[int]", (0,), "learning trials to export",
+                                   check=_all(_unique_nonempty, _each(_non_negative)))
+
+
+@dataclass(frozen=True)
+class ReportSpec:
+    """``[report]``: how the report is drawn."""
+
+    default: bool = _key("bool", False, "part of the default set of ``cvn report``")
+    images: bool = _key("bool", False, "pyvista off-screen renders")
+    dpi: int = _key("int", 90, "resolution of the figures", check=_between(40, 300))
+
+
+_TABLES: dict[str, type] = {
+    "network": NetworkSpec,
+    "task": TaskSpec,
+    "learning": LearningSpec,
+    "solver": SolverSpec,
+    "continuum": ContinuumSpec,
+    "dynamics": DynamicsSpec,
+    "export": ExportSpec,
+    "report": ReportSpec,
+}
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene.
+
+    Attributes
+    ----------
+    name, description : str
+    seed : int
+    kind : str
+        One of :data:`KINDS`.
+    network, task, learning, solver, continuum, dynamics, export : spec or None
+        The tables given (None when absent).
+    report : ReportSpec
+        Always present (defaults when the table is absent).
+    source : str
+        The file the scene was read from.
+    """
+
+    name: str
+    description: str
+    seed: int
+    kind: str
+    network: NetworkSpec | None = None
+    task: TaskSpec | None = None
+    learning: LearningSpec | None = None
+    solver: SolverSpec | None = None
+    continuum: ContinuumSpec | None = None
+    dynamics: DynamicsSpec | None = None
+    export: ExportSpec | None = None
+    report: ReportSpec = field(default_factory=ReportSpec)
+    source: str = field(default="", compare=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain (TOML-like) dict of the scene: top-level keys and the tables given."""
+        out: dict[str, Any] = {
+            "name": self.name,
+            "description": self.description,
+            "seed": self.seed,
+            "kind": self.kind,
+        }
+        for table in _TABLES:
+            spec = getattr(self, table)
+            if spec is not None:
+                out[table] = {
+                    k: list(v) if isinstance(v, tuple) else v
+                    for k, v in dataclasses.asdict(spec).items()
+                }
+        return out
+
+    def with_export(self, export: ExportSpec | None = None) -> Scene:
+        """The same scene with an ``[export]`` table (defaults when None)."""
+        return dataclasses.replace(self, export=export or ExportSpec())
+
+
+# -- parsing -------------------------------------------------------------------------------
+_TOP: dict[str, tuple[str, Any]] = {
+    "name": ("str", _REQUIRED),
+    "description": ("str", _REQUIRED),
+    "seed": ("int", 0),
+    "kind": ("str", _REQUIRED),
+}
+
+
+def _convert(value: Any, type_: str, where: tuple[str, str, str]) -> Any:
+    file, table, key = where
+
+    def fail(want: str) -> SceneError:
+        got = type(value).__name__
+        return SceneError(file, table, key, f"must be {want}, got {got} {value!r}")
+
+    if type_ == "int":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise fail("an integer")
+        return int(value)
+    if type_ == "float":
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise fail("a number")
+        value = float(value)
+        if not math.isfinite(value):
+            raise SceneError(file, table, key, f"must be finite, got {value}")
+        return value
+    if type_ == "bool":
+        if not isinstance(value, bool):
+            raise fail("true or false")
+        return value
+    if type_ == "str":
+        if not isinstance(value, str):
+            raise fail("a string")
+        return value
+    if type_.startswith("list["):
+        inner = type_[5:-1]
+        if not isinstance(value, list):
+            raise fail(f"a list of {inner}s")
+        out = []
+        for i, item in enumerate(value):
+            out.append(_convert(item, inner, (file, table, f"{key}[{i}]")))
+        return tuple(out)
+    raise AssertionError(type_)  # pragma: no cover
+
+
+def _parse_table(cls: type, data: Any, file: str, table: str) -> Any:
+    if not isinstance(data, Mapping):
+        raise SceneError(file, "(top level)", table,
+                         f"must be a table [{table}], got {type(data).__name__}")
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        if key not in fields:
+            raise SceneError(file, table, key,
+                             f"unknown key; [{table}] accepts {', '.join(sorted(fields))}")
+        meta = fields[key].metadata
+        converted = _convert(value, meta["type"], (file, table, key))
+        choices = meta["choices"]
+        if choices is not None:
+            items = converted if isinstance(converted, tuple) else (converted,)
+            for item in items:
+                if item not in choices:
+                    raise SceneError(file, table, key,
+                                     f"{item!r} is not one of {', '.join(map(repr, choices))}")
+        if meta["check"] is not None:
+            msg = meta["check"](converted)
+            if msg:
+                raise SceneError(file, table, key, f"{msg} (got {value!r})")
+        kwargs[key] = converted
+    for name, f in fields.items():
+        if name not in kwargs and f.default is dataclasses.MISSING and (
+            f.default_factory is dataclasses.MISSING
+        ):
+            raise SceneError(file, table, name, "is required")
+    return cls(**kwargs)
+
+
+def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
+    """Validate a scene given as a dict (as ``tomllib`` returns it).
+
+    Raises
+    ------
+    SceneError
+        Naming ``file``, the table and the key.
+    """
+    top: dict[str, Any] = {}
+    tables: dict[str, Any] = {}
+    for key, value in data.items():
+        if key in _TABLES:
+            tables[key] = _parse_table(_TABLES[key], value, file, key)
+        elif key in _TOP:
+            top[key] = _convert(value, _TOP[key][0], (file, "(top level)", key))
+        else:
+            known = sorted([*_TOP, *_TABLES])
+            raise SceneError(file, "(top level)", key,
+                             f"unknown key or table; a scene has {', '.join(known)}")
+    for key, (_, default) in _TOP.items():
+        if key not in top:
+            if default is _REQUIRED:
+                raise SceneError(file, "(top level)", key, "is required")
+            top[key] = default
+    if not _NAME.match(top["name"]):
+        raise SceneError(file, "(top level)", "name",
+                         f"must be a plain name (letters, digits, '_', '-', '.'), "
+                         f"got {top['name']!r}")
+    desc = top["description"].strip()
+    if not desc or "\n" in desc:
+        raise SceneError(file, "(top level)", "description", "must be one non-empty line")
+    top["description"] = desc
+    if top["seed"] < 0:
+        raise SceneError(file, "(top level)", "seed", f"must be >= 0, got {top['seed']}")
+    if top["kind"] not in KINDS:
+        raise SceneError(file, "(top level)", "kind",
+                         f"{top['kind']!r} is not one of {', '.join(map(repr, KINDS))}")
+    scene = Scene(**top, **tables, source=str(file))
+    _check_kind(scene, file)
+    return scene
+
+
+def _check_kind(scene: Scene, file: str) -> None:
+    """Tables a kind needs and accepts, and the keys each kind needs."""
+    need, accept = KIND_TABLES[scene.kind]
+    given = {t for t in _TABLES if getattr(scene, t) is not None}
+    for table in sorted(need - given):
+        raise SceneError(file, table, "", f"kind {scene.kind!r} needs a [{table}] table")
+    for table in sorted(given - need - accept - {"report"}):
+        raise SceneError(file, table, "",
+                         f"kind {scene.kind!r} does not use a [{table}] table; remove it")
+
+    def need_key(table: str, key: str, why: str) -> None:
+        spec = getattr(scene, table)
+        value = getattr(spec, key)
+        if value is None or value == ():
+            raise SceneError(file, table, key, f"is required {why}")
+
+    net, task = scene.network, scene.task
+    kind = scene.kind
+    if kind == "learning":
+        assert net is not None and task is not None and scene.learning is not None
+        if net.builder == "paper" and task.kind != "paper":
+            raise SceneError(file, "task", "kind",
+                             "the paper network takes the paper task (kind = 'paper')")
+        if net.builder != "paper":
+            if task.kind != "stern":
+                raise SceneError(file, "task", "kind",
+                                 f"a {net.builder!r} network takes kind = 'stern'")
+            need_key("network", "n_nodes", "for a learning scene on a large network")
+            if scene.learning.reference != "initial":
+                raise SceneError(file, "learning", "reference",
+                                 "Stern-scale runs measure strains against the initial rest "
+                                 "lengths; set reference = 'initial'")
+            bad = [r for r in scene.learning.rules if r in ("gcl_floor",)]
+            if bad:
+                raise SceneError(file, "learning", "rules",
+                                 f"{bad[0]!r} exists for the paper task only")
+        if scene.solver is not None:
+            bad = [m for m in scene.solver.methods if m not in ("newton", "paper")]
+            if bad:
+                raise SceneError(file, "solver", "methods",
+                                 f"learning runs use 'newton' (exact equilibria) or 'paper' "
+                                 f"(the paper's Adagrad), got {bad[0]!r}")
+        if scene.export is not None:
+            bad = [t for t in scene.export.trials if t >= scene.learning.trials]
+            if bad:
+                raise SceneError(file, "export", "trials",
+                                 f"trial {bad[0]} does not exist ([learning] trials = "
+                                 f"{scene.learning.trials})")
+    else:
+        if net.builder != "triangular":
+            raise SceneError(file, "network", "builder",
+                             f"kind {kind!r} runs on triangular lattices ('triangular')")
+        if task is not None and task.kind != "source":
+            raise SceneError(file, "task", "kind", f"kind {kind!r} takes kind = 'source'")
+        if kind == "stability":
+            need_key("network", "size", "for a stability scene")
+            if not (net.stiffness_ratios or task.strains or scene.solver.rod_stiffnesses):
+                raise SceneError(file, "network", "stiffness_ratios",
+                                 "a stability scene needs cases: stiffness_ratios, "
+                                 "[task] strains or [solver] rod_stiffnesses")
+        else:
+            need_key("network", "sizes", f"for a {kind} scene")
+    if kind == "relaxation" and scene.continuum is not None:
+        assert scene.dynamics is not None
+        if scene.dynamics.scheme == "explicit":
+            raise SceneError(file, "dynamics", "scheme",
+                             "the continuum has no explicit scheme; use 'implicit' or 'newmark'")
+
+
+# -- files ---------------------------------------------------------------------------------
+def builtin_names() -> list[str]:
+    """Names of the built-in scenes (files ``scenes/builtin/<name>.toml``), sorted."""
+    folder = resources.files("continuum_vs_network.scenes") / "builtin"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def builtin_path(name: str) -> Path:
+    """Path of the built-in scene ``name``."""
+    folder = resources.files("continuum_vs_network.scenes") / "builtin"
+    path = Path(str(folder / f"{name}.toml"))
+    if not path.is_file():
+        raise SceneError(f"{name}.toml", "", "",
+                         f"no built-in scene {name!r}; built-in scenes: "
+                         f"{', '.join(builtin_names())}")
+    return path
+
+
+def load_scene(scene: str | Path) -> Scene:
+    """Read a scene: a path to a ``.toml`` file or the name of a built-in scene."""
+    path = Path(scene)
+    if not path.is_file():
+        if str(scene).endswith(".toml") or "/" in str(scene):
+            raise SceneError(str(scene), "", "", "no such scene file")
+        path = builtin_path(str(scene))
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as err:
+        raise SceneError(str(path), "(syntax)", "", f"not valid TOML: {err}") from err
+    return parse_scene(data, str(path))
+
+
+def key_reference() -> str:
+    """Every table and key with its type, default and meaning (plain text)."""
+    lines = ["(top level): name (str), description (str), seed (int, 0), kind "
+             f"({' | '.join(KINDS)})"]
+    for table, cls in _TABLES.items():
+        lines.append(f"\n[{table}]")
+        for f in dataclasses.fields(cls):
+            meta = f.metadata
+            default = "required" if f.default is dataclasses.MISSING else repr(f.default)
+            choices = f" one of {', '.join(map(repr, meta['choices']))};" if meta["choices"] else ""
+            lines.append(f"  {f.name} ({meta['type']}, {default}):{choices} {meta['doc']}")
+    lines.append("\nTables by kind (needed; also accepted):")
+    for kind, (need, accept) in KIND_TABLES.items():
+        lines.append(f"  {kind}: {', '.join(sorted(need))}; {', '.join(sorted(accept))}")
+    return "\n".join(lines)
