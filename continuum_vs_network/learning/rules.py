@@ -35,6 +35,24 @@ the contrastive function ``(E^C - E^F) / eta`` with rate ``alpha`` gives
 * exact gradient: ``d theta = -alpha dC/d theta`` with ``dC/d theta`` from the adjoint
   of the free state (:func:`~.sensitivity.cost_gradient`).
 
+What coupled learning descends
+------------------------------
+To first order in ``eta``, ``GCL / alpha = -d/dtheta [(r_T - l_T)^T K (r_T - l_T) / 2]``
+where ``K`` is the targets' effective stiffness (the inverse of their compliance in the
+source-clamped network, :meth:`~.sensitivity.Sensitivity.compliance`) and the clamp and
+desired lengths ``l`` are *held fixed* (:func:`~.sensitivity.gcl_limit`; the relative
+error is O(eta): about 1e-1, 7e-3, 7e-4, 7e-5 for eta = 1e-1 ... 1e-4 on the paper's
+trials). With ``strain_reference="initial"`` this is the gradient of Eq. 26 up to the
+factor ``K L0^2`` (one target). With the paper's ``"current"`` convention the lengths
+``l = L (S + 1)`` move with the learning ``L`` and the strain is ``r_T / L_T - 1``; GCL
+ignores both dependencies, and its update is nearly orthogonal to the gradient of Eq. 26
+(cosine -0.15 median, -0.45 ... 0.40 over the paper's trials). Worse, the target's own
+update ``dL_T = alpha k_T L_T (S_T - S_T^F)`` is a positive feedback there: a longer
+``L_T`` lowers ``S_T^F = r_T / L_T - 1`` and so lengthens it again, and ``L_T`` grows
+exponentially when the target should stretch (or runs to 0 when it should shrink).
+Prospective configuration in the ``"current"`` convention has the same runaway on every
+clamped spring (``dL = alpha k S L``).
+
 Options every rule honours: ``dof``, ``learn_sources``, ``learn_targets``,
 ``strain_reference`` (``"current"``: the paper's literal ``S = r / L - 1`` with the learning
 ``L``; ``"initial"``: fixed clamp lengths from the task's recorded rest lengths),
