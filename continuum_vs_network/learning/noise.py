@@ -31,15 +31,16 @@ __all__ = ["noise_rules", "noise_study", "noise_table"]
 def noise_rules(
     setup: str = "lattice", *, etas: Sequence[float] = (0.01, 0.1, 1.0)
 ) -> dict[str, Rule]:
-    """GCL at several nudges and GPC, with rates suited to ``setup``."""
+    """GCL at several nudges and GPC (sources and targets frozen), rates suited to ``setup``."""
     if setup == "lattice":
-        alpha, floor, learn_targets = 0.05, 1e-3, True
+        alpha, floor = 0.5, 1e-3
     elif setup == "paper":
-        alpha, floor, learn_targets = 1e-3, 0.1, False
+        alpha, floor = 1e-3, 0.1
     else:
         raise ValueError(f"setup must be 'lattice' or 'paper', got {setup!r}")
+    # sources and targets frozen: the bulk must learn (see stern_rules)
     common = {"strain_reference": "initial", "min_rest_length": floor,
-              "learn_targets": learn_targets}
+              "learn_sources": False, "learn_targets": False}
     rules: dict[str, Rule] = {
         f"GCL eta={eta:g}": CoupledLearning(alpha, eta, **common) for eta in etas
     }
