@@ -17,9 +17,18 @@ solves. Because learning changes the network little per step, the same factorisa
 serves the free state, the nudged state (its extra target clamps need one cached column
 each: the Schur-complement reuse) and many following learning steps; it is refreshed when
 the iteration contracts slowly (ratio > ``refactor_ratio``) and, if that fails too, the
-state is found by :func:`~continuum_vs_network.relax`. Convergence is judged exactly as
-``relax`` judges it (:meth:`Problem.residual`, relative ``tol``), so a reused factorisation
-changes the cost, never the answer.
+state is found by :func:`~continuum_vs_network.relax`. The chord iteration is accelerated
+by Anderson mixing (GMRES-like on its linear error) and starts from a guess extrapolated
+from the previous steps (the free state linearly, the nudged state by last step's nudge
+displacement). Convergence is judged as ``relax`` judges it (the largest net force on a
+free coordinate with the least-squares clamp tensions removed, relative ``tol``; clamp
+lengths to ``tol mean(L)``), so reuse changes the cost, never the tolerance.
+
+When ``relax`` itself stalls (learning drives paper networks through snap-through
+instabilities, where the core Newton's positive-definite model creeps), the tracker
+continues from the stalled point with a dense trust-region Newton that follows negative
+curvature (:func:`trust_region`, small problems) and polishes with ``relax``; then it
+retries with strain continuation (``retry_ramps``).
 
 Any other solver setting (``method="paper"``, ``"fire"``, rods, ``reuse=False``) calls
 :func:`~continuum_vs_network.relax` with a warm start.
