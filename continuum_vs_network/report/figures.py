@@ -169,10 +169,19 @@ def plot_panels(
             ax.set_visible(False)
         if title:
             fig.suptitle(title, fontsize=11)
-        fig.tight_layout()
+        _layout(fig, nrows, ncols, panel_size, bool(title))
         return _save(fig, path, dpi)
     finally:
         plt.close(fig)
+
+
+def _layout(fig, nrows: int, ncols: int, size: tuple[float, float], title: bool) -> None:
+    """Fixed margins in inches (``tight_layout`` measures every label: slow and no better
+    for these uniform panels)."""
+    w, h = size[0] * ncols, size[1] * nrows
+    left, right, bottom, top = 0.72, 0.12, 0.5, 0.32 + (0.3 if title else 0.0)
+    fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
+                        wspace=0.9 / (size[0] - 0.84), hspace=0.95 / (size[1] - 0.82))
 
 
 def heatmap(
@@ -194,8 +203,7 @@ def heatmap(
     fig, ax = plt.subplots(figsize=(1.3 * len(cols) + 2.8, 0.42 * len(rows) + 1.4))
     try:
         masked = np.ma.masked_invalid(v)
-        cmap = plt.get_cmap("viridis").copy()
-        cmap.set_bad("0.85")
+        cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
         im = ax.imshow(masked, cmap=cmap, aspect="auto")
         ax.set_xticks(range(len(cols)), cols, fontsize=8)
         ax.set_yticks(range(len(rows)), rows, fontsize=8)

@@ -433,16 +433,20 @@ def run_scene(
         log(f"{scene.name}: resuming, {len(done)} of {len(units)} units already computed")
     bar = _bar(progress, scene.name, units, done)
     killer = _Killer()
+    pool = None
     try:
         for phase in sorted({u.phase for u in units}):
             todo = [u for u in units if u.phase == phase and u.key not in done]
             serial = [u for u in todo if workers == 1 or not u.parallel]
             pooled = [u for u in todo if workers > 1 and u.parallel]
             if pooled:
-                _run_pool(scene, pooled, directory, workers, bar)
+                pool = pool or _new_pool(workers)
+                _run_pool(pool, scene, pooled, directory, bar)
             for unit in serial:
                 _run_serial(scene, unit, directory, bar, killer)
     finally:
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
         if bar is not None:
             bar.close()
     _clean(directory, units)
@@ -489,29 +493,31 @@ def _run_serial(scene: Scene, unit: Unit, directory: Path, bar, killer: _Killer)
     killer.tick("units")
 
 
-def _run_pool(scene: Scene, units: list[Unit], directory: Path, workers: int, bar) -> None:
+def _new_pool(workers: int):
     import multiprocessing
-    from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+    from concurrent.futures import ProcessPoolExecutor
 
-    ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = {pool.submit(_worker, scene, u, str(directory)): u for u in units}
-        try:
-            pending = set(futures)
-            while pending:
-                finished, pending = wait(pending, return_when=FIRST_EXCEPTION)
-                for fut in finished:
-                    unit = futures[fut]
-                    err = fut.exception()
-                    if err is not None:
-                        for other in pending:
-                            other.cancel()
-                        raise SceneRunError(scene.name, unit.key, err) from err
-                    if bar is not None:
-                        bar.update(unit.weight)
-        except BaseException:
-            pool.shutdown(wait=True, cancel_futures=True)
-            raise
+    # spawn, not fork: a forked child would inherit this process's threads and locks
+    return ProcessPoolExecutor(max_workers=workers,
+                               mp_context=multiprocessing.get_context("spawn"))
+
+
+def _run_pool(pool, scene: Scene, units: list[Unit], directory: Path, bar) -> None:
+    from concurrent.futures import FIRST_EXCEPTION, wait
+
+    futures = {pool.submit(_worker, scene, u, str(directory)): u for u in units}
+    pending = set(futures)
+    while pending:
+        finished, pending = wait(pending, return_when=FIRST_EXCEPTION)
+        for fut in finished:
+            unit = futures[fut]
+            err = fut.exception()
+            if err is not None:
+                for other in pending:
+                    other.cancel()
+                raise SceneRunError(scene.name, unit.key, err) from err
+            if bar is not None:
+                bar.update(unit.weight)
 
 
 def _bar(progress: bool, name: str, units: list[Unit], done: set[str]):
