@@ -1,0 +1,588 @@
+"""Off-screen images with pyvista: networks coloured by strain, continuum strain fields.
+
+Images are deterministic: fixed window size, fixed colour limits, a fixed camera (looking down
+-z with parallel projection, ``view_xy``), no lighting (flat 2D colours) and a colormap built
+here from the ColorBrewer RdBu anchors (the same values as matplotlib's ``RdBu_r``, so
+matplotlib is not needed). Strain is drawn with symmetric limits: white is zero strain, red is
+extension, blue is compression. Sources and targets are drawn with a coloured halo (green and
+orange) behind the strain-coloured line, so the spring keeps its strain colour.
+
+Headless machines: when no ``DISPLAY`` is set, ``VTK_DEFAULT_OPENGL_WINDOW`` defaults to
+``vtkEGLRenderWindow`` (Mesa's EGL; on Debian/Ubuntu the packages ``libegl1 libegl-mesa0
+libgl1-mesa-dri libgbm1``). :func:`rendering_available` says whether rendering works.
+
+pyvista is imported inside the functions that draw. PNG files are written atomically.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import subprocess
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from continuum_vs_network.io.atomic import atomic_path
+
+if TYPE_CHECKING:
+    import pyvista
+
+    from continuum_vs_network.network.model import SpringNetwork
+
+__all__ = [
+    "BACKGROUND",
+    "SOURCE_COLOR",
+    "TARGET_COLOR",
+    "diverging_colors",
+    "render_continuum",
+    "render_network",
+    "render_side_by_side",
+    "rendering_available",
+]
+
+#: Window background: mid grey, so that white (zero strain) springs stay visible.
+BACKGROUND = (0.62, 0.62, 0.62)
+#: Halo colours marking source and target springs.
+SOURCE_COLOR = (0.0, 0.75, 0.0)
+TARGET_COLOR = (1.0, 0.6, 0.0)
+_TEXT_COLOR = (0.0, 0.0, 0.0)
+
+# ColorBrewer RdBu (11 classes), blue (low) to red (high): matplotlib's "RdBu_r" anchors.
+_RDBU_R = (
+    "053061", "2166ac", "4393c3", "92c5de", "d1e5f0", "f7f7f7",
+    "fddbc7", "f4a582", "d6604d", "b2182b", "67001f",
+)  # fmt: skip
+
+_EGL = "vtkEGLRenderWindow"
+_PROBE = (
+    "import pyvista as pv\n"
+    "p = pv.Plotter(off_screen=True, window_size=(48, 48))\n"
+    "p.add_mesh(pv.Sphere(), color='red')\n"
+    "img = p.screenshot(return_img=True)\n"
+    "name = p.render_window.GetClassName()\n"
+    "p.close()\n"
+    "assert img.std() > 0, 'blank image'\n"
+    "print(name)\n"
+)
+
+
+# -- backend -------------------------------------------------------------------------------
+def _configure_backend() -> None:
+    """Default VTK to the EGL window when there is no X display (never set it empty)."""
+    if not os.environ.get("DISPLAY") and not os.environ.get("VTK_DEFAULT_OPENGL_WINDOW"):
+        os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = _EGL
+
+
+def _pyvista() -> Any:
+    _configure_backend()
+    import pyvista
+
+    return pyvista
+
+
+@functools.cache
+def rendering_available() -> tuple[bool, str]:
+    """Whether off-screen rendering works here, and why not if it does not.
+
+    Tries once (in a subprocess, since a broken OpenGL stack can abort the process rather
+    than raise) to draw a sphere off-screen; the answer is cached for this process.
+
+    Returns
+    -------
+    (bool, str)
+        ``(True, render window class)`` or ``(False, reason)``.
+    """
+    import importlib.util
+
+    if importlib.util.find_spec("pyvista") is None:
+        return False, "pyvista is not installed (pip install 'continuum_vs_network[io]')"
+    _configure_backend()
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-c", _PROBE],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            env=dict(os.environ),
+            check=False,
+        )
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return False, f"off-screen rendering probe failed: {exc}"
+    if proc.returncode != 0:
+        tail = " | ".join((proc.stderr or proc.stdout).strip().splitlines()[-3:])
+        window = os.environ.get("VTK_DEFAULT_OPENGL_WINDOW", "(default)")
+        return False, (
+            f"off-screen rendering with VTK_DEFAULT_OPENGL_WINDOW={window} failed "
+            f"(exit {proc.returncode}): {tail}. Headless Debian/Ubuntu needs "
+            "'apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1'"
+        )
+    return True, proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else "ok"
+
+
+# -- colours and limits --------------------------------------------------------------------
+def diverging_colors(n: int = 256) -> NDArray[np.float64]:
+    """The blue-white-red colormap as an ``(n, 3)`` RGB array in [0, 1] (low to high)."""
+    if n < 2:
+        raise ValueError(f"n must be >= 2, got {n}")
+    anchors = np.array([[int(h[i : i + 2], 16) for i in (0, 2, 4)] for h in _RDBU_R]) / 255.0
+    s = np.linspace(0.0, 1.0, anchors.shape[0])
+    t = np.linspace(0.0, 1.0, n)
+    return np.stack([np.interp(t, s, anchors[:, c]) for c in range(3)], axis=1)
+
+
+def _lookup_table(pv: Any, clim: tuple[float, float]) -> Any:
+    rgba = np.ones((256, 4))
+    rgba[:, :3] = diverging_colors(256)
+    table = pv.LookupTable(values=(rgba * 255).round().astype(np.uint8))
+    table.scalar_range = clim
+    return table
+
+
+def _clim(name: str, clim: float | Sequence[float] | None, values: NDArray) -> tuple[float, float]:
+    """Colour limits: ``None`` -> symmetric ``(-a, a)`` with ``a = max |values|``; a number
+    ``a`` -> ``(-a, a)``; a pair is used as given."""
+    if clim is None:
+        a = float(np.max(np.abs(values))) if values.size else 0.0
+        a = a if a > 0 else 1.0
+        return -a, a
+    if np.ndim(clim) == 0:
+        a = float(clim)  # type: ignore[arg-type]
+        if not (np.isfinite(a) and a > 0):
+            raise ValueError(f"{name} as a number must be finite and > 0, got {clim}")
+        return -a, a
+    lo, hi = (float(v) for v in clim)  # type: ignore[union-attr]
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise ValueError(f"{name} must be a pair (low, high) with low < high, got {clim}")
+    return lo, hi
+
+
+def _window(window_size: Sequence[int]) -> tuple[int, int]:
+    w = tuple(int(v) for v in window_size)
+    if len(w) != 2 or min(w) < 16:
+        raise ValueError(f"window_size must be (width, height) >= 16 pixels, got {window_size}")
+    return w  # type: ignore[return-value]
+
+
+def _scalar_bar(title: str, font_scale: float) -> dict[str, Any]:
+    return {
+        "title": title,
+        "n_labels": 5,
+        "fmt": "%.3g",
+        "color": _TEXT_COLOR,
+        "vertical": False,
+        "position_x": 0.2,
+        "position_y": 0.03,
+        "width": 0.6,
+        "height": 0.08,
+        "title_font_size": int(round(16 * font_scale)),
+        "label_font_size": int(round(13 * font_scale)),
+        "font_family": "arial",
+        "shadow": False,
+    }
+
+
+def _finish_view(plotter: Any, bounds: NDArray[np.float64], zoom: float = 0.8) -> None:
+    """Look down -z at ``bounds`` (xmin, xmax, ymin, ymax) with parallel projection."""
+    plotter.view_xy()
+    plotter.enable_parallel_projection()
+    xmin, xmax, ymin, ymax = bounds
+    plotter.reset_camera(bounds=(xmin, xmax, ymin, ymax, -1e-3, 1e-3))
+    plotter.camera.zoom(zoom)
+    # leave room for the scalar bar below and the title above: shift the view down a bit
+    cam = plotter.camera
+    dy = 0.04 * cam.parallel_scale
+    fx, fy, fz = cam.focal_point
+    px, py, pz = cam.position
+    cam.focal_point = (fx, fy - dy, fz)
+    cam.position = (px, py - dy, pz)
+
+
+def _save(plotter: Any, path: str | os.PathLike[str]) -> Path:
+    """Render, screenshot and write a PNG atomically."""
+    from PIL import Image
+
+    dest = Path(path)
+    if dest.suffix.lower() != ".png":
+        raise ValueError(f"path must end in .png, got {str(path)!r}")
+    img = plotter.screenshot(return_img=True)
+    with atomic_path(dest) as tmp:
+        Image.fromarray(np.asarray(img, dtype=np.uint8)).save(tmp, format="PNG", optimize=True)
+    return dest
+
+
+def _new_plotter(pv: Any, window_size: tuple[int, int], shape: tuple[int, int] = (1, 1)) -> Any:
+    plotter = pv.Plotter(off_screen=True, window_size=list(window_size), shape=shape, border=False)
+    plotter.set_background(BACKGROUND)
+    return plotter
+
+
+# -- drawing -------------------------------------------------------------------------------
+def _spring_indices(name: str, idx: ArrayLike, n_springs: int) -> NDArray[np.int64]:
+    arr = np.asarray(idx, dtype=np.int64).reshape(-1)
+    if np.any((arr < 0) | (arr >= n_springs)):
+        raise ValueError(f"{name} holds a spring index outside 0..{n_springs - 1}: {arr}")
+    return arr
+
+
+def _lines(pv: Any, points: NDArray, springs: NDArray, z: float) -> pyvista.PolyData:
+    pts = np.zeros((points.shape[0], 3))
+    pts[:, :2] = points
+    pts[:, 2] = z
+    lines = np.hstack([np.full((springs.shape[0], 1), 2), springs]).astype(np.int64).ravel()
+    return pv.PolyData(pts, lines=lines)
+
+
+def _draw_network(
+    pv: Any,
+    plotter: Any,
+    net: SpringNetwork,
+    x: ArrayLike,
+    *,
+    sources: ArrayLike,
+    targets: ArrayLike,
+    clim: float | Sequence[float] | None,
+    title: str | None,
+    bar_title: str,
+    line_width: float,
+    font_scale: float,
+) -> None:
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape != (net.n_nodes, 2):
+        raise ValueError(f"x must have shape ({net.n_nodes}, 2), got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("x must be finite")
+    src = _spring_indices("sources", sources, net.n_springs)
+    tgt = _spring_indices("targets", targets, net.n_springs)
+    strain = net.strains(x)
+    lo, hi = _clim("clim", clim, strain)
+    extent = float(np.ptp(x[:, 0]) + np.ptp(x[:, 1])) or 1.0
+    mesh = _lines(pv, x, np.asarray(net.springs), 0.0)
+    mesh.cell_data[bar_title] = strain
+    for idx, color, name in ((src, SOURCE_COLOR, "source"), (tgt, TARGET_COLOR, "target")):
+        if idx.size:
+            halo = _lines(pv, x, np.asarray(net.springs)[idx], -1e-3 * extent)
+            plotter.add_mesh(
+                halo, color=color, line_width=3.0 * line_width, lighting=False, label=name
+            )
+    plotter.add_mesh(
+        mesh,
+        scalars=bar_title,
+        cmap=_lookup_table(pv, (lo, hi)),
+        clim=(lo, hi),
+        line_width=line_width,
+        lighting=False,
+        scalar_bar_args=_scalar_bar(bar_title, font_scale),
+    )
+    if src.size or tgt.size:
+        plotter.add_legend(
+            bcolor=BACKGROUND,
+            size=(0.22, 0.1 * (bool(src.size) + bool(tgt.size))),
+            loc="upper right",
+            face="rectangle",
+            font_family="arial",
+        )
+    if title:
+        plotter.add_text(
+            title, position="upper_left", font_size=int(round(11 * font_scale)), color=_TEXT_COLOR
+        )
+    bounds = np.array([x[:, 0].min(), x[:, 0].max(), x[:, 1].min(), x[:, 1].max()])
+    _finish_view(plotter, bounds)
+
+
+def _continuum_arrays(
+    points: ArrayLike,
+    triangles: ArrayLike,
+    displacement: ArrayLike,
+    scalar: ArrayLike,
+    location: str | None,
+) -> tuple[NDArray, NDArray, NDArray, NDArray, str]:
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f"points must have shape (n, 2), got {pts.shape}")
+    tri = np.asarray(triangles)
+    if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
+        raise ValueError(f"triangles must be an (n, 3) int array, got {tri.shape} {tri.dtype}")
+    if tri.size and (tri.min() < 0 or tri.max() >= pts.shape[0]):
+        raise ValueError(f"triangles hold a vertex index outside 0..{pts.shape[0] - 1}")
+    disp = np.asarray(displacement, dtype=np.float64)
+    if disp.shape != pts.shape:
+        raise ValueError(f"displacement must have shape {pts.shape}, got {disp.shape}")
+    val = np.asarray(scalar, dtype=np.float64)
+    n_pts, n_tri = pts.shape[0], tri.shape[0]
+    if location is None:
+        if n_pts == n_tri and val.shape == (n_pts,):
+            raise ValueError(
+                "scalar has one value per point and per triangle alike; pass location='cell' "
+                "or location='point'"
+            )
+        location = "cell" if val.shape == (n_tri,) else "point"
+    if location not in ("cell", "point"):
+        raise ValueError(f"location must be 'cell' or 'point', got {location!r}")
+    want = n_tri if location == "cell" else n_pts
+    if val.shape != (want,):
+        raise ValueError(
+            f"scalar must have shape ({n_tri},) per triangle or ({n_pts},) per point, "
+            f"got {val.shape}"
+        )
+    for name, arr in (("points", pts), ("displacement", disp), ("scalar", val)):
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"{name} must be finite")
+    return pts, tri.astype(np.int64), disp, val, location
+
+
+def _draw_continuum(
+    pv: Any,
+    plotter: Any,
+    points: ArrayLike,
+    triangles: ArrayLike,
+    displacement: ArrayLike,
+    scalar: ArrayLike,
+    *,
+    clim: float | Sequence[float] | None,
+    scale: float,
+    location: str | None,
+    title: str | None,
+    bar_title: str,
+    show_edges: bool,
+    font_scale: float,
+) -> None:
+    if not (np.isfinite(scale) and scale >= 0):
+        raise ValueError(f"scale must be finite and >= 0, got {scale}")
+    pts, tri, disp, val, location = _continuum_arrays(
+        points, triangles, displacement, scalar, location
+    )
+    lo, hi = _clim("clim", clim, val)
+    deformed = pts + scale * disp
+    xyz = np.zeros((pts.shape[0], 3))
+    xyz[:, :2] = deformed
+    faces = np.hstack([np.full((tri.shape[0], 1), 3), tri]).ravel()
+    mesh = pv.PolyData(xyz, faces=faces)
+    data = mesh.cell_data if location == "cell" else mesh.point_data
+    data[bar_title] = val
+    plotter.add_mesh(
+        mesh,
+        scalars=bar_title,
+        cmap=_lookup_table(pv, (lo, hi)),
+        clim=(lo, hi),
+        lighting=False,
+        show_edges=show_edges,
+        edge_color=(0.3, 0.3, 0.3),
+        line_width=0.5,
+        scalar_bar_args=_scalar_bar(bar_title, font_scale),
+    )
+    if title:
+        plotter.add_text(
+            title, position="upper_left", font_size=int(round(11 * font_scale)), color=_TEXT_COLOR
+        )
+    bounds = np.array(
+        [deformed[:, 0].min(), deformed[:, 0].max(), deformed[:, 1].min(), deformed[:, 1].max()]
+    )
+    _finish_view(plotter, bounds)
+
+
+def _font_scale(window_size: tuple[int, int], columns: int = 1) -> float:
+    return max(0.6, min(window_size[0] / columns, window_size[1]) / 800.0 * 1.6)
+
+
+# -- public --------------------------------------------------------------------------------
+def render_network(
+    net: SpringNetwork,
+    x: ArrayLike,
+    path: str | os.PathLike[str],
+    *,
+    sources: ArrayLike = (),
+    targets: ArrayLike = (),
+    clim: float | Sequence[float] | None = None,
+    window_size: Sequence[int] = (800, 800),
+    title: str | None = None,
+    scalar_bar_title: str = "spring strain",
+    line_width: float = 3.0,
+) -> Path:
+    """Draw the network at positions ``x`` with springs coloured by strain; write a PNG.
+
+    Parameters
+    ----------
+    net : SpringNetwork
+        The network (rest lengths define the strain ``r/L - 1``).
+    x : (n_nodes, 2) float array
+        Positions to draw (e.g. an equilibrium).
+    path : str or os.PathLike
+        Destination ``.png`` (written atomically; parent folders created).
+    sources, targets : sequence of int
+        Spring indices marked with a green (sources) or orange (targets) halo.
+    clim : float or (float, float), optional
+        Colour limits. Default: symmetric ``(-a, a)``, ``a = max |strain|``; a number ``a``
+        means ``(-a, a)``. Fix it to compare images.
+    window_size : (int, int)
+        Image size in pixels.
+    title : str, optional
+        Text in the upper left corner.
+    scalar_bar_title : str
+        Title of the colour bar (must differ from other bars in the same image).
+    line_width : float
+        Spring line width in pixels (halos are three times wider).
+
+    Returns
+    -------
+    pathlib.Path
+        The PNG written.
+    """
+    pv = _pyvista()
+    size = _window(window_size)
+    plotter = _new_plotter(pv, size)
+    try:
+        _draw_network(
+            pv,
+            plotter,
+            net,
+            x,
+            sources=sources,
+            targets=targets,
+            clim=clim,
+            title=title,
+            bar_title=scalar_bar_title,
+            line_width=line_width,
+            font_scale=_font_scale(size),
+        )
+        return _save(plotter, path)
+    finally:
+        plotter.close()
+
+
+def render_continuum(
+    points: ArrayLike,
+    triangles: ArrayLike,
+    displacement: ArrayLike,
+    scalar: ArrayLike,
+    path: str | os.PathLike[str],
+    *,
+    clim: float | Sequence[float] | None = None,
+    scale: float = 1.0,
+    location: str | None = None,
+    window_size: Sequence[int] = (800, 800),
+    title: str | None = None,
+    scalar_bar_title: str = "strain",
+    show_edges: bool = False,
+) -> Path:
+    """Draw a scalar field (e.g. a strain component) on the deformed triangle mesh; write a PNG.
+
+    Parameters
+    ----------
+    points : (n_points, 2) float array
+        Reference vertex positions.
+    triangles : (n_triangles, 3) int array
+        Vertex indices.
+    displacement : (n_points, 2) float array
+        Vertex displacements; the mesh is drawn at ``points + scale * displacement``.
+    scalar : (n_triangles,) or (n_points,) float array
+        The field to colour by, per triangle (flat) or per vertex (interpolated).
+    path : str or os.PathLike
+        Destination ``.png`` (written atomically).
+    clim : float or (float, float), optional
+        Colour limits, as in :func:`render_network`.
+    scale : float
+        Displacement magnification (0 draws the reference mesh).
+    location : {"cell", "point"}, optional
+        Where ``scalar`` lives; inferred from its length unless that is ambiguous.
+    window_size, title, scalar_bar_title
+        As in :func:`render_network`.
+    show_edges : bool
+        Draw the triangle edges.
+    """
+    pv = _pyvista()
+    size = _window(window_size)
+    plotter = _new_plotter(pv, size)
+    try:
+        _draw_continuum(
+            pv,
+            plotter,
+            points,
+            triangles,
+            displacement,
+            scalar,
+            clim=clim,
+            scale=scale,
+            location=location,
+            title=title,
+            bar_title=scalar_bar_title,
+            show_edges=show_edges,
+            font_scale=_font_scale(size),
+        )
+        return _save(plotter, path)
+    finally:
+        plotter.close()
+
+
+def render_side_by_side(
+    net: SpringNetwork,
+    x: ArrayLike,
+    points: ArrayLike,
+    triangles: ArrayLike,
+    displacement: ArrayLike,
+    scalar: ArrayLike,
+    path: str | os.PathLike[str],
+    *,
+    sources: ArrayLike = (),
+    targets: ArrayLike = (),
+    network_clim: float | Sequence[float] | None = None,
+    continuum_clim: float | Sequence[float] | None = None,
+    scale: float = 1.0,
+    location: str | None = None,
+    window_size: Sequence[int] = (1600, 800),
+    titles: tuple[str, str] = ("network", "continuum"),
+    network_bar_title: str = "spring strain",
+    continuum_bar_title: str = "continuum strain",
+    line_width: float = 3.0,
+    show_edges: bool = False,
+) -> Path:
+    """Network (left) and continuum (right) in one 1x2 image; write a PNG.
+
+    The arguments are those of :func:`render_network` (``net, x, sources, targets``) and
+    :func:`render_continuum` (``points, triangles, displacement, scalar, scale, location``).
+    Each panel has its own colour bar; pass the same limits to both to compare colours.
+    """
+    if network_bar_title == continuum_bar_title:
+        raise ValueError("network_bar_title and continuum_bar_title must differ")
+    pv = _pyvista()
+    size = _window(window_size)
+    plotter = _new_plotter(pv, size, shape=(1, 2))
+    fs = _font_scale(size, columns=2)
+    try:
+        plotter.subplot(0, 0)
+        _draw_network(
+            pv,
+            plotter,
+            net,
+            x,
+            sources=sources,
+            targets=targets,
+            clim=network_clim,
+            title=titles[0],
+            bar_title=network_bar_title,
+            line_width=line_width,
+            font_scale=fs,
+        )
+        plotter.subplot(0, 1)
+        _draw_continuum(
+            pv,
+            plotter,
+            points,
+            triangles,
+            displacement,
+            scalar,
+            clim=continuum_clim,
+            scale=scale,
+            location=location,
+            title=titles[1],
+            bar_title=continuum_bar_title,
+            show_edges=show_edges,
+            font_scale=fs,
+        )
+        return _save(plotter, path)
+    finally:
+        plotter.close()
