@@ -242,7 +242,8 @@ def _learning(doc: _Doc, result) -> None:
                "learning steps and against wall-clock seconds; line: median over trials, band: "
                "quartiles.")
 
-    _paper_figures(doc, scene, h, first, length_error, rest_length_error)
+    if scene.task.kind == "paper":
+        _paper_figures(doc, scene, h, first, length_error, rest_length_error)
     if L.sweeps:
         _sweeps(doc, result, first)
     if L.compare_gradient:
@@ -461,19 +462,23 @@ def _learning_renders(doc: _Doc, result, render: bool, reason: str) -> None:
             nets = {s: SpringNetwork(a[f"t{k}/{s}/positions"], a[f"t{k}/{s}/springs"],
                                      a[f"t{k}/{s}/stiffness"], a[f"t{k}/{s}/rest_length"])
                     for s in stages}
-            strains = [nets[s].strains(a[f"t{k}/{s}/x"]) for s in stages]
-            if not strains:
+            if not stages:
                 continue
-            clim = float(max(np.max(np.abs(s)) for s in strains)) or 1.0
+            sources = np.asarray(a[f"t{k}/sources"], dtype=int)
+            # colour limits from every spring but the sources (clamped, they would dominate)
+            clim = max(float(np.max(np.abs(np.delete(nets[s].strains(a[f"t{k}/{s}/x"]),
+                                                     sources))))
+                       for s in stages) or 1.0
+            width = 3.0 if nets[stages[0]].n_springs < 200 else 1.5
             for s in stages:
                 path = doc.folder / f"render_{rule}_t{k}_{s}.png"
-                render_network(nets[s], a[f"t{k}/{s}/x"], path, sources=a[f"t{k}/sources"],
+                render_network(nets[s], a[f"t{k}/{s}/x"], path, sources=sources,
                                targets=a[f"t{k}/targets"], clim=clim,
-                               window_size=(560, 560),
+                               window_size=(560, 560), line_width=width,
                                title=f"{rule}, trial {k}, {s} free state")
                 doc.image(path, f"{rule}, trial {k}: {s} network in its free state, springs "
-                          f"coloured by strain (limits +-{clim:.3g}); green: source, orange: "
-                          "target.")
+                          f"coloured by strain (limits +-{clim:.3g}, set by every spring but "
+                          "the sources); green: source, orange: target.")
             break  # one trial per run is enough for the report
 
 
