@@ -8,6 +8,7 @@ from .builders import (
     triangular_lattice,
 )
 from .constraints import Problem, default_pins, pin_mask
+from .dynamics import Trajectory, relaxation_time, simulate, stability_limit
 from .energy import HessianPattern, energy, forces, gradient, hessian
 from .equilibrium import Equilibrium, EquilibriumError, relax
 from .model import SpringNetwork
@@ -19,6 +20,7 @@ __all__ = [
     "HessianPattern",
     "Problem",
     "SpringNetwork",
+    "Trajectory",
     "default_pins",
     "diluted_lattice",
     "energy",
@@ -30,9 +32,12 @@ __all__ = [
     "paper_network",
     "pin_mask",
     "relax",
+    "relaxation_time",
     "rigidity_matrix",
     "self_stress_support",
     "self_stresses",
+    "simulate",
+    "stability_limit",
     "strain_tunable",
     "triangular_lattice",
     "zero_modes",

@@ -65,10 +65,15 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .constraints import Pins, pin_mask
-from .energy import spring_energy, spring_gradient, spring_hessian_blocks
+from .energy import (
+    hessian_norm_bound,
+    spring_energy,
+    spring_energy_change,
+    spring_gradient,
+    spring_hessian_blocks,
+)
 from .model import SpringNetwork
 from .newton import factor_pd, pattern_for
-from .numerics import hessian_norm_bound, spring_energy_change
 
 __all__ = ["Trajectory", "relaxation_time", "simulate", "stability_limit"]
 

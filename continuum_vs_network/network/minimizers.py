@@ -27,7 +27,6 @@ equilibrium because the rods make the problem extremely ill-conditioned.
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -35,9 +34,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .constraints import Problem
-from .energy import spring_gradient
+from .energy import node_stiffness, spring_energy_change, spring_gradient
 from .equilibrium import Outcome, StopRule, Trace
-from .numerics import node_stiffness, spring_energy_change
 
 __all__ = ["fire", "lbfgs", "paper_adagrad"]
 
@@ -368,10 +366,8 @@ def fire(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
 # -- L-BFGS ---------------------------------------------------------------------------------
 def _one_blas_thread():
     """Pin BLAS to one thread (multithreaded OpenBLAS slows L-BFGS-B's tiny products)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
+    from threadpoolctl import threadpool_limits
+
     return threadpool_limits(limits=1, user_api="blas")
 
 
