@@ -792,9 +792,13 @@ def write_report(
             reason = f"no off-screen rendering backend ({why})"
     elif not render:
         reason = "rendering switched off for this run"
+    from ..scenes.schema import builtin_names
+
+    builtin = scene.name in builtin_names() and Path(scene.source).parent.name == "builtin"
+    target = scene.name if builtin else _short_source(scene.source)
     doc.add(f"# {scene.name}", "", scene.description, "",
-            f"Kind: `{scene.kind}`. Regenerate with `cvn run {_short_source(scene.source)}` "
-            f"or `cvn report {scene.name}`.")
+            f"Kind: `{scene.kind}`. Regenerate with `cvn run {target}`"
+            + (" (a built-in scene; `cvn scenes` lists them)." if builtin else "."))
     if scene.kind == "learning":
         _learning(doc, result)
         if scene.report.images or scene.export is not None:
