@@ -184,10 +184,13 @@ class Problem:
         d = x[s[:, 1]] - x[s[:, 0]]
         return np.hypot(d[:, 0], d[:, 1]) - self.clamp_lengths
 
-    def clamp_jacobian(self, x: NDArray, coords: NDArray | None = None) -> sp.csr_matrix:
+    def clamp_jacobian(
+        self, x: NDArray, coords: NDArray | None = None, *, dense: bool = False
+    ) -> sp.csr_matrix | NDArray:
         """``d(r_c)/d(x_free)`` as a sparse (m, n_free) matrix: rows ``[-u_c, +u_c]``.
 
-        Columns follow ``coords`` (flat coordinate indices; default ``free_flat``).
+        Columns follow ``coords`` (flat coordinate indices; default ``free_flat``); with
+        ``dense`` a (m, n_free) ndarray (cheaper for small problems).
         """
         coords = self.free_flat if coords is None else coords
         m = self.n_clamps
@@ -200,6 +203,10 @@ class Problem:
         column = np.full(2 * self.net.n_nodes, -1, dtype=np.int64)
         column[coords] = np.arange(coords.size)
         keep = column[flat] >= 0
+        if dense:
+            out = np.zeros((m, coords.size))
+            np.add.at(out, (rows[keep], column[flat][keep]), vals[keep])
+            return out
         return sp.csr_matrix(
             (vals[keep], (rows[keep], column[flat][keep])), shape=(m, coords.size)
         )
@@ -227,8 +234,10 @@ class Problem:
         g = spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel()[coords]
         if not self.n_clamps:
             return g, np.empty(0)
-        A = self.clamp_jacobian(x, coords)
-        mu = -np.linalg.lstsq((A @ A.T).toarray(), A @ g, rcond=None)[0]
+        dense = coords.size <= 400
+        A = self.clamp_jacobian(x, coords, dense=dense)
+        AAt = A @ A.T if dense else (A @ A.T).toarray()
+        mu = -np.linalg.lstsq(AAt, A @ g, rcond=None)[0]
         return g + A.T @ mu, mu
 
     # -- counting ---------------------------------------------------------------------

@@ -132,6 +132,7 @@ class HessianPattern:
         self._keep = keep
         key = r_idx[keep] * self.size + c_idx[keep]
         uniq, slot = np.unique(key, return_inverse=True)
+        self._flat = uniq  # position of each stored entry in the dense (size, size) matrix
         self._slot = slot.ravel()
         self._nnz = int(uniq.size)
         self._indices = (uniq % self.size).astype(np.int32)
@@ -139,6 +140,14 @@ class HessianPattern:
         self._indptr = np.searchsorted(row_of, np.arange(self.size + 1)).astype(np.int32)
         self.free_index = index
         self.ordered = False
+
+    def assemble_dense(self, blocks: NDArray) -> NDArray:
+        """Dense (size, size) array from per-spring blocks: for small problems, where
+        scipy.sparse's per-call overhead costs more than the arithmetic."""
+        signed = np.stack([blocks, blocks, -blocks, -blocks], axis=1).ravel()[self._keep]
+        dense = np.zeros(self.size * self.size)
+        dense[self._flat] = np.bincount(self._slot, weights=signed, minlength=self._nnz)
+        return dense.reshape(self.size, self.size)
 
     def assemble(self, blocks: NDArray, shift: float = 0.0) -> sp.csr_matrix:
         """CSR matrix from per-spring blocks (n_springs, 2, 2), plus ``shift * I``."""

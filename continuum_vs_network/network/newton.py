@@ -93,7 +93,11 @@ class _Factor:
         return out
 
 
-def factor_pd(W: sp.csr_matrix, *, ordered: bool = False) -> _Factor | None:
+def _dense(M) -> NDArray:
+    return M.toarray() if sp.issparse(M) else np.asarray(M)
+
+
+def factor_pd(W: sp.csr_matrix | NDArray, *, ordered: bool = False) -> _Factor | None:
     """Factorise symmetric ``W``; None when it is not positive definite.
 
     ``ordered``: the rows are already in a fill-reducing order (see :func:`pattern_for`);
@@ -103,7 +107,7 @@ def factor_pd(W: sp.csr_matrix, *, ordered: bool = False) -> _Factor | None:
     t0 = time.perf_counter()
     if n <= DENSE_MAX:
         try:
-            c = sla.cho_factor(W.toarray(), lower=True, check_finite=False)
+            c = sla.cho_factor(_dense(W), lower=True, check_finite=False)
         except sla.LinAlgError:
             return None
         return _Factor(lambda b: sla.cho_solve(c, b, check_finite=False), time.perf_counter() - t0)
@@ -187,8 +191,8 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     for it in range(stop.max_iter + 1):
         grad = spring_gradient(x, *all_springs).ravel()[coords]
         if problem.n_clamps:
-            A = problem.clamp_jacobian(x, coords)
-            lam_ls = -np.linalg.solve((A @ A.T).toarray(), A @ grad)
+            A = problem.clamp_jacobian(x, coords, dense=pattern.size <= DENSE_MAX)
+            lam_ls = -np.linalg.solve(_dense(A @ A.T), A @ grad)
             force = grad + A.T @ lam_ls  # clamp-normal (rod or constraint) forces removed
         else:
             A, lam_ls, force = None, np.empty(0), grad
@@ -208,7 +212,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             # inexact Newton: a relative solve error eta leaves a residual ~ eta * residual
             eta = min(1e-2, residual / net.force_scale)
             budget = int(0.5 * reusable.seconds / max(reusable.solve_seconds, 1e-9))
-            W = pattern.assemble(_lagrangian_blocks(problem, x, lam_ls[:m], rho))
+            W = _assemble(pattern, _lagrangian_blocks(problem, x, lam_ls[:m], rho))
             try:
                 solver = _pcg(W, reusable, rtol=eta, max_iter=budget - (m + 1))
                 step, lam = _kkt_step(solver, grad, A if m else None, viol, m)
@@ -242,11 +246,18 @@ def _kkt_step(
     z = solver.solve(grad)
     if not m:
         return -z, np.empty(0)
-    Z = solver.solve(A.T.toarray())
+    Z = solver.solve(_dense(A.T))
     if Z.ndim == 1:
         Z = Z[:, None]
     lam = np.linalg.solve(A @ Z, viol - A @ z)
     return -z - Z @ lam, lam
+
+
+def _assemble(pattern: HessianPattern, blocks: NDArray) -> sp.csr_matrix | NDArray:
+    """Dense below ``DENSE_MAX`` coordinates (no sparse overhead), CSR above."""
+    if pattern.size <= DENSE_MAX:
+        return pattern.assemble_dense(blocks)
+    return pattern.assemble(blocks)
 
 
 def _lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) -> NDArray:
@@ -294,7 +305,7 @@ def _factor_lagrangian_hessian(
     Returns ``(factor, rho, shift, exact_used)``. The exact Hessian is used whenever it is
     positive definite, so the last iterations are pure Newton steps.
     """
-    W = pattern.assemble(_lagrangian_blocks(problem, x, lam, rho))
+    W = _assemble(pattern, _lagrangian_blocks(problem, x, lam, rho))
     if shift == 0.0:
         factor = factor_pd(W, ordered=pattern.ordered)
         if factor is not None:
@@ -302,14 +313,15 @@ def _factor_lagrangian_hessian(
         if lam.size:
             d = problem.net.lengths(x)[problem.clamp_springs]
             rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
-            W = pattern.assemble(_lagrangian_blocks(problem, x, lam, rho))
+            W = _assemble(pattern, _lagrangian_blocks(problem, x, lam, rho))
             factor = factor_pd(W, ordered=pattern.ordered)
             if factor is not None:
                 return factor, rho, 0.0, True
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
     # not freeze soft springs (stiffness ratios up to 1e12 are supported)
-    diag = np.abs(W.diagonal())
-    scaling = sp.diags(np.where(diag > 0, diag, max(float(diag.max(initial=0.0)), 1.0)))
+    diag = np.abs(W.diagonal())  # ndarray and sparse alike
+    scale = np.where(diag > 0, diag, max(float(diag.max(initial=0.0)), 1.0))
+    scaling = np.diag(scale) if isinstance(W, np.ndarray) else sp.diags(scale)
     shift = max(shift, DAMP_MIN)
     while shift <= 1e8:
         factor = factor_pd(W + shift * scaling, ordered=pattern.ordered)
@@ -344,7 +356,7 @@ def _line_search(
     def corrected(y: NDArray) -> NDArray:
         c = problem.clamp_violation(y)
         z = y.copy()
-        z.ravel()[coords] -= A.T @ np.linalg.solve((A @ A.T).toarray(), c)
+        z.ravel()[coords] -= A.T @ np.linalg.solve(_dense(A @ A.T), c)
         return z
 
     def merit(y: NDArray) -> float:
