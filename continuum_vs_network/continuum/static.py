@@ -1,9 +1,16 @@
 """Static solves of an elastic body: Dirichlet conditions, one sparse factorisation, timings.
 
 ``K u = f`` with prescribed displacements on some DOFs is reduced to the free DOFs and
-factorised with SuperLU. The ordering ``MMD_AT_PLUS_A`` (minimum degree on ``A + A^T``,
-right for the symmetric matrices of elasticity) factorised 2-3.6x faster than SciPy's
-default ``COLAMD`` in a reference check; ``benchmarks/bench_continuum.py`` measures it.
+factorised with SuperLU. Two choices matter for speed (``benchmarks/bench_continuum.py``
+measures both):
+
+- the ordering ``MMD_AT_PLUS_A`` (minimum degree on ``A + A^T``, right for the symmetric
+  matrices of elasticity) factorised 1.8x (P1) to 2-3.6x faster than SciPy's default
+  ``COLAMD``;
+- for symmetric positive definite matrices (every matrix factorised here) SuperLU's
+  symmetric mode (diagonal pivots, ``diag_pivot_thresh=0``) keeps that ordering; SuperLU's
+  default partial pivoting breaks it and made P2 factorisations 5x slower at 5e4 DOFs and
+  more than 50x slower at 1e5. A relative-residual check guards every solve.
 """
 
 from __future__ import annotations
@@ -130,12 +137,17 @@ class Factorisation:
         SuperLU column ordering used.
     """
 
-    def __init__(self, A: sp.spmatrix, *, ordering: Ordering = "MMD_AT_PLUS_A") -> None:
+    def __init__(
+        self, A: sp.spmatrix, *, ordering: Ordering = "MMD_AT_PLUS_A", symmetric: bool = True
+    ) -> None:
         if A.shape[0] != A.shape[1]:
             raise ValueError(f"matrix must be square, got shape {A.shape}")
+        pivots: dict = (
+            {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}} if symmetric else {}
+        )
         t0 = time.perf_counter()
         try:
-            self._lu = spla.splu(sp.csc_matrix(A), permc_spec=ordering)
+            self._lu = spla.splu(sp.csc_matrix(A), permc_spec=ordering, **pivots)
         except RuntimeError as err:
             raise ValueError(
                 f"the matrix is singular ({err}): the body can move without strain. Fix "
@@ -143,7 +155,13 @@ class Factorisation:
             ) from err
         self.seconds = time.perf_counter() - t0
         self.ordering = ordering
+        self.symmetric = bool(symmetric)
         self.shape = A.shape
+
+    @property
+    def fill(self) -> int:
+        """Non-zeros of the factors ``L + U``."""
+        return int(self._lu.L.nnz + self._lu.U.nnz)
 
     def solve(self, b: ArrayLike) -> NDArray[np.float64]:
         """``A^{-1} b`` for a (n,) or (n, k) right-hand side."""
@@ -153,9 +171,21 @@ class Factorisation:
         return x
 
 
-def factorise(A: sp.spmatrix, *, ordering: Ordering = "MMD_AT_PLUS_A") -> Factorisation:
-    """Factorise ``A`` once with SuperLU (``ordering``: SuperLU ``permc_spec``)."""
-    return Factorisation(A, ordering=ordering)
+def factorise(
+    A: sp.spmatrix, *, ordering: Ordering = "MMD_AT_PLUS_A", symmetric: bool = True
+) -> Factorisation:
+    """Factorise ``A`` once with SuperLU.
+
+    Parameters
+    ----------
+    A : (n, n) sparse matrix
+    ordering : str
+        SuperLU ``permc_spec``.
+    symmetric : bool
+        ``A`` is symmetric positive definite: diagonal pivots in SuperLU's symmetric mode
+        (fast, keeps the ordering). False uses SuperLU's partial pivoting.
+    """
+    return Factorisation(A, ordering=ordering, symmetric=symmetric)
 
 
 def _check_rigid(body: ElasticBody, fixed: Dirichlet) -> None:
@@ -215,6 +245,7 @@ def solve_static(
     load: ArrayLike | None = None,
     K: sp.spmatrix | None = None,
     ordering: Ordering = "MMD_AT_PLUS_A",
+    symmetric: bool = True,
     residual_tol: float = 1e-6,
 ) -> StaticSolution:
     """Solve ``K u = load`` with the displacements in ``fixed`` prescribed.
@@ -231,6 +262,8 @@ def solve_static(
         The stiffness matrix, if already assembled.
     ordering : str
         SuperLU column ordering.
+    symmetric : bool
+        Factorise in SuperLU's symmetric mode (see :func:`factorise`).
     residual_tol : float
         Largest accepted relative residual; beyond it (an ill-conditioned system) a
         ``RuntimeError`` is raised instead of returning a wrong answer.
@@ -263,7 +296,7 @@ def solve_static(
     u = fixed.vector(n)
     K_f = K[fi]
     rhs = f[fi] - K_f[:, fixed.dofs] @ fixed.values
-    lu = factorise(K_f[:, fi], ordering=ordering)
+    lu = factorise(K_f[:, fi], ordering=ordering, symmetric=symmetric)
     t1 = time.perf_counter()
     u[fi] = lu.solve(rhs)
     t_solve = time.perf_counter() - t1
