@@ -127,7 +127,7 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
     return EXIT["ok"]
 
 
-def _index(args: argparse.Namespace, note: str = "") -> None:
+def _index(args: argparse.Namespace, note: str | None = None) -> None:
     from .report.writer import write_index
 
     write_index(Path(args.out) / "reports", note=note)
@@ -150,7 +150,7 @@ def _report(args: argparse.Namespace) -> int:
         if code != EXIT["ok"] and first_failure == EXIT["ok"]:
             first_failure = code
     total = time.perf_counter() - t0
-    note = ""
+    note = None
     if not args.scenes:
         note = (f"Last `cvn report` (default set: {', '.join(s.name for s in scenes)}) took "
                 f"{total:.0f} s with {args.workers} worker process(es).")

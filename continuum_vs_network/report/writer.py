@@ -231,7 +231,7 @@ def _learning(doc: _Doc, result) -> None:
                                       color=color))
             time_series.append(Series(secs, st["median"], rule, st["q25"], st["q75"],
                                       color=color))
-        name = _SOLVER_NAMES[solver]
+        name = _SHORT_NAMES[solver]
         panels += [
             Panel(step_series, f"{name}: error vs learning step", "learning step",
                   "C / C0 (median, quartiles)", yscale="log", hlines=(1.0,)),
@@ -255,6 +255,8 @@ def _learning(doc: _Doc, result) -> None:
     _trials_appendix(doc, scene, h, first)
 
 
+_SHORT_NAMES = {"newton": "exact (Newton)", "paper": "paper's Adagrad", "fire": "FIRE",
+                "lbfgs": "L-BFGS"}
 _SOLVER_NAMES = {"newton": "exact equilibria (Newton)",
                  "paper": "the paper's relaxation (Adagrad, rods)",
                  "fire": "FIRE", "lbfgs": "L-BFGS"}
@@ -454,32 +456,36 @@ def _learning_renders(doc: _Doc, result, render: bool, reason: str) -> None:
     from ..io.render import render_network
     from ..network.model import SpringNetwork
 
-    for key, u in units.items():
+    # one trial (the first exported) per rule; every rule starts from the same network, so
+    # the initial state is drawn once; one colour scale for every image
+    todo = []
+    for j, (key, u) in enumerate(units.items()):
         a = u.arrays
-        rule = key.split("/")[-1]
-        for k in u.meta["trials"]:
-            stages = [s for s in ("initial", "final") if f"t{k}/{s}/x" in a]
-            nets = {s: SpringNetwork(a[f"t{k}/{s}/positions"], a[f"t{k}/{s}/springs"],
-                                     a[f"t{k}/{s}/stiffness"], a[f"t{k}/{s}/rest_length"])
-                    for s in stages}
-            if not stages:
-                continue
-            sources = np.asarray(a[f"t{k}/sources"], dtype=int)
-            # colour limits from every spring but the sources (clamped, they would dominate)
-            clim = max(float(np.max(np.abs(np.delete(nets[s].strains(a[f"t{k}/{s}/x"]),
-                                                     sources))))
-                       for s in stages) or 1.0
-            width = 3.0 if nets[stages[0]].n_springs < 200 else 1.5
-            for s in stages:
-                path = doc.folder / f"render_{rule}_t{k}_{s}.png"
-                render_network(nets[s], a[f"t{k}/{s}/x"], path, sources=sources,
-                               targets=a[f"t{k}/targets"], clim=clim,
-                               window_size=(560, 560), line_width=width,
-                               title=f"{rule}, trial {k}, {s} free state")
-                doc.image(path, f"{rule}, trial {k}: {s} network in its free state, springs "
-                          f"coloured by strain (limits +-{clim:.3g}, set by every spring but "
-                          "the sources); green: source, orange: target.")
-            break  # one trial per run is enough for the report
+        if not u.meta["trials"]:
+            continue
+        k = u.meta["trials"][0]
+        for stage in ("initial", "final") if j == 0 else ("final",):
+            p = f"t{k}/{stage}/"
+            if p + "x" in a:
+                net = SpringNetwork(a[p + "positions"], a[p + "springs"], a[p + "stiffness"],
+                                    a[p + "rest_length"])
+                todo.append((key.split("/")[-1], k, stage, net, a[p + "x"],
+                             np.asarray(a[f"t{k}/sources"], dtype=int), a[f"t{k}/targets"]))
+    if not todo:
+        return
+    # colour limits from every spring but the sources (clamped, they would dominate)
+    clim = max(float(np.max(np.abs(np.delete(net.strains(x), src))))
+               for *_, net, x, src, _ in todo) or 1.0
+    for rule, k, stage, net, x, src, tgt in todo:
+        label = rule if stage == "final" else "every rule"
+        name = f"render_{rule}_t{k}_final.png" if stage == "final" else f"render_t{k}_initial.png"
+        path = doc.folder / name
+        render_network(net, x, path, sources=src, targets=tgt, clim=clim,
+                       window_size=(560, 560), line_width=3.0 if net.n_springs < 200 else 1.5,
+                       title=f"{label}, trial {k}, {stage} free state")
+        doc.image(path, f"{label}, trial {k}: {stage} network in its free state, springs "
+                  f"coloured by strain (limits +-{clim:.3g} in every image, set by every spring "
+                  "but the sources); green: source, orange: target.")
 
 
 # -- transmission --------------------------------------------------------------------------
@@ -840,9 +846,18 @@ def write_report(
     return report
 
 
-def write_index(root: str | os.PathLike[str], *, note: str = "") -> Path:
-    """Write ``<root>/README.md`` listing every ``<root>/<scene>/report.md``; return its path."""
+def write_index(root: str | os.PathLike[str], *, note: str | None = None) -> Path:
+    """Write ``<root>/README.md`` listing every ``<root>/<scene>/report.md``; return its path.
+
+    ``note`` (e.g. how long the last default run took) is kept in ``<root>/index.json`` and
+    shown again by later calls without one.
+    """
     root = Path(root)
+    keep = root / "index.json"
+    if note is not None:
+        write_text_atomic(keep, json.dumps({"note": note}))
+    elif keep.exists():
+        note = json.loads(keep.read_text()).get("note", "")
     entries = []
     for meta_path in sorted(root.glob(f"*/{_META}")):
         if not (meta_path.parent / "report.md").exists():
