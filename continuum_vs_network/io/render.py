@@ -176,17 +176,22 @@ def _scalar_bar(title: str, font_scale: float) -> dict[str, Any]:
         "color": _TEXT_COLOR,
         "vertical": False,
         "position_x": 0.2,
-        "position_y": 0.03,
+        "position_y": 0.02,
         "width": 0.6,
-        "height": 0.08,
-        "title_font_size": int(round(16 * font_scale)),
-        "label_font_size": int(round(13 * font_scale)),
+        "height": 0.13,
+        "title_font_size": round(16 * font_scale),
+        "label_font_size": round(13 * font_scale),
         "font_family": "arial",
         "shadow": False,
     }
 
 
-def _finish_view(plotter: Any, bounds: NDArray[np.float64], zoom: float = 0.8) -> None:
+def _labels_below(plotter: Any, bar_title: str) -> None:
+    """Put the colour bar's tick labels below the bar, away from its title."""
+    plotter.scalar_bars[bar_title].SetTextPositionToPrecedeScalarBar()
+
+
+def _finish_view(plotter: Any, bounds: NDArray[np.float64], zoom: float = 0.85) -> None:
     """Look down -z at ``bounds`` (xmin, xmax, ymin, ymax) with parallel projection."""
     plotter.view_xy()
     plotter.enable_parallel_projection()
@@ -195,7 +200,7 @@ def _finish_view(plotter: Any, bounds: NDArray[np.float64], zoom: float = 0.8) -
     plotter.camera.zoom(zoom)
     # leave room for the scalar bar below and the title above: shift the view down a bit
     cam = plotter.camera
-    dy = 0.04 * cam.parallel_scale
+    dy = 0.06 * cam.parallel_scale
     fx, fy, fz = cam.focal_point
     px, py, pz = cam.position
     cam.focal_point = (fx, fy - dy, fz)
@@ -267,7 +272,7 @@ def _draw_network(
         if idx.size:
             halo = _lines(pv, x, np.asarray(net.springs)[idx], -1e-3 * extent)
             plotter.add_mesh(
-                halo, color=color, line_width=3.0 * line_width, lighting=False, label=name
+                halo, color=color, line_width=4.0 * line_width, lighting=False, label=name
             )
     plotter.add_mesh(
         mesh,
@@ -278,17 +283,18 @@ def _draw_network(
         lighting=False,
         scalar_bar_args=_scalar_bar(bar_title, font_scale),
     )
+    _labels_below(plotter, bar_title)
     if src.size or tgt.size:
         plotter.add_legend(
             bcolor=BACKGROUND,
-            size=(0.22, 0.1 * (bool(src.size) + bool(tgt.size))),
+            size=(0.16, 0.06 * (bool(src.size) + bool(tgt.size))),
             loc="upper right",
             face="rectangle",
             font_family="arial",
         )
     if title:
         plotter.add_text(
-            title, position="upper_left", font_size=int(round(11 * font_scale)), color=_TEXT_COLOR
+            title, position="upper_left", font_size=round(11 * font_scale), color=_TEXT_COLOR
         )
     bounds = np.array([x[:, 0].min(), x[:, 0].max(), x[:, 1].min(), x[:, 1].max()])
     _finish_view(plotter, bounds)
@@ -375,9 +381,10 @@ def _draw_continuum(
         line_width=0.5,
         scalar_bar_args=_scalar_bar(bar_title, font_scale),
     )
+    _labels_below(plotter, bar_title)
     if title:
         plotter.add_text(
-            title, position="upper_left", font_size=int(round(11 * font_scale)), color=_TEXT_COLOR
+            title, position="upper_left", font_size=round(11 * font_scale), color=_TEXT_COLOR
         )
     bounds = np.array(
         [deformed[:, 0].min(), deformed[:, 0].max(), deformed[:, 1].min(), deformed[:, 1].max()]
@@ -425,7 +432,7 @@ def render_network(
     scalar_bar_title : str
         Title of the colour bar (must differ from other bars in the same image).
     line_width : float
-        Spring line width in pixels (halos are three times wider).
+        Spring line width in pixels (halos are four times wider).
 
     Returns
     -------
