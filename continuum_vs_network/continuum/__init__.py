@@ -1,8 +1,7 @@
 """Finite-element continuum (scikit-fem): elastic and visco-elastic bodies to compare with networks.
 
-The submodules import scikit-fem inside their functions, and this package imports no
-submodule: ``import continuum_vs_network.continuum`` needs only numpy and scipy. Import what
-you use from the submodules:
+Every submodule imports scikit-fem inside its functions, so importing this package (and
+the names below) needs only numpy and scipy; scikit-fem loads on the first mesh or body.
 
 - :mod:`.mesh`: rectangle, disk, annulus and network-outline meshes, mesh quality;
 - :mod:`.materials`: Lamé parameters and the network-to-continuum mappings;
@@ -15,4 +14,135 @@ you use from the submodules:
 
 from __future__ import annotations
 
-__all__: list[str] = []
+from .body import (
+    ElasticBody,
+    LockingWarning,
+    body_force_load,
+    dofs_where,
+    eigenstrain_load,
+    elastic_body,
+    mass_matrix,
+    near_segments,
+    pressure_load,
+    stiffness_matrix,
+    strain_energy,
+    vertex_displacement,
+)
+from .materials import (
+    Material,
+    NetworkModuli,
+    lattice_area_per_node,
+    lattice_lame,
+    lattice_viscous_lame,
+    network_moduli,
+    node_drag_to_continuum,
+    plane_stress_lambda,
+    voigt_isotropic,
+)
+from .mesh import (
+    MeshQuality,
+    annulus_mesh,
+    disk_mesh,
+    mesh_quality,
+    network_faces,
+    network_mesh,
+    rectangle_mesh,
+)
+from .probes import (
+    Probe,
+    chord_strain_probe,
+    directional_strain_probe,
+    displacement_probe,
+    locate,
+    region_strain_probe,
+    strain_probe,
+)
+from .static import Dirichlet, Factorisation, StaticSolution, factorise, fix, solve_static
+from .transmission import (
+    DecayFit,
+    InclusionField,
+    InclusionSolution,
+    StrainProfile,
+    Transmission,
+    continuum_transmission,
+    decay_exponent,
+    eshelby_inclusion,
+    network_patch_source,
+    network_transmission,
+    patch_source,
+    solve_inclusion,
+    strain_profile,
+)
+from .viscoelastic import (
+    ContinuumTrajectory,
+    Damping,
+    damping_matrix,
+    explicit_limit,
+    relaxation_time,
+    simulate_body,
+    slowest_relaxation_time,
+)
+
+__all__ = [
+    "ContinuumTrajectory",
+    "Damping",
+    "DecayFit",
+    "Dirichlet",
+    "ElasticBody",
+    "Factorisation",
+    "InclusionField",
+    "InclusionSolution",
+    "LockingWarning",
+    "Material",
+    "MeshQuality",
+    "NetworkModuli",
+    "Probe",
+    "StaticSolution",
+    "StrainProfile",
+    "Transmission",
+    "annulus_mesh",
+    "body_force_load",
+    "chord_strain_probe",
+    "continuum_transmission",
+    "damping_matrix",
+    "decay_exponent",
+    "directional_strain_probe",
+    "disk_mesh",
+    "displacement_probe",
+    "dofs_where",
+    "eigenstrain_load",
+    "elastic_body",
+    "eshelby_inclusion",
+    "explicit_limit",
+    "factorise",
+    "fix",
+    "lattice_area_per_node",
+    "lattice_lame",
+    "lattice_viscous_lame",
+    "locate",
+    "mass_matrix",
+    "mesh_quality",
+    "near_segments",
+    "network_faces",
+    "network_mesh",
+    "network_moduli",
+    "network_patch_source",
+    "network_transmission",
+    "node_drag_to_continuum",
+    "patch_source",
+    "plane_stress_lambda",
+    "pressure_load",
+    "rectangle_mesh",
+    "region_strain_probe",
+    "relaxation_time",
+    "simulate_body",
+    "slowest_relaxation_time",
+    "solve_inclusion",
+    "solve_static",
+    "stiffness_matrix",
+    "strain_energy",
+    "strain_probe",
+    "strain_profile",
+    "vertex_displacement",
+    "voigt_isotropic",
+]
