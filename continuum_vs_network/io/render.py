@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import functools
 import os
+import re
 import subprocess
 import sys
 from collections.abc import Sequence
@@ -114,11 +115,14 @@ def rendering_available() -> tuple[bool, str]:
     except (OSError, subprocess.TimeoutExpired) as exc:
         return False, f"off-screen rendering probe failed: {exc}"
     if proc.returncode != 0:
-        tail = " | ".join((proc.stderr or proc.stdout).strip().splitlines()[-3:])
+        text = re.sub(r"\x1b\[[0-9;]*m", "", proc.stderr or proc.stdout).strip()
+        text = re.sub(r"(?m)^.*?\b(?:WARN|ERR|INFO)\|\s*", "", text)  # VTK log prefixes
+        lines = list(dict.fromkeys(line.strip() for line in text.splitlines() if line.strip()))
+        tail = " | ".join(lines[-2:])
         window = os.environ.get("VTK_DEFAULT_OPENGL_WINDOW", "(default)")
         return False, (
             f"off-screen rendering with VTK_DEFAULT_OPENGL_WINDOW={window} failed "
-            f"(exit {proc.returncode}): {tail}. Headless Debian/Ubuntu needs "
+            f"(exit {proc.returncode}): {tail.rstrip('.')}. Headless Debian/Ubuntu needs "
             "'apt-get install libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1'"
         )
     return True, proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else "ok"
