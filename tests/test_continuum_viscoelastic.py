@@ -207,3 +207,16 @@ def test_relaxation_time_helper():
     assert relaxation_time(t, y, final=2.0) == pytest.approx(1.7, rel=1e-4)
     with pytest.raises(ValueError, match="settle"):
         relaxation_time(t[:50], y[:50], final=2.0)
+
+
+@pytest.mark.slow
+def test_relaxation_time_scaling_on_larger_lattices():
+    """As above up to 24 nodes across (L = 23.5 spacings): exponents within 2.2 of the
+    diffusive 2 and network / continuum times within 3 % at the largest size."""
+    rows = np.array([_step_response(n) for n in (9, 12, 18, 24)])
+    L = rows[:, 0]
+    for j in (1, 3):
+        assert rows[-1, j + 1] == pytest.approx(rows[-1, j], rel=0.03)
+    for j in range(1, 5):
+        exponent = np.log(rows[-1, j] / rows[-2, j]) / np.log(L[-1] / L[-2])
+        assert 1.95 < exponent < 2.2, (j, exponent)

@@ -36,6 +36,7 @@ __all__ = [
     "continuum_transmission",
     "decay_exponent",
     "eshelby_inclusion",
+    "network_dirichlet",
     "network_patch_source",
     "network_transmission",
     "patch_source",
@@ -296,6 +297,82 @@ def network_patch_source(
         pinned[near] = True
         x0[near] += sign * 0.5 * float(opening) * n
     return pinned, x0
+
+
+def network_dirichlet(
+    body: object,
+    net: SpringNetwork,
+    nodes: ArrayLike,
+    displacement: ArrayLike,
+    *,
+    tol: float = 1e-9,
+) -> object:
+    """The continuum counterpart of prescribed network nodes, on the network's own outline.
+
+    Every DOF of ``body`` (a mesh of :func:`~.mesh.network_mesh`) inside a face whose
+    three nodes are prescribed, on a spring whose two nodes are, or at a prescribed node,
+    gets the displacement interpolated linearly from the nodes'. The region held rigid is
+    then exactly the network's (a rigid patch made of whole lattice triangles), which
+    removes the patch-shape mismatch of :func:`patch_source`.
+
+    Parameters
+    ----------
+    body : ElasticBody
+    net : SpringNetwork
+    nodes : (m,) int array
+    displacement : (m, 2) float array
+        Displacement of each prescribed node (length units).
+    tol : float
+        Relative tolerance of the inside / on-segment tests.
+
+    Returns
+    -------
+    Dirichlet
+    """
+    from .mesh import network_faces
+    from .static import Dirichlet
+
+    x = net.positions
+    nodes = np.asarray(nodes, dtype=np.int64).ravel()
+    disp = np.asarray(displacement, dtype=float)
+    if disp.shape != (nodes.size, 2):
+        raise ValueError(f"displacement must have shape ({nodes.size}, 2), got {disp.shape}")
+    if nodes.size == 0:
+        raise ValueError("nodes is empty: nothing would be prescribed")
+    if nodes.min() < 0 or nodes.max() >= net.n_nodes:
+        raise ValueError(f"nodes must lie in 0..{net.n_nodes - 1}")
+    held = np.zeros(net.n_nodes, dtype=bool)
+    held[nodes] = True
+    node_disp = np.zeros((net.n_nodes, 2))
+    node_disp[nodes] = disp
+    loc = body.dof_locations
+    comp = body.dof_component
+    value = np.full(body.n_dofs, np.nan)
+    scale = float(np.mean(net.lengths()))
+
+    def put(where: NDArray, u: NDArray) -> None:
+        value[where] = np.where(comp[where] == 0, u[:, 0], u[:, 1])
+
+    faces = network_faces(net)
+    for f in faces[held[faces].all(axis=1)]:
+        a = x[f[0]]
+        T = np.column_stack([x[f[1]] - a, x[f[2]] - a])
+        bary = np.linalg.solve(T, (loc - a).T)
+        w = np.vstack([1 - bary.sum(axis=0), bary])
+        inside = np.flatnonzero(w.min(axis=0) >= -tol)
+        put(inside, w[:, inside].T @ node_disp[f])
+    for i, j in net.springs[held[net.springs].all(axis=1)]:
+        d = x[j] - x[i]
+        t = np.clip((loc - x[i]) @ d / (d @ d), 0.0, 1.0)
+        on = np.flatnonzero(np.hypot(*(loc - x[i] - t[:, None] * d).T) <= tol * scale)
+        put(on, (1 - t[on])[:, None] * node_disp[i] + t[on][:, None] * node_disp[j])
+    for i in nodes:
+        at = np.flatnonzero(np.hypot(*(loc - x[i]).T) <= tol * scale)
+        put(at, np.repeat(node_disp[i][None, :], at.size, axis=0))
+    dofs = np.flatnonzero(~np.isnan(value))
+    if dofs.size == 0:
+        raise ValueError("no DOF of body lies at the prescribed nodes; is body a network_mesh?")
+    return Dirichlet(dofs, value[dofs])
 
 
 # -- transmission from a clamped source spring --------------------------------------------
