@@ -214,18 +214,28 @@ def _patch_source_errors(sizes, *, matched: bool) -> list[float]:
     return errors
 
 
-@pytest.mark.parametrize("matched", [True, False], ids=["same-patch", "disk-patch"])
-def test_patch_source_in_a_lattice_approaches_the_continuum_of_its_shape(matched):
+def test_patch_source_in_a_lattice_approaches_the_continuum_of_its_shape():
     """Two rigid patches of fixed size moved apart in lattices of shrinking spacing a and in
-    the continuum of the same outline: the displacement away from the patches agrees
-    better and better, at first order in a (the free outline and the patch edges carry an
-    O(a) boundary layer; the interior is second order, see above)."""
+    the continuum of the same outline, holding the same lattice triangles: the displacement
+    away from the patches agrees better and better, at first order in a (the free outline
+    and the patch edges carry an O(a) boundary layer; the interior is second order, see
+    above). Measured: 7.8 %, 5.9 %, 4.7 % at a = 1/16, 1/24, 1/32 (rate 0.75; 1.1 from
+    1/32 to 1/64, see the slow test)."""
     sizes = (17, 25, 33)
-    errors = _patch_source_errors(sizes, matched=matched)
+    errors = _patch_source_errors(sizes, matched=True)
     a = 1.0 / (np.array(sizes) - 1)
     rate = np.polyfit(np.log(a), np.log(errors), 1)[0]
-    assert errors[-1] < 0.07
-    assert 0.6 < rate < 1.6, (errors, rate)
+    assert np.all(np.diff(errors) < 0)
+    assert errors[-1] < 0.06
+    assert 0.5 < rate < 1.5, (errors, rate)
+
+
+def test_disk_patches_agree_to_a_few_percent():
+    """Holding every continuum DOF within the patch radius instead (the patches' shapes
+    then differ by O(a) from the lattice's, irregularly): still within 7 % at a = 1/32,
+    but not monotonically convergent (12 %, 5.8 %, 6.2 % at a = 1/16, 1/24, 1/32)."""
+    errors = _patch_source_errors((17, 33), matched=False)
+    assert errors[1] < min(0.07, errors[0])
 
 
 @pytest.mark.slow
