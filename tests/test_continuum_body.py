@@ -132,6 +132,13 @@ def test_uniform_strain_is_exact_on_badly_shaped_elements(order):
     loc = body.dof_locations
     exact = np.where(body.dof_component == 0, loc @ G[0], loc @ G[1])
     assert np.max(np.abs(sol.u - exact)) < 1e-12
+    # and the probes find every point, slivers included
+    from continuum_vs_network.continuum.probes import strain_probe
+
+    pts = np.random.default_rng(0).uniform(0, 1, size=(500, 2))
+    E = 0.5 * (G + G.T)
+    np.testing.assert_allclose(strain_probe(body, pts)(sol.u),
+                               np.tile([E[0, 0], E[1, 1], E[0, 1]], (500, 1)), atol=1e-12)
 
 
 def test_degenerate_elements_and_free_bodies_raise_clear_errors():

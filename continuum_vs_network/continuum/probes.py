@@ -106,11 +106,18 @@ def locate(
         best = np.argmax(inside, axis=1)
         cells = cand[rows, best]
         worst = inside[rows, best]
-        if np.any(worst < -tol):
-            bad = int(np.argmin(worst))
-            raise ValueError(f"point {x[bad].tolist()} lies outside the body")
-        ref = np.clip(np.vstack([xi[rows, best], eta[rows, best]]), 0.0, 1.0)
-        return cells.astype(np.int64), ref
+        ref = np.vstack([xi[rows, best], eta[rows, best]])
+        for i in np.flatnonzero(worst < -tol):
+            # not among the nearest centroids (slivers): search every element
+            d = x[i] - a
+            xi_all = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det
+            eta_all = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det
+            ins = np.minimum(np.minimum(xi_all, eta_all), 1 - xi_all - eta_all)
+            j = int(np.argmax(ins))
+            if ins[j] < -tol:
+                raise ValueError(f"point {x[i].tolist()} lies outside the body")
+            cells[i], ref[:, i] = j, (xi_all[j], eta_all[j])
+        return cells.astype(np.int64), np.clip(ref, 0.0, 1.0)
     # curved (isoparametric) mesh: Newton on the exact map for the likeliest candidates
     order = np.argsort(-inside, axis=1)[:, :4]
     best_inside = np.full(x.shape[0], -np.inf)
