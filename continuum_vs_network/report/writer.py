@@ -473,9 +473,10 @@ def _learning_renders(doc: _Doc, result, render: bool, reason: str) -> None:
                              np.asarray(a[f"t{k}/sources"], dtype=int), a[f"t{k}/targets"]))
     if not todo:
         return
-    # colour limits from every spring but the sources (clamped, they would dominate)
-    clim = max(float(np.max(np.abs(np.delete(net.strains(x), src))))
-               for *_, net, x, src, _ in todo) or 1.0
+    # colour limits from the first image (the initial network when drawn), every spring but
+    # the sources (clamped, they would dominate); a trained network may strain far more
+    _, _, _, net0, x0, src0, _ = todo[0]
+    clim = float(np.max(np.abs(np.delete(net0.strains(x0), src0)))) or 1.0
     for rule, k, stage, net, x, src, tgt in todo:
         label = rule if stage == "final" else "every rule"
         name = f"render_{rule}_t{k}_final.png" if stage == "final" else f"render_t{k}_initial.png"
@@ -484,8 +485,9 @@ def _learning_renders(doc: _Doc, result, render: bool, reason: str) -> None:
                        window_size=(560, 560), line_width=3.0 if net.n_springs < 200 else 1.5,
                        title=f"{label}, trial {k}, {stage} free state")
         doc.image(path, f"{label}, trial {k}: {stage} network in its free state, springs "
-                  f"coloured by strain (limits +-{clim:.3g} in every image, set by every spring "
-                  "but the sources); green: source, orange: target.")
+                  f"coloured by strain (limits +-{clim:.3g} in every image: the largest strain of "
+                  f"the {todo[0][2]} network but its sources; larger strains saturate); green: "
+                  "source, orange: target.")
 
 
 # -- transmission --------------------------------------------------------------------------
