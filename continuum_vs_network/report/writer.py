@@ -566,7 +566,9 @@ def _side_by_side(doc: _Doc, result, prefix: str, render: bool, reason: str, wha
     sources = a["net/sources"] if "net/sources" in a else ()
     strain = net.strains(x)
     others = np.delete(strain, np.asarray(sources, int)) if len(sources) else strain
-    clim = 0.3 * float(np.max(np.abs(others))) or 1.0  # saturate the near field a little
+    # a point source: saturate the near field so the far field shows; a uniform step: no
+    fraction = 0.3 if len(sources) else 1.0
+    clim = fraction * float(np.max(np.abs(others))) or 1.0
     n = u.meta["n"]
     if "cont/points" in a:
         path = doc.folder / f"render_{what}_n{n}.png"
@@ -578,9 +580,8 @@ def _side_by_side(doc: _Doc, result, prefix: str, render: bool, reason: str, wha
                             continuum_bar_title="principal strain")
         doc.image(path, f"n = {n}: spring strain of the network (left) and the largest "
                   f"principal strain of the continuum (right), same colour limits +-{clim:.3g} "
-                  "(0.3 of the largest spring strain" + (", source excluded" if len(sources)
-                                                          else "") + "; the near field "
-                  "saturates).")
+                  + ("(0.3 of the largest spring strain, source excluded; the near field "
+                     "saturates)." if len(sources) else "(the largest spring strain)."))
     else:
         path = doc.folder / f"render_{what}_n{n}_network.png"
         render_network(net, x, path, sources=sources, clim=clim, window_size=(560, 560),
