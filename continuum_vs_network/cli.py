@@ -169,7 +169,7 @@ def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
                    help="root of results/, reports/ and meshes/ (default: current folder)")
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="processes for learning trials and lattice sizes (default 1; results "
-                   "are the same as with 1)")
+                   "agree with 1 to solver round-off)")
     p.add_argument("--quiet", action="store_true", help="no progress bars or messages")
     p.add_argument("--fresh", action="store_true",
                    help="discard earlier results of the scene instead of resuming")
