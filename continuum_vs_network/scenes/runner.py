@@ -11,8 +11,10 @@ uninterrupted one (wall-clock columns aside).
 
 Units of a phase run in parallel processes with ``workers > 1`` (learning trials,
 transmission and relaxation sizes); timing scenes (stability, solvers) always run serially
-so their wall-clock times are not measured under load. Results are identical to a serial
-run: every unit draws its randomness from its own seed.
+so their wall-clock times are not measured under load. Results agree with a serial run:
+every unit draws its randomness from its own seed. (They agree to solver round-off, not bit
+for bit: Newton sizes its reuse of a factorisation from measured solve times, so iterates and
+iteration counts can differ slightly between runs; the same holds for a resumed run.)
 
 Testing hook: the environment variable ``CVN_TEST_KILL_AFTER`` (``"units:N"`` or
 ``"steps:N"``) makes the process kill itself with SIGKILL after ``N`` completed units or
