@@ -23,7 +23,6 @@ then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves ``W
 
 from __future__ import annotations
 
-import time
 import weakref
 
 import numpy as np
@@ -75,22 +74,21 @@ class _SolveFailed(RuntimeError):
 
 
 class _Factor:
-    """A solver for ``W s = b`` (vectors or (n, m) matrices).
+    """A solver for ``W s = b`` (vectors or (n, m) matrices)."""
 
-    ``seconds`` is what building it cost, ``solve_seconds`` what one solve costs (both
-    measured), so that a cheaper reuse can be budgeted against a new factorisation.
+    def __init__(self, solve) -> None:
+        self.solve = solve
+
+
+def _reuse_budget(size: int) -> int:
+    """Preconditioned CG iterations allowed before a new factorisation of (size, size).
+
+    Measured here on 2D networks, one nested-dissection factorisation costs about
+    ``0.15 sqrt(size)`` triangular solves (15 at N = 1e3, 20 at 1e4, 50 at 1e5 nodes); a
+    budget of twice that was fastest in benchmarks/bench_relax.py (0.075 and 0.15 were
+    slower). A count, not a timing, so that runs are reproducible bit for bit.
     """
-
-    def __init__(self, solve, seconds: float = 0.0) -> None:
-        self._solve = solve
-        self.seconds = seconds
-        self.solve_seconds = 0.0
-
-    def solve(self, b: NDArray) -> NDArray:
-        t0 = time.perf_counter()
-        out = self._solve(b)
-        self.solve_seconds = (time.perf_counter() - t0) / (1 if b.ndim == 1 else b.shape[1])
-        return out
+    return max(2, int(0.3 * np.sqrt(size)))
 
 
 def _dense(M) -> NDArray:
@@ -104,13 +102,12 @@ def factor_pd(W: sp.csr_matrix | NDArray, *, ordered: bool = False) -> _Factor |
     otherwise SuperLU orders them by minimum degree on ``A^T + A``.
     """
     n = W.shape[0]
-    t0 = time.perf_counter()
     if n <= DENSE_MAX:
         try:
             c = sla.cho_factor(_dense(W), lower=True, check_finite=False)
         except sla.LinAlgError:
             return None
-        return _Factor(lambda b: sla.cho_solve(c, b, check_finite=False), time.perf_counter() - t0)
+        return _Factor(lambda b: sla.cho_solve(c, b, check_finite=False))
     try:
         lu = spla.splu(
             W.tocsc(),
@@ -122,7 +119,7 @@ def factor_pd(W: sp.csr_matrix | NDArray, *, ordered: bool = False) -> _Factor |
         return None
     if not np.array_equal(lu.perm_r, lu.perm_c) or not np.all(lu.U.diagonal() > 0):
         return None
-    return _Factor(lu.solve, time.perf_counter() - t0)
+    return _Factor(lu.solve)
 
 
 def _pcg(W: sp.csr_matrix, preconditioner: _Factor, *, rtol: float, max_iter: int) -> _Factor:
@@ -211,10 +208,10 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
         if reusable is not None:
             # inexact Newton: a relative solve error eta leaves a residual ~ eta * residual
             eta = min(1e-2, residual / net.force_scale)
-            budget = int(0.5 * reusable.seconds / max(reusable.solve_seconds, 1e-9))
+            budget = _reuse_budget(pattern.size)
             W = _assemble(pattern, _lagrangian_blocks(problem, x, lam_ls[:m], rho))
             try:
-                solver = _pcg(W, reusable, rtol=eta, max_iter=budget - (m + 1))
+                solver = _pcg(W, reusable, rtol=eta, max_iter=budget)
                 step, lam = _kkt_step(solver, grad, A if m else None, viol, m)
             except _SolveFailed:
                 step = None
