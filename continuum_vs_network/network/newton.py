@@ -222,7 +222,10 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
             step, lam = _kkt_step(factor, grad, A if m else None, viol, m)
-            reusable = factor if exact_ok else None
+            # reuse only pays above the dense size; with rods the gradient's huge axial part
+            # makes CG's relative tolerance meaningless for the rest
+            reuse = exact_ok and pattern.size > DENSE_MAX and problem.clamp == "exact"
+            reusable = factor if reuse else None
         x, alpha = _line_search(problem, x, coords, step, grad, A if m else None, viol, lam, rho,
                                 residual)
         if alpha == 0.0:
