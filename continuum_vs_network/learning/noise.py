@@ -91,7 +91,11 @@ def noise_study(
 
 def noise_table(histories: dict[tuple[str, float], History], *,
                 quantity: str = "error_initial") -> list[dict[str, str]]:
-    """One row per rule: median final ``C/C0`` (and the worst trial) for every sigma."""
+    """One row per rule: median final ``C/C0`` (and the worst trial) for every sigma.
+
+    Trials that stopped early (diverged) enter with their last measured value and are
+    counted.
+    """
     names = list(dict.fromkeys(name for name, _ in histories))
     sigmas = sorted({sigma for _, sigma in histories})
     rows = []
@@ -101,10 +105,14 @@ def noise_table(histories: dict[tuple[str, float], History], *,
             h = histories.get((name, sigma))
             if h is None:
                 continue
-            final = final_values(normalised(getattr(h, quantity)), h.completed)
+            # last measured value of every trial (a trial whose learning diverged stops
+            # when its equilibrium can no longer be found; it is counted as stopped)
+            final = final_values(normalised(getattr(h, quantity)))
             ok = final[np.isfinite(final)]
-            row[f"sigma={sigma:g}"] = (
-                f"{np.median(ok):.3g} (max {np.max(ok):.3g})" if ok.size else "-"
-            )
+            text = f"{np.median(ok):.3g} (max {np.max(ok):.3g})" if ok.size else "-"
+            stopped = int(np.sum(h.completed < h.steps))
+            if stopped:
+                text += f", {stopped}/{h.trials} stopped"
+            row[f"sigma={sigma:g}"] = text
         rows.append(row)
     return rows
