@@ -11,6 +11,7 @@ from .learning import (
     CoupledLearning,
     ExactGradient,
     History,
+    LearningError,
     ProspectiveConfiguration,
     paper_task,
     stern_task,
@@ -38,6 +39,7 @@ from .network import (
     triangular_lattice,
     zero_modes,
 )
+from .scenes import SceneError, load_scene, run_scene
 
 __version__ = "0.1.0"
 
@@ -48,7 +50,9 @@ __all__ = [
     "EquilibriumError",
     "ExactGradient",
     "History",
+    "LearningError",
     "ProspectiveConfiguration",
+    "SceneError",
     "SpringNetwork",
     "Trajectory",
     "__version__",
@@ -60,11 +64,13 @@ __all__ = [
     "hessian",
     "is_rigid",
     "jammed_network",
+    "load_scene",
     "paper_network",
     "paper_task",
     "relax",
     "relaxation_time",
     "rigidity_matrix",
+    "run_scene",
     "simulate",
     "stern_task",
     "strain_tunable",

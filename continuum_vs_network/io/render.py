@@ -259,6 +259,7 @@ def _draw_network(
     bar_title: str,
     line_width: float,
     font_scale: float,
+    columns: int = 1,
 ) -> None:
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (net.n_nodes, 2):
@@ -291,7 +292,9 @@ def _draw_network(
     if src.size or tgt.size:
         plotter.add_legend(
             bcolor=BACKGROUND,
-            size=(0.16, 0.06 * (bool(src.size) + bool(tgt.size))),
+            # the legend's size is a fraction of the whole window, its place is the
+            # subplot's corner: in one of several columns it must be narrower to fit
+            size=(0.16 / columns, 0.06 * (bool(src.size) + bool(tgt.size))),
             loc="upper right",
             face="rectangle",
             font_family="arial",
@@ -577,6 +580,7 @@ def render_side_by_side(
             bar_title=network_bar_title,
             line_width=line_width,
             font_scale=fs,
+            columns=2,
         )
         plotter.subplot(0, 1)
         _draw_continuum(

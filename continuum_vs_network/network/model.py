@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,6 +36,31 @@ def _check_shape(name: str, arr: NDArray, shape: tuple[int | None, ...]) -> None
         dims = ["n" if s is None else str(s) for s in shape]
         want = f"({dims[0]},)" if len(dims) == 1 else "(" + ", ".join(dims) + ")"
         raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
+
+
+#: ids of read-only springs arrays already validated, with their node count
+_VALIDATED: dict[int, int] = {}
+
+
+def _validate_topology(springs: NDArray, n_nodes: int) -> None:
+    """Indices in range, no self-loops, no duplicate pairs; the first offender is named."""
+    out = np.flatnonzero((springs < 0).any(axis=1) | (springs >= n_nodes).any(axis=1))
+    if out.size:
+        raise ValueError(
+            f"springs[{out[0]}] = {springs[out[0]].tolist()} names a node outside "
+            f"0..{n_nodes - 1}"
+        )
+    loops = np.flatnonzero(springs[:, 0] == springs[:, 1])
+    if loops.size:
+        raise ValueError(f"springs[{loops[0]}] is a self-loop on node {springs[loops[0], 0]}")
+    pairs = np.sort(springs, axis=1)
+    _, first, counts = np.unique(pairs, axis=0, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        dup_pair = pairs[first[counts > 1][0]]
+        dups = np.flatnonzero((pairs == dup_pair).all(axis=1))
+        raise ValueError(
+            f"springs[{dups[1]}] duplicates springs[{dups[0]}] (nodes {dup_pair.tolist()})"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,26 +97,14 @@ class SpringNetwork:
                 raise ValueError("springs must hold integer node indices")
         springs = _frozen_copy(self.springs, np.int64)
         n_nodes, n_springs = positions.shape[0], springs.shape[0]
+        if _VALIDATED.get(id(springs)) != n_nodes:
+            _validate_topology(springs, n_nodes)
+            if not springs.flags.writeable:  # a shared read-only topology is checked once
+                _VALIDATED[id(springs)] = n_nodes
+                weakref.finalize(springs, _VALIDATED.pop, id(springs), None)
         stiffness = _as_float_array("stiffness", self.stiffness, (n_springs,))
         rest_length = _as_float_array("rest_length", self.rest_length, (n_springs,))
 
-        out = np.flatnonzero((springs < 0).any(axis=1) | (springs >= n_nodes).any(axis=1))
-        if out.size:
-            raise ValueError(
-                f"springs[{out[0]}] = {springs[out[0]].tolist()} names a node outside "
-                f"0..{n_nodes - 1}"
-            )
-        loops = np.flatnonzero(springs[:, 0] == springs[:, 1])
-        if loops.size:
-            raise ValueError(f"springs[{loops[0]}] is a self-loop on node {springs[loops[0], 0]}")
-        pairs = np.sort(springs, axis=1)
-        _, first, counts = np.unique(pairs, axis=0, return_index=True, return_counts=True)
-        if np.any(counts > 1):
-            dup_pair = pairs[first[counts > 1][0]]
-            dups = np.flatnonzero((pairs == dup_pair).all(axis=1))
-            raise ValueError(
-                f"springs[{dups[1]}] duplicates springs[{dups[0]}] (nodes {dup_pair.tolist()})"
-            )
         neg = np.flatnonzero(stiffness < 0)
         if neg.size:
             raise ValueError(f"stiffness must be >= 0; stiffness[{neg[0]}] = {stiffness[neg[0]]}")

@@ -189,7 +189,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
         grad = spring_gradient(x, *all_springs).ravel()[coords]
         if problem.n_clamps:
             A = problem.clamp_jacobian(x, coords, dense=pattern.size <= DENSE_MAX)
-            lam_ls = -np.linalg.solve(_dense(A @ A.T), A @ grad)
+            lam_ls = -np.linalg.lstsq(_dense(A @ A.T), A @ grad, rcond=None)[0]
             force = grad + A.T @ lam_ls  # clamp-normal (rod or constraint) forces removed
         else:
             A, lam_ls, force = None, np.empty(0), grad
@@ -213,7 +213,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             try:
                 solver = _pcg(W, reusable, rtol=eta, max_iter=budget)
                 step, lam = _kkt_step(solver, grad, A if m else None, viol, m)
-            except _SolveFailed:
+            except (_SolveFailed, np.linalg.LinAlgError):
                 step = None
         if step is None:
             factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
@@ -221,7 +221,11 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             )
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
-            step, lam = _kkt_step(factor, grad, A if m else None, viol, m)
+            try:
+                step, lam = _kkt_step(factor, grad, A if m else None, viol, m)
+            except np.linalg.LinAlgError:
+                return Outcome(x, it, False, "clamp constraints are degenerate (singular Schur "
+                               "complement): two clamps fix the same length?")
             # reuse only pays above the dense size; with rods the gradient's huge axial part
             # makes CG's relative tolerance meaningless for the rest
             reuse = exact_ok and pattern.size > DENSE_MAX and problem.clamp == "exact"
