@@ -15,25 +15,10 @@ from continuum_vs_network.network.dynamics import (
 
 def _lattice(n: int, rng: np.random.Generator | None = None, *, random_rest: bool = False):
     """An n x n triangular lattice (spacing 1, k = 1); noisy and prestressed on request."""
-    i, j = (a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), indexing="xy"))
-    pos = np.column_stack([i + 0.5 * (j % 2), np.sqrt(3) / 2 * j])
-    if rng is not None:
-        pos = pos + rng.normal(0.0, 0.1, pos.shape)
-    node = i + n * j
-    right, up = i < n - 1, j < n - 1
-    up_left = up & (j % 2 == 0) & (i > 0)
-    up_right = up & (j % 2 == 1) & (i < n - 1)
-    springs = np.concatenate([
-        np.column_stack([node[right], node[right] + 1]),
-        np.column_stack([node[up], node[up] + n]),
-        np.column_stack([node[up_left], node[up_left] + n - 1]),
-        np.column_stack([node[up_right], node[up_right] + n + 1]),
-    ])
-    d = pos[springs[:, 1]] - pos[springs[:, 0]]
-    length = np.hypot(d[:, 0], d[:, 1])
+    net = cvn.triangular_lattice(n, n, noise=0.0 if rng is None else 0.1, rng=rng)
     if random_rest:
-        length = length * rng.uniform(0.85, 1.15, len(springs))
-    return cvn.SpringNetwork(pos, springs, np.ones(len(springs)), length)
+        net = net.with_rest_length(net.rest_length * rng.uniform(0.85, 1.15, net.n_springs))
+    return net
 
 
 # node 0 pinned at the origin, node 1 moves along x only: x'' = -c x' - k (x - L)

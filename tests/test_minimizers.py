@@ -16,23 +16,11 @@ from continuum_vs_network.network.equilibrium import METHODS, StopRule, Trace
 
 def _lattice(n: int, rng: np.random.Generator, *, noise: float = 0.1, random_rest: bool = False):
     """An n x n triangular lattice (spacing 1) with position noise; stress-free by default."""
-    i, j = (a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), indexing="xy"))
-    pos = np.column_stack([i + 0.5 * (j % 2), np.sqrt(3) / 2 * j])
-    pos = pos + rng.normal(0.0, noise, pos.shape)
-    node = i + n * j
-    right, up = i < n - 1, j < n - 1
-    up_left = up & (j % 2 == 0) & (i > 0)
-    up_right = up & (j % 2 == 1) & (i < n - 1)
-    springs = np.concatenate([
-        np.column_stack([node[right], node[right] + 1]),
-        np.column_stack([node[up], node[up] + n]),
-        np.column_stack([node[up_left], node[up_left] + n - 1]),
-        np.column_stack([node[up_right], node[up_right] + n + 1]),
-    ])
-    d = pos[springs[:, 1]] - pos[springs[:, 0]]
-    length = np.hypot(d[:, 0], d[:, 1])
-    rest = length * rng.uniform(0.9, 1.1, len(springs)) if random_rest else length
-    return cvn.SpringNetwork(pos, springs, rng.uniform(0.5, 2.0, len(springs)), rest)
+    net = cvn.triangular_lattice(n, n, noise=noise, rng=rng)
+    net = net.with_stiffness(rng.uniform(0.5, 2.0, net.n_springs))
+    if random_rest:
+        net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
+    return net
 
 
 def _central_spring(net: cvn.SpringNetwork) -> int:
