@@ -5,8 +5,9 @@ factorised with SuperLU. Two choices matter for speed (``benchmarks/bench_contin
 measures both):
 
 - the ordering ``MMD_AT_PLUS_A`` (minimum degree on ``A + A^T``, right for the symmetric
-  matrices of elasticity) factorised 1.8x (P1) to 2-3.6x faster than SciPy's default
-  ``COLAMD``;
+  matrices of elasticity) gave 35-55 % less fill than SciPy's default ``COLAMD`` and
+  factorised 1.6-1.8x (P1) and 2.0-2.4x (P2) faster at 1e5 DOFs; one exception measured:
+  on a perfectly regular 158 x 79 P2 grid (ties in the minimum degree) it was 1.3x slower;
 - for symmetric positive definite matrices (every matrix factorised here) SuperLU's
   symmetric mode (diagonal pivots, ``diag_pivot_thresh=0``) keeps that ordering; SuperLU's
   default partial pivoting breaks it and made P2 factorisations 5x slower at 5e4 DOFs and
