@@ -84,10 +84,13 @@ def mesh_refinement(quick: bool) -> None:
             ur = A * r + B / r
             ux, uy = ur * X[0] / r, ur * X[1] / r
             dx = body.basis.dx
-            err = np.sqrt(np.sum(((uh[0] - ux) ** 2 + (uh[1] - uy) ** 2) * dx)
-                          / np.sum((ux**2 + uy**2) * dx))
-            print(f"P{order}  {h:8.4f} {body.n_dofs:8d}  {err:9.3e}  {t1 - t0:9.3f}  "
-                  f"{t2 - t1:8.3f}  {t3 - t2:6.3f}  {t4 - t3:6.3f}  {t4 - t0:8.3f}")
+            err = np.sqrt(
+                np.sum(((uh[0] - ux) ** 2 + (uh[1] - uy) ** 2) * dx) / np.sum((ux**2 + uy**2) * dx)
+            )
+            print(
+                f"P{order}  {h:8.4f} {body.n_dofs:8d}  {err:9.3e}  {t1 - t0:9.3f}  "
+                f"{t2 - t1:8.3f}  {t3 - t2:6.3f}  {t4 - t3:6.3f}  {t4 - t0:8.3f}"
+            )
     print()
 
 
@@ -112,11 +115,14 @@ def time_refinement(quick: bool) -> None:
     ):
         for scheme in ("backward_euler", "newmark"):
             for n in ns:
-                tr = simulate_body(body, fixed=fixed, dt=t_end / n, t_end=t_end, scheme=scheme,
-                                   u0=mode, **kw)
+                tr = simulate_body(
+                    body, fixed=fixed, dt=t_end / n, t_end=t_end, scheme=scheme, u0=mode, **kw
+                )
                 err = np.abs(tr.u - exact * mode).max()
-                print(f"{problem:12s} {scheme:15s} {n:6d}  {err:9.3e}  {tr.seconds:7.3f}  "
-                      f"({tr.seconds_factorisation:.4f})")
+                print(
+                    f"{problem:12s} {scheme:15s} {n:6d}  {err:9.3e}  {tr.seconds:7.3f}  "
+                    f"({tr.seconds_factorisation:.4f})"
+                )
     print()
 
 
@@ -144,7 +150,9 @@ def big_static(repeat: int, pivoting: bool) -> None:
             )
         else:
             fixed = fix(body, lambda x, y: np.hypot(x, y) > 1.5, boundary=True) + fix(
-                body, lambda x, y: np.hypot(x, y) < 1.5, boundary=True,
+                body,
+                lambda x, y: np.hypot(x, y) < 1.5,
+                boundary=True,
                 displacement=lambda x, y: (1e-3 * x, 1e-3 * y),
             )
         free = np.setdiff1d(np.arange(body.n_dofs), fixed.dofs)
@@ -155,20 +163,26 @@ def big_static(repeat: int, pivoting: bool) -> None:
         if pivoting or (order == 1 and name.startswith("rectangle")):
             runs += [("MMD_AT_PLUS_A", False), ("COLAMD", False)]
         for ordering, sym in runs:
-            t, lu = _best(lambda o=ordering, s=sym, A=Kff: factorise(A, ordering=o, symmetric=s),
-                          repeat if sym else 1)
+            t, lu = _best(
+                lambda o=ordering, s=sym, A=Kff: factorise(A, ordering=o, symmetric=s),
+                repeat if sym else 1,
+            )
             times[ordering, sym] = (t, _best.cpu, lu.fill)
         lu = factorise(Kff)
         t_sol, u = _best(lambda lu=lu, rhs=rhs: lu.solve(rhs), repeat)
         res = np.linalg.norm(Kff @ u - rhs) / np.linalg.norm(rhs)
         t_mmd, c_mmd = times["MMD_AT_PLUS_A", True][:2]
         total = t_basis + t_asm + t_mmd + t_sol
-        print(f"P{order} {name}: {body.n_dofs} DOFs; mesh+basis {t_basis:.3f} s, assembly "
-              f"{t_asm:.3f} s, solve {t_sol:.3f} s (residual {res:.1e}); total with MMD sym "
-              f"{total:.3f} s")
+        print(
+            f"P{order} {name}: {body.n_dofs} DOFs; mesh+basis {t_basis:.3f} s, assembly "
+            f"{t_asm:.3f} s, solve {t_sol:.3f} s (residual {res:.1e}); total with MMD sym "
+            f"{total:.3f} s"
+        )
         for (ordering, sym), (t, c, fill) in times.items():
-            print(f"   factor {ordering:14s} {'sym' if sym else 'piv'}  wall {t:7.3f} s  "
-                  f"cpu {c:7.3f} s  fill {fill / 1e6:6.2f} M  cpu x{c / c_mmd:5.2f} of MMD sym")
+            print(
+                f"   factor {ordering:14s} {'sym' if sym else 'piv'}  wall {t:7.3f} s  "
+                f"cpu {c:7.3f} s  fill {fill / 1e6:6.2f} M  cpu x{c / c_mmd:5.2f} of MMD sym"
+            )
         if order == 2 and not pivoting:
             print("   (partial pivoting skipped for P2: minutes at this size; --pivoting runs it)")
     print()
@@ -178,8 +192,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer refinements")
     parser.add_argument("--repeat", type=int, default=3, help="best of this many timings")
-    parser.add_argument("--pivoting", action="store_true",
-                        help="also factorise P2 with partial pivoting (slow)")
+    parser.add_argument(
+        "--pivoting", action="store_true", help="also factorise P2 with partial pivoting (slow)"
+    )
     args = parser.parse_args()
     mesh_refinement(args.quick)
     time_refinement(args.quick)

@@ -89,13 +89,14 @@ def main() -> None:
                 steps_here = steps
             median, mean, stats = _steps(net, task, rule, warmup, steps_here)
             fact = stats.factorisations / (warmup + steps_here + 1)
-            print(f"{net.n_nodes:5d}  {net.n_springs:7d}  {ref:10.4f}  {name:10s} "
-                  f"{median:8.4f}  {median / ref:7.2f}  {fact:10.2f}")
+            print(
+                f"{net.n_nodes:5d}  {net.n_springs:7d}  {ref:10.4f}  {name:10s} "
+                f"{median:8.4f}  {median / ref:7.2f}  {fact:10.2f}"
+            )
             if name == "GCL" and n == 1024:
                 gcl_mean_1024 = mean
     print()
-    print(f"10^4 GCL steps at N=1024, extrapolated from the mean step: "
-          f"{1e4 * gcl_mean_1024:.0f} s")
+    print(f"10^4 GCL steps at N=1024, extrapolated from the mean step: {1e4 * gcl_mean_1024:.0f} s")
     if full:
         rng = np.random.default_rng(0)
         net = stern_network(1024, rng)
@@ -107,8 +108,10 @@ def main() -> None:
         for _ in range(9_999):
             net = step.apply(net)
             step = rule.update(net, task, warm=step.warm, tracker=tracker)
-        print(f"10^4 GCL steps at N=1024, measured: {time.perf_counter() - t:.0f} s "
-              f"({tracker.stats.factorisations} factorisations)")
+        print(
+            f"10^4 GCL steps at N=1024, measured: {time.perf_counter() - t:.0f} s "
+            f"({tracker.stats.factorisations} factorisations)"
+        )
 
 
 if __name__ == "__main__":

@@ -25,15 +25,22 @@ import time
 
 def _parse() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--sizes", default="10,1024,10000",
-                   help="node counts, comma separated (10 -> 10-node patch, else ~n x n lattice)")
+    p.add_argument(
+        "--sizes",
+        default="10,1024,10000",
+        help="node counts, comma separated (10 -> 10-node patch, else ~n x n lattice)",
+    )
     p.add_argument("--big", action="store_true", help="add N ~ 1e5 (316 x 316)")
     p.add_argument("--strains", default="0.05,5", help="source strains, comma separated")
     p.add_argument("--methods", default="newton,fire,lbfgs,paper")
-    p.add_argument("--max-seconds", type=float, default=120.0,
-                   help="time cap for fire and lbfgs (per run)")
-    p.add_argument("--random-rest", action="store_true",
-                   help="rest lengths uniform in 0.9-1.1 x the noisy lengths (prestressed)")
+    p.add_argument(
+        "--max-seconds", type=float, default=120.0, help="time cap for fire and lbfgs (per run)"
+    )
+    p.add_argument(
+        "--random-rest",
+        action="store_true",
+        help="rest lengths uniform in 0.9-1.1 x the noisy lengths (prestressed)",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--blas-threads", default="1")
     return p.parse_args()
@@ -87,18 +94,23 @@ def main() -> None:
         best_a = best_f = np.inf
         for _ in range(3):
             t0 = time.perf_counter()
-            W = pattern.assemble(spring_hessian_blocks(x, net.springs, net.stiffness,
-                                                       net.rest_length))
+            W = pattern.assemble(
+                spring_hessian_blocks(x, net.springs, net.stiffness, net.rest_length)
+            )
             t1 = time.perf_counter()
             factor_pd(W, ordered=ordered)  # may be None at an indefinite start: same cost
             t2 = time.perf_counter()
             best_a, best_f = min(best_a, t1 - t0), min(best_f, t2 - t1)
         return best_a, best_f
 
-    print(f"# bench_relax: {' '.join(sys.argv[1:]) or '(defaults)'}; cores={os.cpu_count()}, "
-          f"BLAS threads={os.environ['OPENBLAS_NUM_THREADS']}, torch={have_torch}")
-    print(f"# residual target 1e-10 F (F = mean k mean L); fire/lbfgs capped at "
-          f"{args.max_seconds:g} s; paper given 10x newton's time")
+    print(
+        f"# bench_relax: {' '.join(sys.argv[1:]) or '(defaults)'}; cores={os.cpu_count()}, "
+        f"BLAS threads={os.environ['OPENBLAS_NUM_THREADS']}, torch={have_torch}"
+    )
+    print(
+        f"# residual target 1e-10 F (F = mean k mean L); fire/lbfgs capped at "
+        f"{args.max_seconds:g} s; paper given 10x newton's time"
+    )
     header = f"{'N':>7} {'S':>5} {'method':>8} {'seconds':>9} {'iters':>7} {'residual/F':>11}  note"
     print(header)
     summary = []
@@ -113,8 +125,10 @@ def main() -> None:
             times: dict[str, float] = {}
             t_assemble, t_factor = limit(net, clamp)
             times["limit"] = t_assemble + t_factor
-            print(f"{net.n_nodes:>7} {strain:>5g} {'limit':>8} {times['limit']:>9.4f} {'':>7} "
-                  f"{'':>11}  assembly {t_assemble:.4f} s + factorisation {t_factor:.4f} s")
+            print(
+                f"{net.n_nodes:>7} {strain:>5g} {'limit':>8} {times['limit']:>9.4f} {'':>7} "
+                f"{'':>11}  assembly {t_assemble:.4f} s + factorisation {t_factor:.4f} s"
+            )
             for method in methods:
                 try:  # warm-up (pattern and ordering caches, lazy imports), not timed
                     cvn.relax(net, clamped=clamp, method=method, max_iter=2)
@@ -141,18 +155,23 @@ def main() -> None:
                 seconds = time.perf_counter() - t0
                 if eq.converged:
                     times[method] = seconds
-                print(f"{net.n_nodes:>7} {strain:>5g} {method:>8} {seconds:>9.4f} "
-                      f"{eq.iterations:>7} {eq.residual / F:>11.2e}  {note}"
-                      + (f", clamp error {eq.clamp_error:.1e}" if not eq.converged else ""))
+                print(
+                    f"{net.n_nodes:>7} {strain:>5g} {method:>8} {seconds:>9.4f} "
+                    f"{eq.iterations:>7} {eq.residual / F:>11.2e}  {note}"
+                    + (f", clamp error {eq.clamp_error:.1e}" if not eq.converged else "")
+                )
             summary.append((net.n_nodes, strain, times))
 
     print("\n# ratios (same run): newton/limit, fire/newton, lbfgs/newton")
     for n_nodes, strain, times in summary:
+
         def ratio(a: str, b: str, times=times) -> str:
             return f"{times[a] / times[b]:8.1f}" if a in times and b in times else f"{'-':>8}"
 
-        print(f"{n_nodes:>7} {strain:>5g} {ratio('newton', 'limit')} {ratio('fire', 'newton')} "
-              f"{ratio('lbfgs', 'newton')}")
+        print(
+            f"{n_nodes:>7} {strain:>5g} {ratio('newton', 'limit')} {ratio('fire', 'newton')} "
+            f"{ratio('lbfgs', 'newton')}"
+        )
 
 
 if __name__ == "__main__":

@@ -68,10 +68,14 @@ def _scenes(args: argparse.Namespace) -> int:
     width = max(len(s.name) for s in scenes)
     print(f"{'scene':{width}}  {'kind':12}  default  description")
     for s in scenes:
-        print(f"{s.name:{width}}  {s.kind:12}  {'yes' if s.report.default else 'no':7}  "
-              f"{s.description}")
-    print("\n`cvn report` runs the default set; `cvn run NAME` or `cvn report NAME ...` any "
-          "scene; `cvn scenes --keys` lists every key a scene file may set.")
+        print(
+            f"{s.name:{width}}  {s.kind:12}  {'yes' if s.report.default else 'no':7}  "
+            f"{s.description}"
+        )
+    print(
+        "\n`cvn report` runs the default set; `cvn run NAME` or `cvn report NAME ...` any "
+        "scene; `cvn scenes --keys` lists every key a scene file may set."
+    )
     return EXIT["ok"]
 
 
@@ -97,10 +101,15 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
         scene = scene.with_export()
     t0 = time.perf_counter()
     try:
-        result = run_scene(scene, out / "results" / scene.name, workers=args.workers,
-                           progress=not args.quiet, fresh=getattr(args, "fresh", False),
-                           command=" ".join(["cvn", *args.argv]),
-                           log=lambda m: _info(args, m))
+        result = run_scene(
+            scene,
+            out / "results" / scene.name,
+            workers=args.workers,
+            progress=not args.quiet,
+            fresh=getattr(args, "fresh", False),
+            command=" ".join(["cvn", *args.argv]),
+            log=lambda m: _info(args, m),
+        )
     except SceneRunError as err:
         _err(f"{err} (completed units are kept; rerun to resume)")
         return EXIT["run"]
@@ -117,11 +126,14 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
         from .report.writer import write_report
 
         try:
-            path = write_report(result, out / "reports" / scene.name, meshes=meshes,
-                                render=False if args.no_render else None)
+            path = write_report(
+                result,
+                out / "reports" / scene.name,
+                meshes=meshes,
+                render=False if args.no_render else None,
+            )
         except Exception as err:  # the exit code says which stage failed
-            _err(f"scene {scene.name!r}: writing the report failed: {type(err).__name__}: "
-                 f"{err}")
+            _err(f"scene {scene.name!r}: writing the report failed: {type(err).__name__}: {err}")
             return EXIT["report"]
         _info(args, f"{scene.name}: report {path}")
     return EXIT["ok"]
@@ -152,8 +164,10 @@ def _report(args: argparse.Namespace) -> int:
     total = time.perf_counter() - t0
     note = None
     if not args.scenes:
-        note = (f"Last `cvn report` (default set: {', '.join(s.name for s in scenes)}) took "
-                f"{total:.0f} s with {args.workers} worker process(es).")
+        note = (
+            f"Last `cvn report` (default set: {', '.join(s.name for s in scenes)}) took "
+            f"{total:.0f} s with {args.workers} worker process(es)."
+        )
     _index(args, note)
     _info(args, f"{len(scenes)} scene(s) in {total:.1f} s; index {Path(args.out) / 'reports'}")
     return first_failure
@@ -165,21 +179,34 @@ def _export(args: argparse.Namespace) -> int:
 
 
 def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
-    p.add_argument("--out", default=".", metavar="DIR",
-                   help="root of results/, reports/ and meshes/ (default: current folder)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="processes for learning trials and lattice sizes (default 1; results "
-                   "agree with 1 to solver round-off)")
+    p.add_argument(
+        "--out",
+        default=".",
+        metavar="DIR",
+        help="root of results/, reports/ and meshes/ (default: current folder)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="processes for learning trials and lattice sizes (default 1; results "
+        "agree with 1 to solver round-off)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bars or messages")
-    p.add_argument("--fresh", action="store_true",
-                   help="discard earlier results of the scene instead of resuming")
+    p.add_argument(
+        "--fresh",
+        action="store_true",
+        help="discard earlier results of the scene instead of resuming",
+    )
     if report:
         p.add_argument("--no-render", action="store_true", help="skip pyvista renders")
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="cvn", description="Mass-spring networks that learn, against an elastic continuum.",
+        prog="cvn",
+        description="Mass-spring networks that learn, against an elastic continuum.",
         epilog=_EPILOG,
     )
     sub = parser.add_subparsers(dest="command", required=True)
@@ -199,15 +226,23 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-report", action="store_true", help="compute (and export) only")
     run.set_defaults(func=_run)
 
-    report = sub.add_parser("report", help="run scenes (default: the default set) and write "
-                            "their reports and the index", epilog=_EPILOG)
-    report.add_argument("scenes", nargs="*", metavar="SCENE",
-                        help="scene files or built-in names (none: the default set)")
+    report = sub.add_parser(
+        "report",
+        help="run scenes (default: the default set) and write their reports and the index",
+        epilog=_EPILOG,
+    )
+    report.add_argument(
+        "scenes",
+        nargs="*",
+        metavar="SCENE",
+        help="scene files or built-in names (none: the default set)",
+    )
     _common(report)
     report.set_defaults(func=_report)
 
-    export = sub.add_parser("export", help="write a scene's meshes (VTU, PVD) for ParaView",
-                            epilog=_EPILOG)
+    export = sub.add_parser(
+        "export", help="write a scene's meshes (VTU, PVD) for ParaView", epilog=_EPILOG
+    )
     export.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
     _common(export, report=False)
     export.set_defaults(func=_export)

@@ -376,10 +376,14 @@ def test_jammed_network_reproducible_and_options(jammed):
         (lambda: diluted_lattice(4, 4, 1.0, np.random.default_rng()), "fraction"),
         (lambda: diluted_lattice(4, 4, -0.1, np.random.default_rng()), "fraction"),
         (lambda: diluted_lattice(4, 4, 0.1, 7), "rng"),
-        (lambda: paper_network(np.random.default_rng(), rest_length_range=(0.0, 20.0)),
-         "rest_length_range"),
-        (lambda: paper_network(np.random.default_rng(), stiffness_range=(5.0, 1.0)),
-         "stiffness_range"),
+        (
+            lambda: paper_network(np.random.default_rng(), rest_length_range=(0.0, 20.0)),
+            "rest_length_range",
+        ),
+        (
+            lambda: paper_network(np.random.default_rng(), stiffness_range=(5.0, 1.0)),
+            "stiffness_range",
+        ),
         (lambda: paper_network(None), "rng"),
         (lambda: jammed_network(4, np.random.default_rng()), "n_nodes"),
         (lambda: jammed_network(50, np.random.default_rng(), phi=0.7), "phi"),

@@ -126,8 +126,12 @@ def test_uniform_strain_is_exact_on_badly_shaped_elements(order):
     assert q.min_angle < 1.0 and q.tangled == 0
     body = elastic_body(m, Material(2.0, 1.0), order=order)
     G = np.array([[1e-3, 4e-3], [-2e-3, 5e-4]])
-    fixed = fix(body, lambda x, y: np.ones_like(x, bool), boundary=True,
-                displacement=lambda x, y: (G[0, 0] * x + G[0, 1] * y, G[1, 0] * x + G[1, 1] * y))
+    fixed = fix(
+        body,
+        lambda x, y: np.ones_like(x, bool),
+        boundary=True,
+        displacement=lambda x, y: (G[0, 0] * x + G[0, 1] * y, G[1, 0] * x + G[1, 1] * y),
+    )
     sol = solve_static(body, fixed)
     loc = body.dof_locations
     exact = np.where(body.dof_component == 0, loc @ G[0], loc @ G[1])
@@ -137,15 +141,17 @@ def test_uniform_strain_is_exact_on_badly_shaped_elements(order):
 
     pts = np.random.default_rng(0).uniform(0, 1, size=(500, 2))
     E = 0.5 * (G + G.T)
-    np.testing.assert_allclose(strain_probe(body, pts)(sol.u),
-                               np.tile([E[0, 0], E[1, 1], E[0, 1]], (500, 1)), atol=1e-12)
+    np.testing.assert_allclose(
+        strain_probe(body, pts)(sol.u), np.tile([E[0, 0], E[1, 1], E[0, 1]], (500, 1)), atol=1e-12
+    )
 
 
 def test_degenerate_elements_and_free_bodies_raise_clear_errors():
     from skfem import MeshTri1
 
-    flat = MeshTri1(np.array([[0.0, 1.0, 2.0, 0.0], [0.0, 0.0, 0.0, 1.0]]),
-                    np.array([[0, 1, 3], [0, 1, 2]]).T)
+    flat = MeshTri1(
+        np.array([[0.0, 1.0, 2.0, 0.0], [0.0, 0.0, 0.0, 1.0]]), np.array([[0, 1, 3], [0, 1, 2]]).T
+    )
     with pytest.raises(ValueError, match="degenerate"):
         elastic_body(flat, Material(1.0, 1.0))
     tangled = _shaken_square(amplitude=0.045, seed=2)

@@ -41,13 +41,13 @@ def test_trained_response_lives_in_the_microstructure_not_in_the_continuum():
     task = learning.AllosteryTask.create(net, [src], [s_src], [tgt], [desired])
     kept = {}
     rule = learning.CoupledLearning(1.0, 0.5, strain_reference="initial")
-    learning.train(net, task, rule, 40, progress=False,
-                   callback=lambda trial, step, n: kept.update(net=n))
+    learning.train(
+        net, task, rule, 40, progress=False, callback=lambda trial, step, n: kept.update(net=n)
+    )
     trained = kept["net"]
 
     free = cvn.relax(trained, pinned=task.pinned)
-    clamped = cvn.relax(trained, pinned=task.pinned,
-                        clamped=task.source_clamps(trained, "initial"))
+    clamped = cvn.relax(trained, pinned=task.pinned, clamped=task.source_clamps(trained, "initial"))
     s_trained = trained.lengths(clamped.positions)[tgt] / L0[tgt] - 1
     assert s_trained == pytest.approx(desired, abs=1e-4)
 

@@ -48,8 +48,12 @@ def test_eshelby_closed_form():
     np.testing.assert_allclose(f.u_r[2:], A * a**2 / r)
     np.testing.assert_allclose(f.eps_rr[2:] + f.eps_tt[2:], 0.0, atol=1e-18)
     # a finite disk tends to the infinite body as its radius grows
-    far = [eshelby_inclusion(np.array([1.0]), radius=a, eigenstrain=es, material=mat,
-                             outer_radius=R, outer="free").u_r[0] for R in (5.0, 50.0)]
+    far = [
+        eshelby_inclusion(
+            np.array([1.0]), radius=a, eigenstrain=es, material=mat, outer_radius=R, outer="free"
+        ).u_r[0]
+        for R in (5.0, 50.0)
+    ]
     assert abs(far[1] - A * a**2) < 0.01 * abs(far[0] - A * a**2)
 
 
@@ -58,8 +62,15 @@ def test_inclusion_finite_elements_converge_to_eshelby(outer):
     errors = {}
     for order in (1, 2):
         errors[order] = [
-            solve_inclusion(radius=0.5, outer_radius=2.0, eigenstrain=0.01, material=UNIT,
-                            h=h, order=order, outer=outer).l2_error
+            solve_inclusion(
+                radius=0.5,
+                outer_radius=2.0,
+                eigenstrain=0.01,
+                material=UNIT,
+                h=h,
+                order=order,
+                outer=outer,
+            ).l2_error
             for h in (0.2, 0.1)
         ]
     assert np.log2(errors[1][0] / errors[1][1]) == pytest.approx(2.0, abs=0.25)
@@ -70,8 +81,9 @@ def test_inclusion_finite_elements_converge_to_eshelby(outer):
 @pytest.mark.parametrize("contrast", [1e6, 1e-6])
 def test_inclusion_with_modulus_contrast_1e6(contrast):
     stiff = Material(contrast, contrast)
-    sol = solve_inclusion(radius=0.5, outer_radius=2.0, eigenstrain=0.01, material=UNIT,
-                          inclusion=stiff, h=0.1)
+    sol = solve_inclusion(
+        radius=0.5, outer_radius=2.0, eigenstrain=0.01, material=UNIT, inclusion=stiff, h=0.1
+    )
     assert sol.l2_error < 1e-3
     A = sol.exact(np.array([0.1])).coefficients[0]
     # a stiff inclusion keeps its eigenstrain, a soft one is squeezed flat
@@ -90,8 +102,9 @@ def test_probes_read_a_uniform_strain_exactly(order, curved):
     r, t = 0.95 * np.sqrt(rng.uniform(size=40)), rng.uniform(0, 2 * np.pi, 40)
     pts = np.column_stack([r * np.cos(t), r * np.sin(t)])
     np.testing.assert_allclose(displacement_probe(body, pts)(u), pts @ G.T, atol=1e-15)
-    np.testing.assert_allclose(strain_probe(body, pts)(u), np.tile([E[0, 0], E[1, 1], E[0, 1]],
-                                                                   (40, 1)), atol=1e-14)
+    np.testing.assert_allclose(
+        strain_probe(body, pts)(u), np.tile([E[0, 0], E[1, 1], E[0, 1]], (40, 1)), atol=1e-14
+    )
     n = rng.normal(size=(40, 2))
     n /= np.linalg.norm(n, axis=1)[:, None]
     expect = np.einsum("ni,ij,nj->n", n, E, n)
@@ -142,12 +155,17 @@ def test_dilated_springs_act_as_an_eshelby_inclusion():
     mid = 0.5 * (x[net.springs[:, 0]] + x[net.springs[:, 1]])
     r = np.hypot(*(mid - c).T)
     a, es = 4.0, 0.01
-    eq = cvn.relax(net.with_rest_length(net.rest_length * np.where(r < a, 1 + es, 1.0)),
-                   tol=1e-12)
+    eq = cvn.relax(net.with_rest_length(net.rest_length * np.where(r < a, 1 + es, 1.0)), tol=1e-12)
     S = net.strains(eq.positions)
     R = 0.5 * min(np.ptp(x[:, 0]), np.ptp(x[:, 1]))
-    A = eshelby_inclusion(np.array([1.0]), radius=a, eigenstrain=es, material=lattice_lame(1.0),
-                          outer_radius=R, outer="free").coefficients[0]
+    A = eshelby_inclusion(
+        np.array([1.0]),
+        radius=a,
+        eigenstrain=es,
+        material=lattice_lame(1.0),
+        outer_radius=R,
+        outer="free",
+    ).coefficients[0]
     assert S[r < a - 1.5].mean() == pytest.approx(A, rel=0.03)
     fit = decay_exponent(r, S, r_min=a + 1.5, r_max=R - 4)
     assert fit.exponent == pytest.approx(2.0, abs=0.15)

@@ -62,8 +62,15 @@ def test_newmark_is_second_order_and_conserves_energy(cantilever):
     period = 2 * np.pi / w
     errors = []
     for n in (20, 40, 80):
-        tr = simulate_body(body, fixed=fixed, dt=period / n, t_end=0.3 * period,
-                           scheme="newmark", density=1.0, u0=mode)
+        tr = simulate_body(
+            body,
+            fixed=fixed,
+            dt=period / n,
+            t_end=0.3 * period,
+            scheme="newmark",
+            density=1.0,
+            u0=mode,
+        )
         errors.append(np.linalg.norm(tr.u - mode * np.cos(w * tr.times[-1])))
         total = tr.energy + tr.kinetic
         assert np.max(np.abs(total / total[0] - 1)) < 1e-10
@@ -78,8 +85,15 @@ def test_overdamped_schemes_reach_their_order(cantilever, scheme, order):
     tau = eta / w2
     errors = []
     for n in (10, 20, 40):
-        tr = simulate_body(body, fixed=fixed, dt=tau / n, t_end=tau, scheme=scheme,
-                           damping=Damping(drag=eta), u0=mode)
+        tr = simulate_body(
+            body,
+            fixed=fixed,
+            dt=tau / n,
+            t_end=tau,
+            scheme=scheme,
+            damping=Damping(drag=eta),
+            u0=mode,
+        )
         errors.append(np.linalg.norm(tr.u - mode * np.exp(-1.0)))
     assert np.all(np.abs(_rates(errors) - order) < 0.1)
     K = stiffness_matrix(body)
@@ -95,12 +109,14 @@ def test_time_steps_far_above_the_explicit_limit(cantilever):
     load = pressure_load(body, -1e-3, where=lambda x, y: x > 2 - 1e-9)
     static = solve_static(body, fixed, load=load).u
     # backward Euler with mass and drag: unconditionally stable, settles on the static answer
-    be = simulate_body(body, fixed=fixed, dt=dt, t_end=400 * dt, density=1.0,
-                       damping=Damping(drag=1.0), load=load)
+    be = simulate_body(
+        body, fixed=fixed, dt=dt, t_end=400 * dt, density=1.0, damping=Damping(drag=1.0), load=load
+    )
     assert np.linalg.norm(be.u - static) < 1e-6 * np.linalg.norm(static)
     # undamped Newmark: bounded, energy (with the load's work) conserved
-    nm = simulate_body(body, fixed=fixed, dt=dt, t_end=50 * dt, scheme="newmark",
-                       density=1.0, u0=mode)
+    nm = simulate_body(
+        body, fixed=fixed, dt=dt, t_end=50 * dt, scheme="newmark", density=1.0, u0=mode
+    )
     total = nm.energy + nm.kinetic
     assert np.max(np.abs(total / total[0] - 1)) < 1e-9
     with pytest.raises(ValueError, match="nothing to integrate"):
@@ -125,8 +141,15 @@ def _arrival(tr, threshold):
 
 def test_kelvin_voigt_without_mass_has_no_delay(strip):
     body, fixed, load, probe, final = strip
-    tr = simulate_body(body, fixed=fixed, dt=0.05, t_end=3.0, load=load, observe=probe,
-                       damping=Damping(viscous_lam=1.0, viscous_mu=1.0))
+    tr = simulate_body(
+        body,
+        fixed=fixed,
+        dt=0.05,
+        t_end=3.0,
+        load=load,
+        observe=probe,
+        damping=Damping(viscous_lam=1.0, viscous_mu=1.0),
+    )
     normalised = tr.observed[:, :, 0] / final
     assert np.max(np.abs(normalised - normalised[:, :1])) < 1e-10
     assert 0.9 < normalised[-1, 0] < 1.0
@@ -135,12 +158,21 @@ def test_kelvin_voigt_without_mass_has_no_delay(strip):
 def test_substrate_drag_diffuses_and_inertia_propagates(strip):
     body, fixed, load, probe, final = strip
     threshold = 3e-3 * final[0]
-    drag = simulate_body(body, fixed=fixed, dt=0.01, t_end=2.0, load=load, observe=probe,
-                         damping=Damping(drag=1.0))
+    drag = simulate_body(
+        body, fixed=fixed, dt=0.01, t_end=2.0, load=load, observe=probe, damping=Damping(drag=1.0)
+    )
     t_drag = _arrival(drag, threshold)
     assert t_drag[2] / t_drag[0] > 4.5  # 6 vs 2 away: far beyond linear (3), towards 9
-    waves = simulate_body(body, fixed=fixed, dt=0.02, t_end=4.0, load=load, observe=probe,
-                          scheme="newmark", density=1.0)
+    waves = simulate_body(
+        body,
+        fixed=fixed,
+        dt=0.02,
+        t_end=4.0,
+        load=load,
+        observe=probe,
+        scheme="newmark",
+        density=1.0,
+    )
     t_wave = _arrival(waves, threshold)
     assert t_wave[2] / t_wave[0] == pytest.approx(3.0, rel=0.12)  # linear in distance
     speed = 4.0 / (t_wave[2] - t_wave[0])
@@ -162,9 +194,17 @@ def _step_response(n: int):
     tau_guess = width**2 / (np.pi**2 * 0.75)
     dt, t_end, step = tau_guess / 40, 6 * tau_guess, 1e-3
 
-    traj = simulate(net, dt=dt, t_end=t_end, pinned=left, damping=1.0, inertia=False,
-                    prescribed={int(i): x[i] + [step, 0.0] for i in right},
-                    scheme="implicit", jacobian="frozen")
+    traj = simulate(
+        net,
+        dt=dt,
+        t_end=t_end,
+        pinned=left,
+        damping=1.0,
+        inertia=False,
+        prescribed={int(i): x[i] + [step, 0.0] for i in right},
+        scheme="implicit",
+        jacobian="frozen",
+    )
     tau_net = relaxation_time(traj.times, traj.positions[:, centre, 0] - x[centre, 0])
     held = np.zeros(net.n_nodes, bool)
     held[left] = held[right] = True
@@ -179,8 +219,14 @@ def _step_response(n: int):
         return near_segments(x[[p[0] for p in pairs]], x[[p[1] for p in pairs]])
 
     fixed = fix(body, side(set(left))) + fix(body, side(set(right)), displacement=(step, 0.0))
-    tr = simulate_body(body, fixed=fixed, dt=dt, t_end=t_end, damping=Damping(drag=eta),
-                       observe=displacement_probe(body, x[centre]))
+    tr = simulate_body(
+        body,
+        fixed=fixed,
+        dt=dt,
+        t_end=t_end,
+        damping=Damping(drag=eta),
+        observe=displacement_probe(body, x[centre]),
+    )
     tau_cont = relaxation_time(tr.times, tr.observed[:, 0, 0])
     K, M1 = stiffness_matrix(body), mass_matrix(body)
     free = np.setdiff1d(np.arange(body.n_dofs), fixed.dofs)

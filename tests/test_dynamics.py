@@ -33,8 +33,9 @@ def test_overdamped_decay_is_exponential_and_backward_euler_first_order():
     k, c, delta = 2.0, 0.5, 0.3
     errors = []
     for dt in (0.02, 0.01, 0.005):
-        tr = simulate(_spring(k, 1 + delta), pinned=_ONE_D, dt=dt, t_end=1.0, inertia=False,
-                      damping=c)
+        tr = simulate(
+            _spring(k, 1 + delta), pinned=_ONE_D, dt=dt, t_end=1.0, inertia=False, damping=c
+        )
         exact = 1.0 + delta * np.exp(-k / c * tr.times)
         errors.append(np.max(np.abs(tr.positions[:, 1, 0] - exact)))
     assert errors[-1] < 2e-3
@@ -84,8 +85,7 @@ def test_final_state_matches_relax(inertia):
     pins = cvn.default_pins(net)
     # a prestressed lattice has soft modes (relaxing over ~1e3 time units): implicit steps
     # of dt = 1e3 reach the equilibrium in a few dozen steps
-    tr = simulate(net, pinned=pins, dt=1e3, t_end=4e4, inertia=inertia, tol=1e-12,
-                  record_every=10)
+    tr = simulate(net, pinned=pins, dt=1e3, t_end=4e4, inertia=inertia, tol=1e-12, record_every=10)
     eq = cvn.relax(net, pinned=pins, tol=1e-12)
     assert np.max(np.abs(tr.positions[-1] - eq.positions)) < 1e-8
     assert tr.residual[-1] < 1e-9
@@ -99,8 +99,9 @@ def test_clamp_as_prescribed_end_displacement_matches_relax_with_pinned_ends():
     length = float(net.clamp_length(spring, 0.5))
     # no pins: held only at the clamped spring, the network swings slowly (over ~1e3 time
     # units) into its relaxed orientation against the drag; long implicit steps get there
-    tr = simulate(net, clamped={spring: length}, dt=1e3, t_end=4e4, inertia=False,
-                  record_every=10, tol=1e-12)
+    tr = simulate(
+        net, clamped={spring: length}, dt=1e3, t_end=4e4, inertia=False, record_every=10, tol=1e-12
+    )
     a, b = net.springs[spring]
     assert np.hypot(*(tr.positions[-1, b] - tr.positions[-1, a])) == pytest.approx(length)
     assert not tr.free[a].any() and not tr.free[b].any()
@@ -116,10 +117,8 @@ def test_explicit_refuses_unstable_dt():
         simulate(net, dt=0.6, t_end=1.0, damping=0.0, scheme="explicit")
     # just below the limit it runs and agrees with the implicit schemes
     x0 = net.positions + 0.02 * np.random.default_rng(0).normal(size=net.positions.shape)
-    ex = simulate(net, x0=x0, dt=0.01, t_end=5.0, damping=1.0, scheme="explicit",
-                  record_every=100)
-    nm = simulate(net, x0=x0, dt=0.01, t_end=5.0, damping=1.0, scheme="newmark",
-                  record_every=100)
+    ex = simulate(net, x0=x0, dt=0.01, t_end=5.0, damping=1.0, scheme="explicit", record_every=100)
+    nm = simulate(net, x0=x0, dt=0.01, t_end=5.0, damping=1.0, scheme="newmark", record_every=100)
     assert np.max(np.abs(ex.positions - nm.positions)) < 5e-4  # first order in dt
     # overdamped forward Euler: dt < 2 c / lambda
     with pytest.raises(ValueError, match="stability limit"):
@@ -158,8 +157,15 @@ def test_relaxation_time_grows_diffusively_with_size():
         right = np.flatnonzero(x[:, 0] > x[:, 0].max() - 0.6)
         step = {int(i): x[i] - [0.01 * n, 0.0] for i in right}
         tau = 0.05 * n * n
-        tr = simulate(net, pinned=left, prescribed=step, dt=tau / 10, t_end=15 * tau,
-                      inertia=False, jacobian="frozen")
+        tr = simulate(
+            net,
+            pinned=left,
+            prescribed=step,
+            dt=tau / 10,
+            t_end=15 * tau,
+            inertia=False,
+            jacobian="frozen",
+        )
         assert tr.factorisations <= 2  # a nearly linear run reuses its factorisation
         # the displacement to the final state: the force maximum sits at the stepped edge
         # and relaxes fast, locally; the configuration relaxes with the slowest mode
@@ -172,8 +178,9 @@ def test_relaxation_time_grows_diffusively_with_size():
 
 def test_relaxation_time_of_a_single_spring():
     k, c = 2.0, 1.0
-    tr = simulate(_spring(k), pinned=_ONE_D, dt=1e-3, t_end=4.0, inertia=False, damping=c,
-                  jacobian="frozen")
+    tr = simulate(
+        _spring(k), pinned=_ONE_D, dt=1e-3, t_end=4.0, inertia=False, damping=c, jacobian="frozen"
+    )
     # residual k |x - L| decays as exp(-k t / c): 1% after ln(100) c / k
     assert relaxation_time(tr, 1e-2) == pytest.approx(np.log(100) * c / k, rel=2e-3)
     with pytest.raises(ValueError, match="run longer"):

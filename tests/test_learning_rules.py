@@ -37,8 +37,9 @@ def paper():
 
 def _error_after(net, task, step, reference):
     new = step.apply(net)
-    eq = cvn.relax(new, pinned=task.pinned, clamped=task.source_clamps(new, reference),
-                   x0=step.free.positions)
+    eq = cvn.relax(
+        new, pinned=task.pinned, clamped=task.source_clamps(new, reference), x0=step.free.positions
+    )
     return task.error(new, eq.positions, reference)
 
 
@@ -98,14 +99,19 @@ def test_exact_gradient_matches_finite_differences(paper, dof, reference):
 
     def error(values):
         n = net.with_rest_length(values) if dof == "rest_length" else net.with_stiffness(values)
-        eq = cvn.relax(n, pinned=task.pinned, clamped=task.source_clamps(n, reference),
-                       x0=free.positions, tol=1e-13)
+        eq = cvn.relax(
+            n,
+            pinned=task.pinned,
+            clamped=task.source_clamps(n, reference),
+            x0=free.positions,
+            tol=1e-13,
+        )
         return task.error(n, eq.positions, reference)
 
     h = 1e-5 * float(np.mean(theta))
-    fd = np.array([
-        (error(theta + h * e) - error(theta - h * e)) / (2 * h) for e in np.eye(net.n_springs)
-    ])
+    fd = np.array(
+        [(error(theta + h * e) - error(theta - h * e)) / (2 * h) for e in np.eye(net.n_springs)]
+    )
     rel = np.abs(grad - fd) / np.max(np.abs(fd))
     assert np.median(rel) < 1e-7
     assert np.max(rel) < 1e-5
@@ -202,8 +208,9 @@ def test_factorisations_are_reused_across_states_and_steps_at_small_strain():
 
 def test_trained_network_source_sweep_is_not_the_decoupled_line():
     # Fig. 5: after training, the target still responds to the source
-    rule = CoupledLearning(3e-3, 0.1, strain_reference="initial", learn_targets=False,
-                           min_rest_length=0.1)
+    rule = CoupledLearning(
+        3e-3, 0.1, strain_reference="initial", learn_targets=False, min_rest_length=0.1
+    )
     history = train(paper_network, paper_task, rule, 40, seeds=[3], progress=False)
     assert history.error[0, -1] < 0.05 * history.error[0, 0]  # it learned
     net, task = history.final[0], history.tasks[0]

@@ -39,8 +39,7 @@ def _assert_same(h1: History, h2: History, rtol: float = 0.0) -> None:
             continue
         # residuals below the tolerance are round-off: equal up to the tolerance itself
         atol = 1e-10 * h1.initial[0].force_scale if name == "residual" and rtol else 0.0
-        np.testing.assert_allclose(h1.data[name], h2.data[name], rtol=rtol, atol=atol,
-                                   err_msg=name)
+        np.testing.assert_allclose(h1.data[name], h2.data[name], rtol=rtol, atol=atol, err_msg=name)
     for a, b in zip(h1.final + h1.initial, h2.final + h2.initial):
         np.testing.assert_allclose(a.rest_length, b.rest_length, rtol=rtol)
         np.testing.assert_array_equal(a.springs, b.springs)
@@ -97,8 +96,9 @@ def test_stern_task_counts():
 
 
 # -- training ---------------------------------------------------------------------------
-_GCL = CoupledLearning(2e-3, 0.1, strain_reference="initial", learn_targets=False,
-                       min_rest_length=0.1)
+_GCL = CoupledLearning(
+    2e-3, 0.1, strain_reference="initial", learn_targets=False, min_rest_length=0.1
+)
 
 
 def test_train_records_every_step_and_is_reproducible(tmp_path):
@@ -127,8 +127,16 @@ def test_train_records_every_step_and_is_reproducible(tmp_path):
 
 
 def test_checkpoint_resume_gives_the_uninterrupted_history(tmp_path):
-    full = train(paper_network, paper_task, _GCL, 10, seeds=[4, 7], progress=False,
-                 checkpoint=tmp_path / "a.npz", checkpoint_every=3)
+    full = train(
+        paper_network,
+        paper_task,
+        _GCL,
+        10,
+        seeds=[4, 7],
+        progress=False,
+        checkpoint=tmp_path / "a.npz",
+        checkpoint_every=3,
+    )
 
     class Killed(Exception):
         pass
@@ -139,20 +147,53 @@ def test_checkpoint_resume_gives_the_uninterrupted_history(tmp_path):
 
     path = tmp_path / "b.npz"
     with pytest.raises(Killed):
-        train(paper_network, paper_task, _GCL, 10, seeds=[4, 7], progress=False,
-              checkpoint=path, checkpoint_every=3, callback=kill)
-    resumed = train(paper_network, paper_task, _GCL, 10, seeds=[4, 7], progress=False,
-                    checkpoint=path, checkpoint_every=3)
+        train(
+            paper_network,
+            paper_task,
+            _GCL,
+            10,
+            seeds=[4, 7],
+            progress=False,
+            checkpoint=path,
+            checkpoint_every=3,
+            callback=kill,
+        )
+    resumed = train(
+        paper_network,
+        paper_task,
+        _GCL,
+        10,
+        seeds=[4, 7],
+        progress=False,
+        checkpoint=path,
+        checkpoint_every=3,
+    )
     # equal up to the solver tolerance (the core's Newton is not bitwise reproducible)
     _assert_same(full, resumed, rtol=1e-7)
     assert resumed.solves[1, -1] == full.solves[1, -1]
     # a finished checkpoint is just loaded; another run's settings are refused
-    again = train(paper_network, paper_task, _GCL, 10, seeds=[4, 7], progress=False,
-                  checkpoint=path, checkpoint_every=3)
+    again = train(
+        paper_network,
+        paper_task,
+        _GCL,
+        10,
+        seeds=[4, 7],
+        progress=False,
+        checkpoint=path,
+        checkpoint_every=3,
+    )
     _assert_same(resumed, again)
     with pytest.raises(ValueError, match="different run"):
-        train(paper_network, paper_task, _GCL, 11, seeds=[4, 7], progress=False,
-              checkpoint=path, checkpoint_every=3)
+        train(
+            paper_network,
+            paper_task,
+            _GCL,
+            11,
+            seeds=[4, 7],
+            progress=False,
+            checkpoint=path,
+            checkpoint_every=3,
+        )
 
 
 def test_a_trial_that_fails_stops_with_its_reason():

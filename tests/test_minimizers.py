@@ -67,8 +67,9 @@ def test_rod_mode_minimises_the_rod_energy(method):
     c = _central_spring(net)
     length = float(net.clamp_length(c, 0.2))
     problem = Problem.build(net, clamped={c: length}, clamp="rod", rod_stiffness=50.0)
-    stop = StopRule(force=1e-11 * net.force_scale, length=np.inf, max_iter=100_000,
-                    max_seconds=60.0)
+    stop = StopRule(
+        force=1e-11 * net.force_scale, length=np.inf, max_iter=100_000, max_seconds=60.0
+    )
     x0 = problem.start(net.positions)
     ref = METHODS["newton"](problem, x0, stop, Trace())
     out = METHODS[method](problem, x0, stop, Trace())

@@ -55,9 +55,7 @@ def test_rod_clamp_agrees_with_exact_clamp_to_rod_compliance():
     # the rod yields by (clamp tension) / k_rod; its axial balance is not part of the
     # residual (the rod force plays the multiplier), so allow 1e-10 of a length on top
     assert rod.clamp_error <= abs(exact.clamp_force[0]) / 1e10 + 1e-10 * 2.0
-    np.testing.assert_allclose(
-        net.lengths(rod.positions), net.lengths(exact.positions), atol=1e-9
-    )
+    np.testing.assert_allclose(net.lengths(rod.positions), net.lengths(exact.positions), atol=1e-9)
 
 
 def test_pins_hold_coordinates_and_mask_equals_indices():

@@ -101,19 +101,31 @@ def paper(tmp_path_factory):
 
 def test_learning_report_has_every_section(paper):
     result, folder, text = paper
-    for heading in ("## The paper's claims and what this package measures",
-                    "## Error against iterations and against wall-clock time",
-                    "## The paper's figures from this package's runs",
-                    "## Source sweeps (Fig. 5 and appendix B)",
-                    "## Comparison with the exact gradient",
-                    "## Robustness to read-out noise",
-                    "## Appendix: the unscaled error of every trial",
-                    "## Renders", "## Settings", "## Provenance"):
+    for heading in (
+        "## The paper's claims and what this package measures",
+        "## Error against iterations and against wall-clock time",
+        "## The paper's figures from this package's runs",
+        "## Source sweeps (Fig. 5 and appendix B)",
+        "## Comparison with the exact gradient",
+        "## Robustness to read-out noise",
+        "## Appendix: the unscaled error of every trial",
+        "## Renders",
+        "## Settings",
+        "## Provenance",
+    ):
         assert heading in text, heading
     linked = _check_files(folder, text)
-    for fig in ("fig_error.png", "fig_gcl_floor_mean.png", "fig_gpc_mean.png",
-                "fig_gpc_energy.png", "fig_gpc_lengths.png", "fig_gpc_frozen_mean.png",
-                "fig_sweeps_gpc.png", "fig_noise.png", "fig_trials.png"):
+    for fig in (
+        "fig_error.png",
+        "fig_gcl_floor_mean.png",
+        "fig_gpc_mean.png",
+        "fig_gpc_energy.png",
+        "fig_gpc_lengths.png",
+        "fig_gpc_frozen_mean.png",
+        "fig_sweeps_gpc.png",
+        "fig_noise.png",
+        "fig_trials.png",
+    ):
         assert fig in linked
     assert "Renders skipped: rendering switched off" in text
     # the claims table has a row per paper run, with the paper's figure numbers
@@ -159,8 +171,11 @@ def test_solver_report_draws_error_against_iterations_and_seconds(tmp_path):
     result = _result(tmp_path, SOLVERS)
     text = write_report(result, tmp_path / "rep").read_text()
     linked = _check_files(tmp_path / "rep", text)
-    assert {"fig_solvers_iterations.png", "fig_solvers_seconds.png",
-            "fig_work_precision.png"} <= set(linked)
+    assert {
+        "fig_solvers_iterations.png",
+        "fig_solvers_seconds.png",
+        "fig_work_precision.png",
+    } <= set(linked)
     for n in (4, 6):
         u = result.units[f"solvers/n{n}/newton"]
         assert u.meta["converged"] and u.arrays["residual"][-1] <= 1e-10

@@ -107,21 +107,28 @@ def _same(a, b, *, rtol=1e-9):
             if name not in _CLOCKS:
                 # the residual is solver round-off below the tolerance (1e-10 F, F ~ 1e2)
                 atol = 1e-7 if name == "residual" else 0.0
-                np.testing.assert_allclose(ha.data[name], hb.data[name], rtol=rtol, atol=atol,
-                                           err_msg=f"{g}: {name}")
+                np.testing.assert_allclose(
+                    ha.data[name], hb.data[name], rtol=rtol, atol=atol, err_msg=f"{g}: {name}"
+                )
         for na, nb in zip(ha.final, hb.final):
             np.testing.assert_allclose(na.rest_length, nb.rest_length, rtol=rtol, atol=0)
     for key in a.units:
         ua, ub = a.units[key], b.units[key]
         assert ua.arrays.keys() == ub.arrays.keys()
         for name in ua.arrays:
-            np.testing.assert_allclose(ua.arrays[name], ub.arrays[name], rtol=1e-8, atol=1e-9,
-                                       err_msg=f"{key}: {name}")
+            np.testing.assert_allclose(
+                ua.arrays[name], ub.arrays[name], rtol=1e-8, atol=1e-9, err_msg=f"{key}: {name}"
+            )
 
 
 def _subprocess(code: str, env: dict | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=240, env={**os.environ, **(env or {})})
+    return subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=240,
+        env={**os.environ, **(env or {})},
+    )
 
 
 # -- only what the scene names ----------------------------------------------------------------
@@ -149,8 +156,14 @@ def test_scenes_import_only_what_they_use(tmp_path):
     learn, bare, fem = (json.loads(line) for line in proc.stdout.strip().splitlines()[-3:])
     # no [continuum]: no scikit-fem; no images: no pyvista/vtk; no [export]: no meshio;
     # no paper relaxation: no torch. The report itself needs matplotlib.
-    assert learn == {"skfem": False, "pyvista": False, "vtk": False, "meshio": False,
-                     "torch": False, "matplotlib": True}
+    assert learn == {
+        "skfem": False,
+        "pyvista": False,
+        "vtk": False,
+        "meshio": False,
+        "torch": False,
+        "matplotlib": True,
+    }
     assert bare["skfem"] is False and bare["meshio"] is False
     # the same scene with a [continuum] table does import it: the probe can tell
     assert fem["skfem"] is True
@@ -202,8 +215,9 @@ def test_no_export_table_writes_no_mesh(tmp_path):
     result = load_result(load_scene(path), tmp_path / "results" / "trans")
     a = result.units["transmission/n16"].arrays
     net_mesh = meshio.read(folder / "network_n16.vtu")
-    np.testing.assert_allclose(net_mesh.point_data["displacement"][:, :2],
-                               a["net/x"] - a["net/positions"], atol=1e-12)
+    np.testing.assert_allclose(
+        net_mesh.point_data["displacement"][:, :2], a["net/x"] - a["net/positions"], atol=1e-12
+    )
     strain = net_mesh.cell_data["strain"][0]
     src = int(a["net/sources"][0])
     assert strain[src] == pytest.approx(0.05, abs=1e-9)  # the clamped source

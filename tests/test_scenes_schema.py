@@ -95,15 +95,24 @@ def test_tiny_scene_parses_with_defaults(tmp_path):
         ('builder = "paper"', 'builder = "hexagonal"', "network", "builder", "'hexagonal'"),
         ('kind = "paper"', 'kind = "paper"\nstrain = -1.5', "task", "strain", "> -1"),
         ('kind = "paper"', 'kind = "source"', "task", "kind", "'paper'"),
-        ('kind = "learning"', 'kind = "learning"\n[solvers]\nx = 1', "(top level)", "solvers",
-         "unknown key or table"),
-        ('seed = 1', 'seed = -3', "(top level)", "seed", ">= 0"),
+        (
+            'kind = "learning"',
+            'kind = "learning"\n[solvers]\nx = 1',
+            "(top level)",
+            "solvers",
+            "unknown key or table",
+        ),
+        ("seed = 1", "seed = -3", "(top level)", "seed", ">= 0"),
         ('name = "tiny"', 'name = "../etc"', "(top level)", "name", "plain name"),
-        ('kind = "learning"\n', 'kind = "learning"\n[continuum]\nrefine = 1\n', "continuum", "",
-         "does not use"),
+        (
+            'kind = "learning"\n',
+            'kind = "learning"\n[continuum]\nrefine = 1\n',
+            "continuum",
+            "",
+            "does not use",
+        ),
         ('[task]\nkind = "paper"\n', "", "task", "", "needs a [task]"),
-        ("steps = 5", 'steps = 5\n[export]\ntrials = [0, 4]', "export", "trials",
-         "does not exist"),
+        ("steps = 5", "steps = 5\n[export]\ntrials = [0, 4]", "export", "trials", "does not exist"),
         ("steps = 5", 'steps = 5\n[solver]\nmethods = ["fire"]', "solver", "methods", "'fire'"),
         ("steps = 5", "steps = 5\n[solver]\ntol = 2.0", "solver", "tol", "between 0 and 1"),
         ("steps = 5", "steps = 5\n[report]\ndpi = 10000", "report", "dpi", "[40, 300]"),
@@ -152,14 +161,18 @@ kind = "source"
         load_scene(_write(tmp_path, text))
     assert (info.value.table, info.value.key) == ("network", "sizes")
     with pytest.raises(SceneError, match="strictly increasing"):
-        load_scene(_write(tmp_path, text.replace('builder = "triangular"',
-                                                 'builder = "triangular"\nsizes = [8, 4]')))
+        load_scene(
+            _write(
+                tmp_path,
+                text.replace('builder = "triangular"', 'builder = "triangular"\nsizes = [8, 4]'),
+            )
+        )
 
 
 def test_scene_is_data_only(tmp_path):
     # TOML has no way to run code, and strings are never evaluated: a string where a number
     # belongs is an error, not an expression
-    path = _write(tmp_path, TINY.replace("steps = 5", 'steps = "__import__(\'os\').getpid()"'))
+    path = _write(tmp_path, TINY.replace("steps = 5", "steps = \"__import__('os').getpid()\""))
     with pytest.raises(SceneError, match="must be an integer"):
         load_scene(path)
 

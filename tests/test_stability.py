@@ -44,8 +44,9 @@ def test_stiff_clusters_converge_or_raise_a_clear_error():
 @pytest.mark.parametrize("rod_stiffness", [1e6, 1e10, 1e12])
 def test_paper_rods_of_extreme_stiffness(rod_stiffness):
     net = triangular_lattice(6, 6, noise=0.1, rng=np.random.default_rng(1))
-    eq = cvn.relax(net, clamped={30: net.clamp_length(30, 0.5)}, clamp="rod",
-                   rod_stiffness=rod_stiffness)
+    eq = cvn.relax(
+        net, clamped={30: net.clamp_length(30, 0.5)}, clamp="rod", rod_stiffness=rod_stiffness
+    )
     _converged(eq, net)
     # the rod yields by tension / stiffness and no more
     assert eq.clamp_error <= 2 * abs(eq.clamp_force[0]) / rod_stiffness + 1e-12
@@ -71,8 +72,10 @@ def test_clamp_to_near_zero_length():
 def test_nearly_collinear_triangle(height):
     # apex almost on the base: the tangential stiffness of the base is nearly singular
     net = cvn.SpringNetwork(
-        [[0.0, 0.0], [2.0, 0.0], [1.0, height]], [[0, 1], [1, 2], [2, 0]],
-        [1.0, 1.0, 1.0], [2.0, 1.2, 1.2],
+        [[0.0, 0.0], [2.0, 0.0], [1.0, height]],
+        [[0, 1], [1, 2], [2, 0]],
+        [1.0, 1.0, 1.0],
+        [2.0, 1.2, 1.2],
     )
     eq = _converged(cvn.relax(net, pinned=np.array([[1, 1], [0, 1], [0, 0]], bool)), net)
     # the sides reach their rest length by lifting the apex to sqrt(1.2^2 - 1)
@@ -84,8 +87,9 @@ def test_floppy_lattice_reports_its_zero_modes():
     net = triangular_lattice(5, 5)
     keep = np.ones(net.n_springs, bool)
     keep[:12] = False  # 12 springs gone: at least 12 - (56 - 47 - ...) modes appear
-    floppy = cvn.SpringNetwork(net.positions, net.springs[keep], net.stiffness[keep],
-                               net.rest_length[keep])
+    floppy = cvn.SpringNetwork(
+        net.positions, net.springs[keep], net.stiffness[keep], net.rest_length[keep]
+    )
     expected = 2 * floppy.n_nodes - 3 - floppy.n_springs
     assert expected > 0
     with pytest.raises(ValueError, match=f"floppy: at least {expected} zero modes"):
@@ -95,8 +99,10 @@ def test_floppy_lattice_reports_its_zero_modes():
 def test_float32_inputs_give_float64_results_equal_to_float64_inputs():
     net64 = triangular_lattice(5, 5, noise=0.1, rng=np.random.default_rng(4))
     net32 = cvn.SpringNetwork(
-        net64.positions.astype(np.float32), net64.springs.astype(np.int32),
-        net64.stiffness.astype(np.float32), net64.rest_length.astype(np.float32),
+        net64.positions.astype(np.float32),
+        net64.springs.astype(np.int32),
+        net64.stiffness.astype(np.float32),
+        net64.rest_length.astype(np.float32),
     )
     ref = net64.with_positions(net32.positions).with_rest_length(net32.rest_length)
     a = cvn.relax(net32, clamped={10: 1.2})
@@ -118,5 +124,8 @@ def test_large_strain_minima_are_stable_whatever_the_path():
         kick = 1e-3 * np.mean(net.rest_length) * rng.standard_normal(eq.positions.shape)
         again = cvn.relax(net, pinned=pins, clamped=clamped, x0=eq.positions + kick * ~pins)
         assert again.energy == pytest.approx(eq.energy, rel=1e-9)
-        np.testing.assert_allclose(net.lengths(again.positions), net.lengths(eq.positions),
-                                   atol=1e-7 * np.mean(net.rest_length))
+        np.testing.assert_allclose(
+            net.lengths(again.positions),
+            net.lengths(eq.positions),
+            atol=1e-7 * np.mean(net.rest_length),
+        )

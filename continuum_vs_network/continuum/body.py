@@ -124,9 +124,7 @@ class ElasticBody:
         return np.asarray(where(c[:, 0], c[:, 1]), dtype=bool)
 
     def __repr__(self) -> str:
-        return (
-            f"ElasticBody(P{self.order}, n_elements={self.n_elements}, n_dofs={self.n_dofs})"
-        )
+        return f"ElasticBody(P{self.order}, n_elements={self.n_elements}, n_dofs={self.n_dofs})"
 
 
 def _element_selection(body: ElasticBody, elements: ArrayLike) -> NDArray[np.int64]:
@@ -229,8 +227,9 @@ def _field(body: ElasticBody, values: NDArray) -> NDArray:
     return np.ascontiguousarray(np.asarray(values, dtype=float)[:, None])
 
 
-def stiffness_matrix(body: ElasticBody, *, lam: ArrayLike | None = None,
-                     mu: ArrayLike | None = None) -> sp.csr_matrix:
+def stiffness_matrix(
+    body: ElasticBody, *, lam: ArrayLike | None = None, mu: ArrayLike | None = None
+) -> sp.csr_matrix:
     """Stiffness matrix ``K`` (n_dofs, n_dofs) of ``sigma = lam tr(eps) I + 2 mu eps``.
 
     ``lam`` and ``mu`` default to the body's; pass others (scalars or (n_elements,)
@@ -398,4 +397,3 @@ def strain_energy(body: ElasticBody, u: ArrayLike, K: sp.spmatrix | None = None)
     u = np.asarray(u, dtype=float)
     K = stiffness_matrix(body) if K is None else K
     return float(0.5 * u @ (K @ u))
-

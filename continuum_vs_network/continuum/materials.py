@@ -331,4 +331,3 @@ def network_moduli(
     C = (U.T @ (H_w @ U)) / area
     C = 0.5 * (C + C.T)
     return NetworkModuli(C=C, material=voigt_isotropic(C), area=area, relaxed=bool(relaxed))
-

@@ -124,8 +124,9 @@ def _ring_mesh(radii: NDArray, h: float, centre: tuple[float, float], curved: bo
     for k in range(len(radii) - 1):
         if radii[k] == 0:
             outer = ring_nodes[k + 1]
-            tris += [(ring_nodes[k][0], outer[j], outer[(j + 1) % outer.size])
-                     for j in range(outer.size)]
+            tris += [
+                (ring_nodes[k][0], outer[j], outer[(j + 1) % outer.size]) for j in range(outer.size)
+            ]
         else:
             # the zipper needs the outer ring's first angle <= the inner ring's first angle
             inner, ia = ring_nodes[k], ring_angles[k]

@@ -218,9 +218,7 @@ def _unit(name: str, directions: ArrayLike, n: int) -> NDArray:
     return d / norm[:, None]
 
 
-def directional_strain_probe(
-    body: ElasticBody, points: ArrayLike, directions: ArrayLike
-) -> Probe:
+def directional_strain_probe(body: ElasticBody, points: ArrayLike, directions: ArrayLike) -> Probe:
     """Normal strain ``n.eps.n`` at ``points`` along ``directions`` (n, 2): shape (n,)."""
     x = _points("points", points)
     nrm = _unit("directions", directions, x.shape[0])
@@ -252,8 +250,10 @@ def chord_strain_probe(body: ElasticBody, ends_a: ArrayLike, ends_b: ArrayLike) 
     rows = np.repeat(np.arange(n), 2)
     cols_a = np.arange(2 * n)
     combine = sp.csr_matrix(
-        (np.concatenate([-w, w]), (np.concatenate([rows, rows]),
-                                   np.concatenate([cols_a, cols_a + 2 * n]))),
+        (
+            np.concatenate([-w, w]),
+            (np.concatenate([rows, rows]), np.concatenate([cols_a, cols_a + 2 * n])),
+        ),
         shape=(n, 4 * n),
     )
     return Probe((combine @ U).tocsr(), (n,), "chord")

@@ -197,11 +197,13 @@ def _check_rigid(body: ElasticBody, fixed: Dirichlet) -> None:
         raise ValueError("no DOF is fixed: the body is free to move rigidly (static solve)")
     centre = body.dof_locations.mean(axis=0)
     scale = float(np.ptp(body.dof_locations, axis=0).max())
-    rigid = np.column_stack([
-        comp == 0,
-        comp == 1,
-        np.where(comp == 0, -(loc[:, 1] - centre[1]), loc[:, 0] - centre[0]) / scale,
-    ]).astype(float)
+    rigid = np.column_stack(
+        [
+            comp == 0,
+            comp == 1,
+            np.where(comp == 0, -(loc[:, 1] - centre[1]), loc[:, 0] - centre[0]) / scale,
+        ]
+    ).astype(float)
     if np.linalg.matrix_rank(rigid, tol=1e-8) < 3:
         raise ValueError(
             "the fixed DOFs do not stop rigid motion (both translations and the rotation); "

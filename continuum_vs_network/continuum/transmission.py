@@ -151,8 +151,13 @@ class InclusionSolution:
 
     def exact(self, r: ArrayLike) -> InclusionField:
         return eshelby_inclusion(
-            r, radius=self.radius, eigenstrain=self.eigenstrain, material=self.material,
-            inclusion=self.inclusion, outer_radius=self.outer_radius, outer=self.outer,
+            r,
+            radius=self.radius,
+            eigenstrain=self.eigenstrain,
+            material=self.material,
+            inclusion=self.inclusion,
+            outer_radius=self.outer_radius,
+            outer=self.outer,
         )
 
 
@@ -191,8 +196,9 @@ def solve_inclusion(
     elif outer == "free":
         centre = fix(body, lambda x, y: np.hypot(x, y) < tol)
         axis = fix(body, lambda x, y: (np.abs(y) < tol) & (x > tol), component=1)
-        fixed = Dirichlet(np.concatenate([centre.dofs, axis.dofs]),
-                          np.concatenate([centre.values, axis.values]))
+        fixed = Dirichlet(
+            np.concatenate([centre.dofs, axis.dofs]), np.concatenate([centre.values, axis.values])
+        )
     else:
         raise ValueError(f"outer must be 'fixed' or 'free', got {outer!r}")
     sol = solve_static(body, fixed, load=load)
@@ -202,17 +208,29 @@ def solve_inclusion(
     X = np.asarray(basis.global_coordinates())
     r = np.hypot(X[0], X[1])
     ex = eshelby_inclusion(
-        r, radius=radius, eigenstrain=eigenstrain, material=material, inclusion=inc,
-        outer_radius=outer_radius, outer=outer,
+        r,
+        radius=radius,
+        eigenstrain=eigenstrain,
+        material=material,
+        inclusion=inc,
+        outer_radius=outer_radius,
+        outer=outer,
     ).u_r
     ux, uy = ex * X[0] / r, ex * X[1] / r
     dx = basis.dx
     err = np.sqrt(np.sum(((uh[0] - ux) ** 2 + (uh[1] - uy) ** 2) * dx))
     ref = np.sqrt(np.sum((ux**2 + uy**2) * dx))
     return InclusionSolution(
-        body=body, u=sol.u, l2_error=float(err / ref), seconds=seconds, radius=float(radius),
-        outer_radius=float(outer_radius), eigenstrain=float(eigenstrain), material=material,
-        inclusion=inc, outer=outer,
+        body=body,
+        u=sol.u,
+        l2_error=float(err / ref),
+        seconds=seconds,
+        radius=float(radius),
+        outer_radius=float(outer_radius),
+        eigenstrain=float(eigenstrain),
+        material=material,
+        inclusion=inc,
+        outer=outer,
     )
 
 
@@ -262,11 +280,15 @@ def patch_source(
     parts = []
     for c, sign in ((a, -1.0), (b, 1.0)):
         parts.append(
-            fix(body, lambda x, y, c=c: np.hypot(x - c[0], y - c[1]) <= radius,
-                displacement=(sign * half * n[0], sign * half * n[1]))
+            fix(
+                body,
+                lambda x, y, c=c: np.hypot(x - c[0], y - c[1]) <= radius,
+                displacement=(sign * half * n[0], sign * half * n[1]),
+            )
         )
-    return Dirichlet(np.concatenate([p.dofs for p in parts]),
-                     np.concatenate([p.values for p in parts]))
+    return Dirichlet(
+        np.concatenate([p.dofs for p in parts]), np.concatenate([p.values for p in parts])
+    )
 
 
 def network_patch_source(
@@ -554,7 +576,10 @@ def decay_exponent(
     slope, intercept = np.polyfit(lr, ls, 1)
     res = ls - (slope * lr + intercept)
     return DecayFit(
-        exponent=float(-slope), prefactor=float(math.exp(intercept)), r_min=float(r_min),
-        r_max=float(r_max), n_bins=int(good.sum()),
+        exponent=float(-slope),
+        prefactor=float(math.exp(intercept)),
+        r_min=float(r_min),
+        r_max=float(r_max),
+        n_bins=int(good.sum()),
         rms_log_residual=float(np.sqrt(np.mean(res**2))),
     )

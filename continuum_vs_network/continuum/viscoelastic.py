@@ -308,8 +308,12 @@ def simulate_body(
             rhs = (
                 g
                 + Mf @ (u / (beta * dt * dt) + v / (beta * dt) + (0.5 / beta - 1.0) * acc)
-                + Cf @ ((gamma / (beta * dt)) * u + (gamma / beta - 1.0) * v
-                        + dt * (0.5 * gamma / beta - 1.0) * acc)
+                + Cf
+                @ (
+                    (gamma / (beta * dt)) * u
+                    + (gamma / beta - 1.0) * v
+                    + dt * (0.5 * gamma / beta - 1.0) * acc
+                )
             )
             u_new = lu.solve(rhs)
             acc_new = (u_new - u) / (beta * dt * dt) - v / (beta * dt) - (0.5 / beta - 1) * acc

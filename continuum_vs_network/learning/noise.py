@@ -39,8 +39,12 @@ def noise_rules(
     else:
         raise ValueError(f"setup must be 'lattice' or 'paper', got {setup!r}")
     # sources and targets frozen: the bulk must learn (see stern_rules)
-    common = {"strain_reference": "initial", "min_rest_length": floor,
-              "learn_sources": False, "learn_targets": False}
+    common = {
+        "strain_reference": "initial",
+        "min_rest_length": floor,
+        "learn_sources": False,
+        "learn_targets": False,
+    }
     rules: dict[str, Rule] = {
         f"GCL eta={eta:g}": CoupledLearning(alpha, eta, **common) for eta in etas
     }
@@ -84,13 +88,21 @@ def noise_study(
     out = {}
     for name, rule in rules.items():
         for sigma in sigmas:
-            out[name, float(sigma)] = train(network, task, rule, steps, seeds=range(trials),
-                                            noise=float(sigma), progress=progress)
+            out[name, float(sigma)] = train(
+                network,
+                task,
+                rule,
+                steps,
+                seeds=range(trials),
+                noise=float(sigma),
+                progress=progress,
+            )
     return out
 
 
-def noise_table(histories: dict[tuple[str, float], History], *,
-                quantity: str = "error_initial") -> list[dict[str, str]]:
+def noise_table(
+    histories: dict[tuple[str, float], History], *, quantity: str = "error_initial"
+) -> list[dict[str, str]]:
     """One row per rule: median final ``C/C0`` (and the worst trial) for every sigma.
 
     Trials that stopped early (diverged) enter with their last measured value and are

@@ -82,8 +82,15 @@ def exact_solver() -> Solver:
 
 def paper_solver(paper_iterations: int = 300) -> Solver:
     """The paper's relaxation: Adagrad (lr 0.1) with rods, a fixed budget per state."""
-    return Solver(method="paper", clamp="rod", max_iter=paper_iterations, accept_unconverged=True,
-                  reuse=False, trust_region=False, retry_ramps=())
+    return Solver(
+        method="paper",
+        clamp="rod",
+        max_iter=paper_iterations,
+        accept_unconverged=True,
+        reuse=False,
+        trust_region=False,
+        retry_ramps=(),
+    )
 
 
 def paper_experiments(
@@ -110,40 +117,48 @@ def paper_experiments(
     common = {"strain_reference": reference, "solver": solver}
     return (
         Experiment(
-            "gcl", "Fig. 4, A.2",
+            "gcl",
+            "Fig. 4, A.2",
             "GCL lowers C by orders of magnitude; all trials but one converge to C = 0",
             CoupledLearning(alpha_gcl, eta, **common),
         ),
         Experiment(
-            "gcl_floor", "Fig. 4",
+            "gcl_floor",
+            "Fig. 4",
             "(as gcl, with a rest-length floor)",
             CoupledLearning(alpha_gcl, eta, min_rest_length=floor, **common),
         ),
         Experiment(
-            "gcl_frozen", "(none)",
+            "gcl_frozen",
+            "(none)",
             "(not in the paper: GCL with the target's L frozen and a floor)",
             CoupledLearning(alpha_gcl, eta, learn_targets=False, min_rest_length=floor, **common),
         ),
         Experiment(
-            "gpc", "Fig. 6-9, A.3",
+            "gpc",
+            "Fig. 6-9, A.3",
             "GPC: C rises on average (large spread); E^C and dE/dL descend; the target "
             "length error falls ~50 %; the target rest-length error converges to 0",
             ProspectiveConfiguration(alpha_gpc, min_rest_length=floor, **common),
         ),
         Experiment(
-            "gpc_frozen", "Fig. 10",
+            "gpc_frozen",
+            "Fig. 10",
             "GPC with the target frozen lowers C: the target strain moves 33 % of the way "
             "to the desired strain",
-            ProspectiveConfiguration(alpha_gpc, learn_targets=False, min_rest_length=floor,
-                                     **common),
+            ProspectiveConfiguration(
+                alpha_gpc, learn_targets=False, min_rest_length=floor, **common
+            ),
         ),
         Experiment(
-            "exact", "(reference)",
+            "exact",
+            "(reference)",
             "(not in the paper: gradient descent with the exact gradient of Eq. 26)",
             ExactGradient(alpha_exact, min_rest_length=floor, **common),
         ),
         Experiment(
-            "exact_frozen", "(reference)",
+            "exact_frozen",
+            "(reference)",
             "(not in the paper: exact gradient of Eq. 26, target frozen, floor)",
             ExactGradient(alpha_exact, learn_targets=False, min_rest_length=floor, **common),
         ),
@@ -250,8 +265,9 @@ def _fmt(s: dict) -> str:
     return text
 
 
-def table(histories: dict[str, History], experiments: Sequence[Experiment], *,
-          solver_name: str = "") -> list[dict[str, str]]:
+def table(
+    histories: dict[str, History], experiments: Sequence[Experiment], *, solver_name: str = ""
+) -> list[dict[str, str]]:
     """Rows ``figure / paper's claim / measured / settings`` for the report.
 
     Measured values are medians over trials of final-over-initial ratios, with the
@@ -281,24 +297,37 @@ def table(histories: dict[str, History], experiments: Sequence[Experiment], *,
             ]
         if exp.name == "gpc_frozen":
             # distance of the target strain from the desired one, final over initial
-            d = np.stack([
-                np.abs(h.target_strain[i, :, 0] - h.tasks[i].target_strain[0])
-                for i in range(h.trials)
-            ])
+            d = np.stack(
+                [
+                    np.abs(h.target_strain[i, :, 0] - h.tasks[i].target_strain[0])
+                    for i in range(h.trials)
+                ]
+            )
             measured.append(f"|S - S_T| / |S0 - S_T| = {_fmt(_ratio(d, h))}")
         settings = {k: v for k, v in h.settings.items() if not k.startswith("solver.")}
-        rows.append({
-            "experiment": exp.name,
-            "figures": exp.figures,
-            "claim": exp.claim,
-            "measured": "; ".join(measured),
-            "trials": f"{h.trials} ({stopped} stopped early; their last values are used)",
-            "settings": ", ".join(
-                f"{k}={settings[k]}" for k in (
-                    "rule", "strain_reference", "alpha", "eta", "learn_targets",
-                    "min_rest_length", "steps") if k in settings
-            ) + (f", solver={solver_name}" if solver_name else ""),
-        })
+        rows.append(
+            {
+                "experiment": exp.name,
+                "figures": exp.figures,
+                "claim": exp.claim,
+                "measured": "; ".join(measured),
+                "trials": f"{h.trials} ({stopped} stopped early; their last values are used)",
+                "settings": ", ".join(
+                    f"{k}={settings[k]}"
+                    for k in (
+                        "rule",
+                        "strain_reference",
+                        "alpha",
+                        "eta",
+                        "learn_targets",
+                        "min_rest_length",
+                        "steps",
+                    )
+                    if k in settings
+                )
+                + (f", solver={solver_name}" if solver_name else ""),
+            }
+        )
     return rows
 
 
@@ -335,8 +364,10 @@ def verification(
     from .sensitivity import Sensitivity, cost_gradient, gcl_limit
     from .states import Tracker
 
-    out = {k: np.full((trials, len(etas)), np.nan)
-           for k in ("rel_initial", "cos_initial", "rel_frozen", "cos_strain")}
+    out = {
+        k: np.full((trials, len(etas)), np.nan)
+        for k in ("rel_initial", "cos_initial", "rel_frozen", "cos_strain")
+    }
     out["fd"] = np.full(trials, np.nan)
     for i in range(trials):
         rng = np.random.default_rng(np.random.SeedSequence(i).spawn(2)[0])
@@ -363,11 +394,20 @@ def verification(
 
         def error(L, net=net, task=task, free=free):
             n = net.with_rest_length(L)
-            eq = relax(n, pinned=task.pinned, clamped=task.source_clamps(n, "current"),
-                       x0=free.positions, tol=1e-13)
+            eq = relax(
+                n,
+                pinned=task.pinned,
+                clamped=task.source_clamps(n, "current"),
+                x0=free.positions,
+                tol=1e-13,
+            )
             return task.error(n, eq.positions, "current")
 
-        fd = np.array([(error(net.rest_length + h * e) - error(net.rest_length - h * e)) / (2 * h)
-                       for e in np.eye(net.n_springs)])
+        fd = np.array(
+            [
+                (error(net.rest_length + h * e) - error(net.rest_length - h * e)) / (2 * h)
+                for e in np.eye(net.n_springs)
+            ]
+        )
         out["fd"][i] = np.median(np.abs(grad - fd) / np.max(np.abs(fd)))
     return out

@@ -188,9 +188,7 @@ class Frame:
         cols = self.index[flat]
         keep = cols >= 0
         rows = np.repeat(np.arange(springs.size), 4).reshape(-1, 4)
-        return sp.csr_matrix(
-            (vals[keep], (rows[keep], cols[keep])), shape=(springs.size, self.n)
-        )
+        return sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(springs.size, self.n))
 
     def gradient(self, net: SpringNetwork, x: NDArray) -> NDArray:
         """``dE/dx`` on free coordinates in row order, (n,), by two sparse products.
@@ -620,8 +618,7 @@ class Tracker:
             trace_t.append(time.perf_counter() - t0)
             if residual <= f_tol and clamp_error <= l_tol:
                 self.stats.iterations += it
-                return _equilibrium(net, x, r, residual, clamp_error, mu, it, t0, trace_r,
-                                    trace_t)
+                return _equilibrium(net, x, r, residual, clamp_error, mu, it, t0, trace_r, trace_t)
             measure = max(residual / f_tol, clamp_error / l_tol)
             if not np.isfinite(measure):
                 return None

@@ -77,9 +77,13 @@ def stern_rules(
     locally (both rules then converge at the target's own rate ``alpha k``). ``alpha =
     0.5`` is about the fastest stable rate for GCL on these lattices (``k = 1``).
     """
-    common = {"strain_reference": "initial", "solver": solver or Solver(),
-              "learn_sources": learn_sources, "learn_targets": learn_targets,
-              "min_rest_length": 1e-3}
+    common = {
+        "strain_reference": "initial",
+        "solver": solver or Solver(),
+        "learn_sources": learn_sources,
+        "learn_targets": learn_targets,
+        "min_rest_length": 1e-3,
+    }
     return {
         "GCL": CoupledLearning(alpha, eta, **common),
         "GPC": ProspectiveConfiguration(alpha_gpc, **common),
@@ -115,8 +119,7 @@ def stern_study(
             return stern_task(net, n_sources, n_targets, rng, candidates=every)
 
         for name, rule in rules.items():
-            out[n, name] = train(network, task, rule, steps, seeds=range(trials),
-                                 progress=progress)
+            out[n, name] = train(network, task, rule, steps, seeds=range(trials), progress=progress)
     return out
 
 
@@ -135,16 +138,18 @@ def stern_table(
     for (n, name), h in histories.items():
         s = summary(h.error, h.completed)
         done = np.maximum(h.completed, 1)
-        per_step = [
-            h.seconds[i, min(h.completed[i], h.steps)] / done[i] for i in range(h.trials)
-        ]
+        per_step = [h.seconds[i, min(h.completed[i], h.steps)] / done[i] for i in range(h.trials)]
         learn = [
-            (h.seconds[i, min(h.completed[i], h.steps)]
-             - h.measure_seconds[i, min(h.completed[i], h.steps)]) / done[i]
+            (
+                h.seconds[i, min(h.completed[i], h.steps)]
+                - h.measure_seconds[i, min(h.completed[i], h.steps)]
+            )
+            / done[i]
             for i in range(h.trials)
         ]
-        fact = [h.factorisations[i, min(h.completed[i], h.steps)] / done[i]
-                for i in range(h.trials)]
+        fact = [
+            h.factorisations[i, min(h.completed[i], h.steps)] / done[i] for i in range(h.trials)
+        ]
         reach_steps, reach_seconds = [], []
         for i in range(h.trials):
             ratio = h.error[i] / h.error[i, 0]
@@ -152,19 +157,26 @@ def stern_table(
             if t is not None:
                 reach_steps.append(t)
                 reach_seconds.append(h.seconds[i, t])
-        reached = (f"{np.median(reach_steps):.0f} steps, {np.median(reach_seconds):.3g} s "
-                   f"({len(reach_steps)}/{h.trials})" if reach_steps else f"- (0/{h.trials})")
-        rows.append({
-            "N": str(h.initial[0].n_nodes),
-            "asked N": str(n),
-            "rule": name,
-            "steps": str(h.steps),
-            "C/C0": (f"{s['median']:.3g} [{s['q25']:.3g}, {s['q75']:.3g}]"
-                     if s.get("n") else "-"),
-            f"to C/C0 <= {level:g}": reached,
-            "s/step": f"{np.median(per_step):.3g}",
-            "s/step (learning only)": f"{np.median(learn):.3g}",
-            "factorisations/step": f"{np.median(fact):.2f}",
-            "stopped": str(int(np.sum(h.completed < h.steps))),
-        })
+        reached = (
+            f"{np.median(reach_steps):.0f} steps, {np.median(reach_seconds):.3g} s "
+            f"({len(reach_steps)}/{h.trials})"
+            if reach_steps
+            else f"- (0/{h.trials})"
+        )
+        rows.append(
+            {
+                "N": str(h.initial[0].n_nodes),
+                "asked N": str(n),
+                "rule": name,
+                "steps": str(h.steps),
+                "C/C0": (
+                    f"{s['median']:.3g} [{s['q25']:.3g}, {s['q75']:.3g}]" if s.get("n") else "-"
+                ),
+                f"to C/C0 <= {level:g}": reached,
+                "s/step": f"{np.median(per_step):.3g}",
+                "s/step (learning only)": f"{np.median(learn):.3g}",
+                "factorisations/step": f"{np.median(fact):.2f}",
+                "stopped": str(int(np.sum(h.completed < h.steps))),
+            }
+        )
     return rows

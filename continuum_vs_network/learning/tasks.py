@@ -319,9 +319,7 @@ def stern_task(
     chosen = rng.choice(pool, size=n_sources + n_targets, replace=False)
     s_source = _positive_normal(rng, 0.0, source_std, n_sources)
     s_target = _positive_normal(rng, 0.0, target_std, n_targets)
-    return AllosteryTask.create(
-        net, chosen[:n_sources], s_source, chosen[n_sources:], s_target
-    )
+    return AllosteryTask.create(net, chosen[:n_sources], s_source, chosen[n_sources:], s_target)
 
 
 def _candidates(net: SpringNetwork, candidates: ArrayLike | None) -> NDArray[np.int64]:

@@ -138,8 +138,18 @@ def train(
             if i < state.trial:
                 continue
             _run_trial(
-                i, int(seed), net, task, rule, steps, float(noise), measure, state,
-                int(checkpoint_every), callback, bar,
+                i,
+                int(seed),
+                net,
+                task,
+                rule,
+                steps,
+                float(noise),
+                measure,
+                state,
+                int(checkpoint_every),
+                callback,
+                bar,
             )
     finally:
         if bar is not None:
@@ -227,8 +237,15 @@ def _run_trial(
             if t % every == 0 and t < steps:
                 tracker.forget()
                 state.save_progress(
-                    i, t, cur, warm, noise_rng, rec, time.perf_counter() - t_start,
-                    measure_seconds, counters(),
+                    i,
+                    t,
+                    cur,
+                    warm,
+                    noise_rng,
+                    rec,
+                    time.perf_counter() - t_start,
+                    measure_seconds,
+                    counters(),
                 )
         free = measure_free(cur, warm)
         _record_measure(rec, steps, cur, task0, rule, free, mask)
@@ -380,9 +397,7 @@ class _Checkpoint:
     def save_progress(self, i, t, cur, warm, rng, rec, seconds, measure_seconds, counters):
         if self.path is None:
             return
-        arrays = {
-            f"cur/{k}": v for k, v in rec.items()
-        }
+        arrays = {f"cur/{k}": v for k, v in rec.items()}
         arrays["cur/rest_length"] = cur.rest_length
         arrays["cur/stiffness"] = cur.stiffness
         if warm.free is not None:
@@ -471,7 +486,7 @@ class _Checkpoint:
         for j in range(n):
             prefix = f"rec/{j}/"
             self.records.append(
-                {k[len(prefix):]: v.copy() for k, v in files.items() if k.startswith(prefix)}
+                {k[len(prefix) :]: v.copy() for k, v in files.items() if k.startswith(prefix)}
             )
             self.initial.append(_net_from(files, f"initial/{j}"))
             self.final.append(_net_from(files, f"final/{j}"))
@@ -489,8 +504,7 @@ class _Checkpoint:
                 "record": {
                     k[4:]: v.copy()
                     for k, v in files.items()
-                    if k.startswith("cur/")
-                    and k[4:] not in _CURRENT_STATE
+                    if k.startswith("cur/") and k[4:] not in _CURRENT_STATE
                 },
                 "rest_length": files["cur/rest_length"],
                 "stiffness": files["cur/stiffness"],

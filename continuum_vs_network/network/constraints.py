@@ -207,9 +207,7 @@ class Problem:
             out = np.zeros((m, coords.size))
             np.add.at(out, (rows[keep], column[flat][keep]), vals[keep])
             return out
-        return sp.csr_matrix(
-            (vals[keep], (rows[keep], column[flat][keep])), shape=(m, coords.size)
-        )
+        return sp.csr_matrix((vals[keep], (rows[keep], column[flat][keep])), shape=(m, coords.size))
 
     # -- the one residual used by every method ----------------------------------------
     def residual(self, x: NDArray) -> tuple[float, NDArray]:

@@ -163,8 +163,10 @@ def _boundary(
             raise ValueError(f"clamped length of spring {j} must be finite and > 0, got {length}")
         a, b = net.springs[j]
         if held[a] or held[b]:
-            raise ValueError(f"clamped spring {j} shares node {a if held[a] else b} with "
-                             "another clamp or a prescribed node")
+            raise ValueError(
+                f"clamped spring {j} shares node {a if held[a] else b} with "
+                "another clamp or a prescribed node"
+            )
         d = x[b] - x[a]
         r = float(np.hypot(*d))
         if r == 0.0:
@@ -215,7 +217,13 @@ class _ProximalSolver:
     """Minimises ``Phi(x) = E(x) + a/2 |x - x_hat|^2`` over free coordinates (see module)."""
 
     def __init__(
-        self, net: SpringNetwork, free: NDArray, a: float, *, tol: float, jacobian: str,
+        self,
+        net: SpringNetwork,
+        free: NDArray,
+        a: float,
+        *,
+        tol: float,
+        jacobian: str,
         max_newton: int,
     ) -> None:
         self.net = net
@@ -453,8 +461,17 @@ def simulate(
 
     def record(step: int, x: NDArray, v: NDArray, G: NDArray) -> None:
         residual = float(np.max(np.abs(G))) if free.any() else 0.0
-        frames.append((step * dt, x.copy(), v.copy(), spring_energy(x, springs, k, L),
-                       0.5 * float(np.sum(v * v)), residual, time.perf_counter() - t0))
+        frames.append(
+            (
+                step * dt,
+                x.copy(),
+                v.copy(),
+                spring_energy(x, springs, k, L),
+                0.5 * float(np.sum(v * v)),
+                residual,
+                time.perf_counter() - t0,
+            )
+        )
 
     record(0, x, v, G)
     for step in range(1, n_steps + 1):
@@ -498,8 +515,17 @@ def simulate(
     free = free.copy()
     free.setflags(write=False)
     return Trajectory(
-        times=times, positions=pos, velocities=vel, energy=energy, kinetic=kinetic,
-        residual=residual, seconds=seconds, free=free, scheme=scheme, dt=dt, damping=c,
+        times=times,
+        positions=pos,
+        velocities=vel,
+        energy=energy,
+        kinetic=kinetic,
+        residual=residual,
+        seconds=seconds,
+        free=free,
+        scheme=scheme,
+        dt=dt,
+        damping=c,
         inertia=inertia,
         factorisations=solver.factorisations if solver is not None else 0,
     )
@@ -513,8 +539,15 @@ def _implicit_coefficient(scheme: str, inertia: bool, dt: float, c: float) -> fl
 
 
 def _implicit_target(
-    scheme: str, inertia: bool, x: NDArray, v: NDArray, acc: NDArray, G: NDArray,
-    dt: float, c: float, a: float,
+    scheme: str,
+    inertia: bool,
+    x: NDArray,
+    v: NDArray,
+    acc: NDArray,
+    G: NDArray,
+    dt: float,
+    c: float,
+    a: float,
 ) -> NDArray:
     """``x_hat`` of the step from ``(x, v, acc)``; ``grad E(x1) + a (x1 - x_hat) = 0``.
 

@@ -243,8 +243,9 @@ def relax(
     for step in range(1, int(ramp) + 1):
         frac = step / ramp
         lengths = start_lengths + frac * (problem.clamp_lengths - start_lengths)
-        stage = Problem(net, problem.free, problem.clamp_springs, lengths, problem.clamp,
-                        problem.rod_stiffness)
+        stage = Problem(
+            net, problem.free, problem.clamp_springs, lengths, problem.clamp, problem.rod_stiffness
+        )
         outcome = solve(stage, stage.start(outcome.x), stop, trace)
         iterations += outcome.iterations
         if not outcome.converged:
@@ -259,8 +260,14 @@ def relax(
             break
         avoid = problem.clamp_springs
         free = ~default_pins(net.with_positions(outcome.x), avoid)
-        problem = Problem(net, free, problem.clamp_springs, problem.clamp_lengths,
-                          problem.clamp, problem.rod_stiffness)
+        problem = Problem(
+            net,
+            free,
+            problem.clamp_springs,
+            problem.clamp_lengths,
+            problem.clamp,
+            problem.rod_stiffness,
+        )
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
     return _finish(problem, outcome, iterations, method, stop, trace)

@@ -88,8 +88,11 @@ class _Objective:
         self.other = np.flatnonzero(other)
         # where each clamp's four coordinates (ax, ay, bx, by) sit among the touched ones
         pos = np.searchsorted(self.touched, coords)
-        hit = self.touched[np.minimum(pos, max(self.touched.size - 1, 0))] == coords \
-            if self.touched.size else np.zeros(coords.shape, dtype=bool)
+        hit = (
+            self.touched[np.minimum(pos, max(self.touched.size - 1, 0))] == coords
+            if self.touched.size
+            else np.zeros(coords.shape, dtype=bool)
+        )
         self._jac_rows = np.broadcast_to(np.arange(m)[:, None], (m, 4))[hit]
         self._jac_cols = pos[hit]
         self._jac_hit = hit
@@ -437,9 +440,18 @@ def _lbfgs_inner(
                 flat[free] = y
                 ref = obj.reference(x)  # energies are measured from the restart point
                 res = minimize(
-                    fun, y, jac=True, method="L-BFGS-B", callback=callback,
-                    options={"maxiter": max(budget - done["iterations"], 1), "maxcor": 10,
-                             "gtol": 0.0, "ftol": 0.0, "maxfun": 20 * budget + 100},
+                    fun,
+                    y,
+                    jac=True,
+                    method="L-BFGS-B",
+                    callback=callback,
+                    options={
+                        "maxiter": max(budget - done["iterations"], 1),
+                        "maxcor": 10,
+                        "gtol": 0.0,
+                        "ftol": 0.0,
+                        "maxfun": 20 * budget + 100,
+                    },
                 )
                 y = np.asarray(res.x)
                 # scipy stopped by itself (line search at round-off): restart with fresh memory

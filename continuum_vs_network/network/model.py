@@ -47,8 +47,7 @@ def _validate_topology(springs: NDArray, n_nodes: int) -> None:
     out = np.flatnonzero((springs < 0).any(axis=1) | (springs >= n_nodes).any(axis=1))
     if out.size:
         raise ValueError(
-            f"springs[{out[0]}] = {springs[out[0]].tolist()} names a node outside "
-            f"0..{n_nodes - 1}"
+            f"springs[{out[0]}] = {springs[out[0]].tolist()} names a node outside 0..{n_nodes - 1}"
         )
     loops = np.flatnonzero(springs[:, 0] == springs[:, 1])
     if loops.size:

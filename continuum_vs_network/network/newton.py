@@ -224,14 +224,20 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             try:
                 step, lam = _kkt_step(factor, grad, A if m else None, viol, m)
             except np.linalg.LinAlgError:
-                return Outcome(x, it, False, "clamp constraints are degenerate (singular Schur "
-                               "complement): two clamps fix the same length?")
+                return Outcome(
+                    x,
+                    it,
+                    False,
+                    "clamp constraints are degenerate (singular Schur "
+                    "complement): two clamps fix the same length?",
+                )
             # reuse only pays above the dense size; with rods the gradient's huge axial part
             # makes CG's relative tolerance meaningless for the rest
             reuse = exact_ok and pattern.size > DENSE_MAX and problem.clamp == "exact"
             reusable = factor if reuse else None
-        x, alpha = _line_search(problem, x, coords, step, grad, A if m else None, viol, lam, rho,
-                                residual)
+        x, alpha = _line_search(
+            problem, x, coords, step, grad, A if m else None, viol, lam, rho, residual
+        )
         if alpha == 0.0:
             return Outcome(x, it + 1, False, "line search found no decrease")
         # Levenberg-Marquardt: a cut step asks for more damping next time, a full one less

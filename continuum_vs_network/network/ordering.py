@@ -9,9 +9,7 @@ from numpy.typing import NDArray
 __all__ = ["coordinate_order", "nested_dissection"]
 
 
-def nested_dissection(
-    positions: NDArray, springs: NDArray, *, leaf: int = 64
-) -> NDArray[np.int64]:
+def nested_dissection(positions: NDArray, springs: NDArray, *, leaf: int = 64) -> NDArray[np.int64]:
     """Node elimination order by recursive coordinate bisection with vertex separators.
 
     The node set is split at the median of its longer extent; the nodes of one half that

@@ -21,8 +21,18 @@ from ..io.atomic import atomic_path
 __all__ = ["COLORS", "Panel", "Series", "heatmap", "plot_panels"]
 
 #: Colour cycle (matplotlib's tab10), indexable by a series' position.
-COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
-          "#7f7f7f", "#bcbd22", "#17becf")
+COLORS = (
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,8 +128,17 @@ def _draw(ax, panel: Panel) -> None:
             if band.any():
                 ax.fill_between(x[band], lo[band], hi[band], color=color, alpha=0.18, lw=0)
         if ok.any():
-            ax.plot(x[ok], y[ok], linestyle=s.style or "none", marker=s.marker or None,
-                    color=color, lw=s.width, alpha=s.alpha, ms=3.5, label=s.label or None)
+            ax.plot(
+                x[ok],
+                y[ok],
+                linestyle=s.style or "none",
+                marker=s.marker or None,
+                color=color,
+                lw=s.width,
+                alpha=s.alpha,
+                ms=3.5,
+                label=s.label or None,
+            )
             drawn = True
     for h in panel.hlines:
         ax.axhline(h, color="0.5", lw=0.8, ls=":")
@@ -139,8 +158,15 @@ def _draw(ax, panel: Panel) -> None:
     ax.tick_params(labelsize=8)
     ax.grid(True, which="major", alpha=0.3)
     if not drawn:
-        ax.text(0.5, 0.5, "no finite data", ha="center", va="center", transform=ax.transAxes,
-                color="0.4")
+        ax.text(
+            0.5,
+            0.5,
+            "no finite data",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+            color="0.4",
+        )
     if panel.legend and any(s.label for s in panel.series) and drawn:
         ax.legend(fontsize=7, frameon=False)
 
@@ -160,12 +186,13 @@ def plot_panels(
     plt = _pyplot()
     ncols = max(1, min(int(ncols), len(panels)))
     nrows = math.ceil(len(panels) / ncols)
-    fig, axes = plt.subplots(nrows, ncols, squeeze=False,
-                             figsize=(panel_size[0] * ncols, panel_size[1] * nrows))
+    fig, axes = plt.subplots(
+        nrows, ncols, squeeze=False, figsize=(panel_size[0] * ncols, panel_size[1] * nrows)
+    )
     try:
         for ax, panel in zip(axes.flat, panels):
             _draw(ax, panel)
-        for ax in list(axes.flat)[len(panels):]:
+        for ax in list(axes.flat)[len(panels) :]:
             ax.set_visible(False)
         if title:
             fig.suptitle(title, fontsize=11)
@@ -180,8 +207,14 @@ def _layout(fig, nrows: int, ncols: int, size: tuple[float, float], title: bool)
     for these uniform panels)."""
     w, h = size[0] * ncols, size[1] * nrows
     left, right, bottom, top = 0.72, 0.12, 0.5, 0.32 + (0.3 if title else 0.0)
-    fig.subplots_adjust(left=left / w, right=1 - right / w, bottom=bottom / h, top=1 - top / h,
-                        wspace=0.9 / (size[0] - 0.84), hspace=0.95 / (size[1] - 0.82))
+    fig.subplots_adjust(
+        left=left / w,
+        right=1 - right / w,
+        bottom=bottom / h,
+        top=1 - top / h,
+        wspace=0.9 / (size[0] - 0.84),
+        hspace=0.95 / (size[1] - 0.82),
+    )
 
 
 def heatmap(
@@ -213,8 +246,15 @@ def heatmap(
             for i in range(len(rows)):
                 for j in range(len(cols)):
                     dark = np.isfinite(v[i, j]) and v[i, j] < mid
-                    ax.text(j, i, text[i][j], ha="center", va="center", fontsize=7,
-                            color="white" if dark else "black")
+                    ax.text(
+                        j,
+                        i,
+                        text[i][j],
+                        ha="center",
+                        va="center",
+                        fontsize=7,
+                        color="white" if dark else "black",
+                    )
         cb = fig.colorbar(im, ax=ax)
         cb.set_label(colorbar, fontsize=8)
         cb.ax.tick_params(labelsize=7)

@@ -28,8 +28,12 @@ __all__ = ["export_meshes"]
 def _net(a: dict, prefix: str):
     from ..network.model import SpringNetwork
 
-    return SpringNetwork(a[prefix + "positions"], a[prefix + "springs"], a[prefix + "stiffness"],
-                         a[prefix + "rest_length"])
+    return SpringNetwork(
+        a[prefix + "positions"],
+        a[prefix + "springs"],
+        a[prefix + "stiffness"],
+        a[prefix + "rest_length"],
+    )
 
 
 def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[Path]:
@@ -53,22 +57,33 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
                     if p + "x" not in a:
                         continue
                     net = _net(a, p)
-                    roles = spring_roles(net.n_springs, sources=a[f"t{k}/sources"],
-                                         targets=a[f"t{k}/targets"])
+                    roles = spring_roles(
+                        net.n_springs, sources=a[f"t{k}/sources"], targets=a[f"t{k}/targets"]
+                    )
                     if export.networks:
-                        written.append(write_mesh(network_mesh(net, a[p + "x"],
-                                                               fields={"role": roles}),
-                                                  folder / f"{solver}_{rule}_t{k}_{stage}.vtu"))
+                        written.append(
+                            write_mesh(
+                                network_mesh(net, a[p + "x"], fields={"role": roles}),
+                                folder / f"{solver}_{rule}_t{k}_{stage}.vtu",
+                            )
+                        )
                 s = f"t{k}/series/"
                 if export.series and s + "x" in a and roles is not None:
                     base = _net(a, f"t{k}/initial/")
                     frames = (
-                        network_mesh(base.with_rest_length(L).with_stiffness(kk), x,
-                                     fields={"role": roles})
+                        network_mesh(
+                            base.with_rest_length(L).with_stiffness(kk), x, fields={"role": roles}
+                        )
                         for L, kk, x in zip(a[s + "rest_length"], a[s + "stiffness"], a[s + "x"])
                     )
-                    written.append(write_series(frames, a[s + "steps"].astype(float), folder,
-                                                f"{solver}_{rule}_t{k}_trajectory"))
+                    written.append(
+                        write_series(
+                            frames,
+                            a[s + "steps"].astype(float),
+                            folder,
+                            f"{solver}_{rule}_t{k}_trajectory",
+                        )
+                    )
         elif "net/x" in a:
             n = unit.meta["n"]
             net = _net(a, "net/")
@@ -76,16 +91,24 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
             roles = spring_roles(net.n_springs, sources=sources)
             stage = "" if result.scene.kind == "transmission" else "_final"
             if export.networks:
-                written.append(write_mesh(network_mesh(net, a["net/x"], fields={"role": roles}),
-                                          folder / f"network_n{n}{stage}.vtu"))
+                written.append(
+                    write_mesh(
+                        network_mesh(net, a["net/x"], fields={"role": roles}),
+                        folder / f"network_n{n}{stage}.vtu",
+                    )
+                )
             if export.continuum and "cont/points" in a:
-                mesh = continuum_mesh(a["cont/points"], a["cont/triangles"],
-                                      a["cont/displacement"], a["cont/strain"], a["cont/stress"],
-                                      cell_fields={"principal_strain": a["cont/principal"]})
+                mesh = continuum_mesh(
+                    a["cont/points"],
+                    a["cont/triangles"],
+                    a["cont/displacement"],
+                    a["cont/strain"],
+                    a["cont/stress"],
+                    cell_fields={"principal_strain": a["cont/principal"]},
+                )
                 written.append(write_mesh(mesh, folder / f"continuum_n{n}{stage}.vtu"))
             if export.series and "net/series_x" in a:
                 times = np.asarray(a["net/series_times"], dtype=float)
-                frames = (network_mesh(net, x, fields={"role": roles})
-                          for x in a["net/series_x"])
+                frames = (network_mesh(net, x, fields={"role": roles}) for x in a["net/series_x"])
                 written.append(write_series(frames, times, folder, f"network_n{n}_relaxation"))
     return written

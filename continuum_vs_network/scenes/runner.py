@@ -100,9 +100,13 @@ class Unit:
     @property
     def fingerprint(self) -> str:
         text = json.dumps(
-            {"func": f"{self.func.__module__}.{self.func.__qualname__}",
-             "params": self.params, "depends": self.depends},
-            sort_keys=True, default=str,
+            {
+                "func": f"{self.func.__module__}.{self.func.__qualname__}",
+                "params": self.params,
+                "depends": self.depends,
+            },
+            sort_keys=True,
+            default=str,
         )
         return hashlib.sha256(text.encode()).hexdigest()[:20]
 
@@ -285,8 +289,9 @@ def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None
             np.savez_compressed(fh, **{k: np.asarray(v) for k, v in arrays.items()})
         record = {"history": False, "meta": meta}
     record.update(key=unit.key, fingerprint=unit.fingerprint, seconds=float(seconds))
-    write_text_atomic(_record_path(directory, unit.key),
-                      json.dumps(record, sort_keys=True, default=_json_default))
+    write_text_atomic(
+        _record_path(directory, unit.key), json.dumps(record, sort_keys=True, default=_json_default)
+    )
 
 
 def _json_default(obj: Any) -> Any:
@@ -421,8 +426,9 @@ def run_scene(
             shutil.rmtree(directory / sub, ignore_errors=True)
         (directory / "run.json").unlink(missing_ok=True)
     _units_dir(directory).mkdir(parents=True, exist_ok=True)
-    write_text_atomic(directory / "scene.json",
-                      json.dumps(scene.to_dict(), indent=1, sort_keys=True))
+    write_text_atomic(
+        directory / "scene.json", json.dumps(scene.to_dict(), indent=1, sort_keys=True)
+    )
     units = plan(scene)
     keys = [u.key for u in units]
     if len(set(keys)) != len(keys):  # pragma: no cover - a planning bug
@@ -461,8 +467,9 @@ def run_scene(
         numpy=np.__version__,
         scipy=_scipy_version(),
         platform=platform.platform(terse=True),
-        command=command if command is not None else " ".join(
-            [Path(sys.argv[0]).name, *sys.argv[1:]]),
+        command=command
+        if command is not None
+        else " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
         seeds=_seeds(scene),
         started=started,
         wall_seconds=wall,
@@ -471,8 +478,9 @@ def run_scene(
         reused=reused,
         workers=int(workers),
     )
-    write_text_atomic(directory / "run.json",
-                      json.dumps(dataclasses.asdict(prov), indent=1, sort_keys=True))
+    write_text_atomic(
+        directory / "run.json", json.dumps(dataclasses.asdict(prov), indent=1, sort_keys=True)
+    )
     return load_result(scene, directory, units=units)
 
 
@@ -500,8 +508,7 @@ def _new_pool(workers: int):
     from concurrent.futures import ProcessPoolExecutor
 
     # spawn, not fork: a forked child would inherit this process's threads and locks
-    return ProcessPoolExecutor(max_workers=workers,
-                               mp_context=multiprocessing.get_context("spawn"))
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
 
 
 def _run_pool(pool, scene: Scene, units: list[Unit], directory: Path, bar) -> None:
@@ -531,8 +538,9 @@ def _bar(progress: bool, name: str, units: list[Unit], done: set[str]):
         return None
     total = sum(u.weight for u in units)
     initial = sum(u.weight for u in units if u.key in done)
-    return tqdm(total=total, initial=initial, desc=name, unit="step", leave=True,
-                dynamic_ncols=True)
+    return tqdm(
+        total=total, initial=initial, desc=name, unit="step", leave=True, dynamic_ncols=True
+    )
 
 
 def _clean(directory: Path, units: list[Unit]) -> None:
@@ -571,7 +579,7 @@ def load_result(
     groups: dict[str, list[str]] = {}
     for u in units:
         if u.key.startswith("train/"):
-            groups.setdefault(u.key[len("train/"):].rsplit("/trial", 1)[0], []).append(u.key)
+            groups.setdefault(u.key[len("train/") :].rsplit("/trial", 1)[0], []).append(u.key)
     histories = {g: _merged_history(directory, g, ks) for g, ks in groups.items()}
     prov = json.loads((directory / "run.json").read_text())
     prov["seeds"] = tuple(prov["seeds"])
@@ -597,11 +605,22 @@ def _scipy_version() -> str:
 def _git_commit() -> str:
     src = Path(__file__).resolve().parents[2]
     try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=src, capture_output=True,
-                              text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"],
-                               cwd=src, capture_output=True, text=True, timeout=10,
-                               check=True).stdout.strip()
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=src,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=src,
+            capture_output=True,
+            text=True,
+            timeout=10,
+            check=True,
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     return head + ("+dirty" if dirty else "")

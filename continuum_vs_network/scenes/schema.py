@@ -188,25 +188,41 @@ class NetworkSpec:
     packing's contact network).
     """
 
-    builder: str = _key("str", doc="network builder", choices=("paper", "triangular", "diluted",
-                                                                 "jammed"))
-    n_nodes: int | None = _key("int", None, "about this many nodes (learning on lattices, "
-                               "diluted or jammed networks)", check=_at_least(4))
-    size: int | None = _key("int", None, "one n x n triangular lattice (stability)",
-                            check=_at_least(3))
+    builder: str = _key(
+        "str", doc="network builder", choices=("paper", "triangular", "diluted", "jammed")
+    )
+    n_nodes: int | None = _key(
+        "int",
+        None,
+        "about this many nodes (learning on lattices, diluted or jammed networks)",
+        check=_at_least(4),
+    )
+    size: int | None = _key(
+        "int", None, "one n x n triangular lattice (stability)", check=_at_least(3)
+    )
     sizes: tuple[int, ...] | None = _key(
-        "list[int]", None, "n x n triangular lattices, one per entry (transmission, relaxation, "
-        "solvers)", check=_all(_unique_nonempty, _each(_at_least(3)), _increasing))
-    noise: float | None = _key("float", None, "position noise as a fraction of the spacing "
-                               "(default 0.1 for learning and stability, 0 otherwise)",
-                               check=_non_negative)
-    fraction: float = _key("float", 0.2, "fraction of springs removed (diluted)",
-                           check=_open_unit)
+        "list[int]",
+        None,
+        "n x n triangular lattices, one per entry (transmission, relaxation, solvers)",
+        check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
+    )
+    noise: float | None = _key(
+        "float",
+        None,
+        "position noise as a fraction of the spacing "
+        "(default 0.1 for learning and stability, 0 otherwise)",
+        check=_non_negative,
+    )
+    fraction: float = _key("float", 0.2, "fraction of springs removed (diluted)", check=_open_unit)
     stiffness_ratios: tuple[float, ...] = _key(
-        "list[float]", (), "stiffness ratios k_stiff / k_soft (stability)",
-        check=_each(_at_least(1.0)))
-    stiff_fraction: float = _key("float", 0.2, "fraction of springs made stiff (stability)",
-                                 check=_open_unit)
+        "list[float]",
+        (),
+        "stiffness ratios k_stiff / k_soft (stability)",
+        check=_each(_at_least(1.0)),
+    )
+    stiff_fraction: float = _key(
+        "float", 0.2, "fraction of springs made stiff (stability)", check=_open_unit
+    )
 
 
 @dataclass(frozen=True)
@@ -222,41 +238,61 @@ class TaskSpec:
     n_sources: int = _key("int", 10, "source springs (stern)", check=_at_least(1))
     n_targets: int = _key("int", 3, "target springs (stern)", check=_at_least(1))
     source_std: float = _key("float", 0.1, "std of the source strains (stern)", check=_positive)
-    target_std: float = _key("float", 0.1, "std of the desired target strains (stern)",
-                             check=_positive)
-    strain: float = _key("float", 0.1, "strain of the clamped source spring (source)",
-                         check=_strain)
-    strains: tuple[float, ...] = _key("list[float]", (), "extreme source strains (stability)",
-                                      check=_each(_strain))
+    target_std: float = _key(
+        "float", 0.1, "std of the desired target strains (stern)", check=_positive
+    )
+    strain: float = _key(
+        "float", 0.1, "strain of the clamped source spring (source)", check=_strain
+    )
+    strains: tuple[float, ...] = _key(
+        "list[float]", (), "extreme source strains (stability)", check=_each(_strain)
+    )
 
 
 @dataclass(frozen=True)
 class LearningSpec:
     """``[learning]``: the training runs (every rule x solver x noise level, ``trials`` each)."""
 
-    rules: tuple[str, ...] = _key("list[str]", doc="learning runs", choices=RULES,
-                                  check=_unique_nonempty)
-    trials: int = _key("int", 10, "independent trials (seeds seed, seed + 1, ...)",
-                       check=_at_least(1))
+    rules: tuple[str, ...] = _key(
+        "list[str]", doc="learning runs", choices=RULES, check=_unique_nonempty
+    )
+    trials: int = _key(
+        "int", 10, "independent trials (seeds seed, seed + 1, ...)", check=_at_least(1)
+    )
     steps: int = _key("int", 300, "learning steps per trial", check=_at_least(1))
-    reference: str = _key("str", "current", "strain convention of clamps and error",
-                          choices=("current", "initial"))
+    reference: str = _key(
+        "str", "current", "strain convention of clamps and error", choices=("current", "initial")
+    )
     alpha_gcl: float = _key("float", 1e-3, "GCL learning rate", check=_positive)
     eta: float = _key("float", 0.1, "GCL nudge amplitude", check=_positive)
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
     alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
-    floor: float = _key("float", 0.1, "rest-length floor of the *_floor, *_frozen, gpc and "
-                        "exact runs", check=_positive)
+    floor: float = _key(
+        "float",
+        0.1,
+        "rest-length floor of the *_floor, *_frozen, gpc and exact runs",
+        check=_positive,
+    )
     noise: tuple[float, ...] = _key(
-        "list[float]", (0.0,), "relative read-out noise levels (one run per level)",
-        check=_all(_unique_nonempty, _each(_non_negative)))
-    measure: bool = _key("bool", True, "solve the free state after every step to measure the "
-                         "error even when the rule does not need it (GPC)")
+        "list[float]",
+        (0.0,),
+        "relative read-out noise levels (one run per level)",
+        check=_all(_unique_nonempty, _each(_non_negative)),
+    )
+    measure: bool = _key(
+        "bool",
+        True,
+        "solve the free state after every step to measure the "
+        "error even when the rule does not need it (GPC)",
+    )
     sweeps: bool = _key("bool", False, "source sweeps of the trained networks (Fig. 5)")
     sweep_span: float = _key("float", 5.0, "sweep source strains S +- span", check=_positive)
     sweep_points: int = _key("int", 11, "points per sweep", check=_at_least(2))
-    compare_gradient: bool = _key("bool", False, "cosine of each rule's step with the exact "
-                                  "gradient, at the initial and final networks")
+    compare_gradient: bool = _key(
+        "bool",
+        False,
+        "cosine of each rule's step with the exact gradient, at the initial and final networks",
+    )
     checkpoint_every: int = _key("int", 25, "steps between checkpoints", check=_at_least(1))
 
 
@@ -269,16 +305,23 @@ class SolverSpec:
     every method listed.
     """
 
-    methods: tuple[str, ...] = _key("list[str]", ("newton",), "equilibrium methods",
-                                    choices=SOLVER_METHODS, check=_unique_nonempty)
-    tol: float = _key("float", 1e-10, "relative residual tolerance (forces / mean(k) mean(L))",
-                      check=_open_unit)
+    methods: tuple[str, ...] = _key(
+        "list[str]",
+        ("newton",),
+        "equilibrium methods",
+        choices=SOLVER_METHODS,
+        check=_unique_nonempty,
+    )
+    tol: float = _key(
+        "float", 1e-10, "relative residual tolerance (forces / mean(k) mean(L))", check=_open_unit
+    )
     max_seconds: float = _key("float", 60.0, "time budget of one solve (s)", check=_positive)
-    paper_iterations: int = _key("int", 300, "Adagrad iterations per state (learning with "
-                                 "'paper')", check=_at_least(1))
+    paper_iterations: int = _key(
+        "int", 300, "Adagrad iterations per state (learning with 'paper')", check=_at_least(1)
+    )
     rod_stiffnesses: tuple[float, ...] = _key(
-        "list[float]", (), "stiffness of the paper's clamp rods (stability)",
-        check=_each(_positive))
+        "list[float]", (), "stiffness of the paper's clamp rods (stability)", check=_each(_positive)
+    )
     ramp: int = _key("int", 4, "strain continuation steps (stability)", check=_at_least(1))
 
 
@@ -286,14 +329,17 @@ class SolverSpec:
 class ContinuumSpec:
     """``[continuum]``: the finite-element continuum compared with the network."""
 
-    refine: int = _key("int", 1, "uniform refinements of the network's faces",
-                       check=_between(0, 4))
+    refine: int = _key("int", 1, "uniform refinements of the network's faces", check=_between(0, 4))
     order: int = _key("int", 2, "polynomial order of the displacement", choices=(1, 2))
-    patch_radius: float = _key("float", 0.3, "source patch radius / source spring length",
-                               check=_open_unit)
-    material: str = _key("str", "homogenised", "'homogenised' (relaxed moduli of the network) "
-                         "or 'lattice' (lam = mu = sqrt(3) k / 4)",
-                         choices=("homogenised", "lattice"))
+    patch_radius: float = _key(
+        "float", 0.3, "source patch radius / source spring length", check=_open_unit
+    )
+    material: str = _key(
+        "str",
+        "homogenised",
+        "'homogenised' (relaxed moduli of the network) or 'lattice' (lam = mu = sqrt(3) k / 4)",
+        choices=("homogenised", "lattice"),
+    )
 
 
 @dataclass(frozen=True)
@@ -302,12 +348,18 @@ class DynamicsSpec:
 
     damping: float = _key("float", 1.0, "node drag c (force per velocity)", check=_positive)
     inertia: bool = _key("bool", False, "unit node masses (True) or overdamped (False)")
-    scheme: str = _key("str", "implicit", "time stepping", choices=("implicit", "newmark",
-                                                                     "explicit"))
-    step: float = _key("float", 0.01, "step displacement of the right side / width",
-                       check=_between(1e-6, 0.2))
-    fraction: float = _key("float", 0.01, "relaxed when the displacement to the final state "
-                           "stays below this fraction of its start", check=_open_unit)
+    scheme: str = _key(
+        "str", "implicit", "time stepping", choices=("implicit", "newmark", "explicit")
+    )
+    step: float = _key(
+        "float", 0.01, "step displacement of the right side / width", check=_between(1e-6, 0.2)
+    )
+    fraction: float = _key(
+        "float",
+        0.01,
+        "relaxed when the displacement to the final state stays below this fraction of its start",
+        check=_open_unit,
+    )
     steps_per_tau: int = _key("int", 20, "time steps per slowest-mode time", check=_at_least(2))
     duration: float = _key("float", 12.0, "run length in slowest-mode times", check=_positive)
     frames: int = _key("int", 25, "frames of the exported series", check=_at_least(2))
@@ -321,8 +373,12 @@ class ExportSpec:
     continuum: bool = _key("bool", True, "continuum fields")
     series: bool = _key("bool", False, "time series (learning trajectory, relaxation)")
     every: int = _key("int", 10, "learning steps between series frames", check=_at_least(1))
-    trials: tuple[int, ...] = _key("list[int]", (0,), "learning trials to export",
-                                   check=_all(_unique_nonempty, _each(_non_negative)))
+    trials: tuple[int, ...] = _key(
+        "list[int]",
+        (0,),
+        "learning trials to export",
+        check=_all(_unique_nonempty, _each(_non_negative)),
+    )
 
 
 @dataclass(frozen=True)
@@ -448,14 +504,16 @@ def _convert(value: Any, type_: str, where: tuple[str, str, str]) -> Any:
 
 def _parse_table(cls: type, data: Any, file: str, table: str) -> Any:
     if not isinstance(data, Mapping):
-        raise SceneError(file, "(top level)", table,
-                         f"must be a table [{table}], got {type(data).__name__}")
+        raise SceneError(
+            file, "(top level)", table, f"must be a table [{table}], got {type(data).__name__}"
+        )
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
         if key not in fields:
-            raise SceneError(file, table, key,
-                             f"unknown key; [{table}] accepts {', '.join(sorted(fields))}")
+            raise SceneError(
+                file, table, key, f"unknown key; [{table}] accepts {', '.join(sorted(fields))}"
+            )
         meta = fields[key].metadata
         converted = _convert(value, meta["type"], (file, table, key))
         choices = meta["choices"]
@@ -463,16 +521,19 @@ def _parse_table(cls: type, data: Any, file: str, table: str) -> Any:
             items = converted if isinstance(converted, tuple) else (converted,)
             for item in items:
                 if item not in choices:
-                    raise SceneError(file, table, key,
-                                     f"{item!r} is not one of {', '.join(map(repr, choices))}")
+                    raise SceneError(
+                        file, table, key, f"{item!r} is not one of {', '.join(map(repr, choices))}"
+                    )
         if meta["check"] is not None:
             msg = meta["check"](converted)
             if msg:
                 raise SceneError(file, table, key, f"{msg} (got {value!r})")
         kwargs[key] = converted
     for name, f in fields.items():
-        if name not in kwargs and f.default is dataclasses.MISSING and (
-            f.default_factory is dataclasses.MISSING
+        if (
+            name not in kwargs
+            and f.default is dataclasses.MISSING
+            and (f.default_factory is dataclasses.MISSING)
         ):
             raise SceneError(file, table, name, "is required")
     return cls(**kwargs)
@@ -495,17 +556,21 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
             top[key] = _convert(value, _TOP[key][0], (file, "(top level)", key))
         else:
             known = sorted([*_TOP, *_TABLES])
-            raise SceneError(file, "(top level)", key,
-                             f"unknown key or table; a scene has {', '.join(known)}")
+            raise SceneError(
+                file, "(top level)", key, f"unknown key or table; a scene has {', '.join(known)}"
+            )
     for key, (_, default) in _TOP.items():
         if key not in top:
             if default is _REQUIRED:
                 raise SceneError(file, "(top level)", key, "is required")
             top[key] = default
     if not _NAME.match(top["name"]):
-        raise SceneError(file, "(top level)", "name",
-                         f"must be a plain name (letters, digits, '_', '-', '.'), "
-                         f"got {top['name']!r}")
+        raise SceneError(
+            file,
+            "(top level)",
+            "name",
+            f"must be a plain name (letters, digits, '_', '-', '.'), got {top['name']!r}",
+        )
     desc = top["description"].strip()
     if not desc or "\n" in desc:
         raise SceneError(file, "(top level)", "description", "must be one non-empty line")
@@ -513,8 +578,12 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
     if top["seed"] < 0:
         raise SceneError(file, "(top level)", "seed", f"must be >= 0, got {top['seed']}")
     if top["kind"] not in KINDS:
-        raise SceneError(file, "(top level)", "kind",
-                         f"{top['kind']!r} is not one of {', '.join(map(repr, KINDS))}")
+        raise SceneError(
+            file,
+            "(top level)",
+            "kind",
+            f"{top['kind']!r} is not one of {', '.join(map(repr, KINDS))}",
+        )
     scene = Scene(**top, **tables, source=str(file))
     _check_kind(scene, file)
     return scene
@@ -527,8 +596,9 @@ def _check_kind(scene: Scene, file: str) -> None:
     for table in sorted(need - given):
         raise SceneError(file, table, "", f"kind {scene.kind!r} needs a [{table}] table")
     for table in sorted(given - need - accept - {"report"}):
-        raise SceneError(file, table, "",
-                         f"kind {scene.kind!r} does not use a [{table}] table; remove it")
+        raise SceneError(
+            file, table, "", f"kind {scene.kind!r} does not use a [{table}] table; remove it"
+        )
 
     def need_key(table: str, key: str, why: str) -> None:
         spec = getattr(scene, table)
@@ -541,52 +611,78 @@ def _check_kind(scene: Scene, file: str) -> None:
     if kind == "learning":
         assert net is not None and task is not None and scene.learning is not None
         if net.builder == "paper" and task.kind != "paper":
-            raise SceneError(file, "task", "kind",
-                             "the paper network takes the paper task (kind = 'paper')")
+            raise SceneError(
+                file, "task", "kind", "the paper network takes the paper task (kind = 'paper')"
+            )
         if net.builder != "paper":
             if task.kind != "stern":
-                raise SceneError(file, "task", "kind",
-                                 f"a {net.builder!r} network takes kind = 'stern'")
+                raise SceneError(
+                    file, "task", "kind", f"a {net.builder!r} network takes kind = 'stern'"
+                )
             need_key("network", "n_nodes", "for a learning scene on a large network")
             if scene.learning.reference != "initial":
-                raise SceneError(file, "learning", "reference",
-                                 "Stern-scale runs measure strains against the initial rest "
-                                 "lengths; set reference = 'initial'")
+                raise SceneError(
+                    file,
+                    "learning",
+                    "reference",
+                    "Stern-scale runs measure strains against the initial rest "
+                    "lengths; set reference = 'initial'",
+                )
             bad = [r for r in scene.learning.rules if r in ("gcl_floor",)]
             if bad:
-                raise SceneError(file, "learning", "rules",
-                                 f"{bad[0]!r} exists for the paper task only")
+                raise SceneError(
+                    file, "learning", "rules", f"{bad[0]!r} exists for the paper task only"
+                )
         if scene.solver is not None:
             bad = [m for m in scene.solver.methods if m not in ("newton", "paper")]
             if bad:
-                raise SceneError(file, "solver", "methods",
-                                 f"learning runs use 'newton' (exact equilibria) or 'paper' "
-                                 f"(the paper's Adagrad), got {bad[0]!r}")
+                raise SceneError(
+                    file,
+                    "solver",
+                    "methods",
+                    f"learning runs use 'newton' (exact equilibria) or 'paper' "
+                    f"(the paper's Adagrad), got {bad[0]!r}",
+                )
         if scene.export is not None:
             bad = [t for t in scene.export.trials if t >= scene.learning.trials]
             if bad:
-                raise SceneError(file, "export", "trials",
-                                 f"trial {bad[0]} does not exist ([learning] trials = "
-                                 f"{scene.learning.trials})")
+                raise SceneError(
+                    file,
+                    "export",
+                    "trials",
+                    f"trial {bad[0]} does not exist ([learning] trials = {scene.learning.trials})",
+                )
     else:
         if net.builder != "triangular":
-            raise SceneError(file, "network", "builder",
-                             f"kind {kind!r} runs on triangular lattices ('triangular')")
+            raise SceneError(
+                file,
+                "network",
+                "builder",
+                f"kind {kind!r} runs on triangular lattices ('triangular')",
+            )
         if task is not None and task.kind != "source":
             raise SceneError(file, "task", "kind", f"kind {kind!r} takes kind = 'source'")
         if kind == "stability":
             need_key("network", "size", "for a stability scene")
             if not (net.stiffness_ratios or task.strains or scene.solver.rod_stiffnesses):
-                raise SceneError(file, "network", "stiffness_ratios",
-                                 "a stability scene needs cases: stiffness_ratios, "
-                                 "[task] strains or [solver] rod_stiffnesses")
+                raise SceneError(
+                    file,
+                    "network",
+                    "stiffness_ratios",
+                    "a stability scene needs cases: stiffness_ratios, "
+                    "[task] strains or [solver] rod_stiffnesses",
+                )
         else:
             need_key("network", "sizes", f"for a {kind} scene")
     if kind == "relaxation" and scene.continuum is not None:
         assert scene.dynamics is not None
         if scene.dynamics.scheme == "explicit":
-            raise SceneError(file, "dynamics", "scheme",
-                             "the continuum has no explicit scheme; use 'implicit' or 'newmark'")
+            raise SceneError(
+                file,
+                "dynamics",
+                "scheme",
+                "the continuum has no explicit scheme; use 'implicit' or 'newmark'",
+            )
 
 
 # -- files ---------------------------------------------------------------------------------
@@ -601,9 +697,12 @@ def builtin_path(name: str) -> Path:
     folder = resources.files("continuum_vs_network.scenes") / "builtin"
     path = Path(str(folder / f"{name}.toml"))
     if not path.is_file():
-        raise SceneError(f"{name}.toml", "", "",
-                         f"no built-in scene {name!r}; built-in scenes: "
-                         f"{', '.join(builtin_names())}")
+        raise SceneError(
+            f"{name}.toml",
+            "",
+            "",
+            f"no built-in scene {name!r}; built-in scenes: {', '.join(builtin_names())}",
+        )
     return path
 
 
@@ -624,8 +723,9 @@ def load_scene(scene: str | Path) -> Scene:
 
 def key_reference() -> str:
     """Every table and key with its type, default and meaning (plain text)."""
-    lines = ["(top level): name (str), description (str), seed (int, 0), kind "
-             f"({' | '.join(KINDS)})"]
+    lines = [
+        f"(top level): name (str), description (str), seed (int, 0), kind ({' | '.join(KINDS)})"
+    ]
     for table, cls in _TABLES.items():
         lines.append(f"\n[{table}]")
         for f in dataclasses.fields(cls):

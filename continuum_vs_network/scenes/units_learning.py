@@ -42,12 +42,28 @@ def _solvers(scene: Scene) -> tuple[str, ...]:
 
 def _training_depends(scene: Scene) -> dict[str, Any]:
     d = scene.to_dict()
-    learning = {k: v for k, v in d["learning"].items()
-                if k not in ("rules", "trials", "noise", "sweeps", "sweep_span", "sweep_points",
-                             "compare_gradient")}
+    learning = {
+        k: v
+        for k, v in d["learning"].items()
+        if k
+        not in (
+            "rules",
+            "trials",
+            "noise",
+            "sweeps",
+            "sweep_span",
+            "sweep_points",
+            "compare_gradient",
+        )
+    }
     solver = d.get("solver", {})
-    return {"seed": scene.seed, "network": d["network"], "task": d["task"],
-            "learning": learning, "paper_iterations": solver.get("paper_iterations", 300)}
+    return {
+        "seed": scene.seed,
+        "network": d["network"],
+        "task": d["task"],
+        "learning": learning,
+        "paper_iterations": solver.get("paper_iterations", 300),
+    }
 
 
 def plan_learning(scene: Scene) -> list[Unit]:
@@ -63,38 +79,64 @@ def plan_learning(scene: Scene) -> list[Unit]:
             for i, noise in enumerate(L.noise):
                 for k in range(L.trials):
                     series = export.every if (k in series_trials and i == 0) else 0
-                    units.append(Unit(
-                        key=f"train/{group_key(solver, rule, i)}/trial{k}",
-                        func=train_unit,
-                        params={"solver": solver, "rule": rule, "noise": noise,
-                                "seed": scene.seed + k, "series_every": series},
-                        depends=dep,
-                        weight=L.steps,
-                    ))
+                    units.append(
+                        Unit(
+                            key=f"train/{group_key(solver, rule, i)}/trial{k}",
+                            func=train_unit,
+                            params={
+                                "solver": solver,
+                                "rule": rule,
+                                "noise": noise,
+                                "seed": scene.seed + k,
+                                "series_every": series,
+                            },
+                            depends=dep,
+                            weight=L.steps,
+                        )
+                    )
     first = {"sweep_span": L.sweep_span, "sweep_points": L.sweep_points}
     for solver in _solvers(scene):
         for rule in L.rules:
             deps = {**dep, "trials": L.trials, "noise": L.noise[0]}
             if L.sweeps:
-                units.append(Unit(key=f"sweeps/{solver}/{rule}", func=sweeps_unit,
-                                  params={"group": group_key(solver, rule, 0), **first},
-                                  depends=deps, phase=1))
+                units.append(
+                    Unit(
+                        key=f"sweeps/{solver}/{rule}",
+                        func=sweeps_unit,
+                        params={"group": group_key(solver, rule, 0), **first},
+                        depends=deps,
+                        phase=1,
+                    )
+                )
             if scene.export is not None or scene.report.images:
                 trials = list(export.trials) if export is not None else [0]
-                units.append(Unit(
-                    key=f"fields/{solver}/{rule}", func=fields_unit,
-                    params={"group": group_key(solver, rule, 0), "trials": trials,
-                            "series": bool(series_trials)},
-                    depends=deps, phase=1))
+                units.append(
+                    Unit(
+                        key=f"fields/{solver}/{rule}",
+                        func=fields_unit,
+                        params={
+                            "group": group_key(solver, rule, 0),
+                            "trials": trials,
+                            "series": bool(series_trials),
+                        },
+                        depends=deps,
+                        phase=1,
+                    )
+                )
     if L.compare_gradient:
         solver = "newton" if "newton" in _solvers(scene) else _solvers(scene)[0]
         for rule in L.rules:
             if rule == "exact":
                 continue
-            units.append(Unit(key=f"gradient/{rule}", func=gradient_unit,
-                              params={"group": group_key(solver, rule, 0), "rule": rule},
-                              depends={**dep, "trials": L.trials, "noise": L.noise[0]},
-                              phase=1))
+            units.append(
+                Unit(
+                    key=f"gradient/{rule}",
+                    func=gradient_unit,
+                    params={"group": group_key(solver, rule, 0), "rule": rule},
+                    depends={**dep, "trials": L.trials, "noise": L.noise[0]},
+                    phase=1,
+                )
+            )
     return units
 
 
@@ -111,12 +153,26 @@ def _stern_network(rng: np.random.Generator, *, n_nodes: int, kind: str, noise: 
     return stern_network(n_nodes, rng, kind=kind, noise=noise)
 
 
-def _stern_task(net, rng: np.random.Generator, *, n_sources: int, n_targets: int,
-                source_std: float, target_std: float):
+def _stern_task(
+    net,
+    rng: np.random.Generator,
+    *,
+    n_sources: int,
+    n_targets: int,
+    source_std: float,
+    target_std: float,
+):
     from ..learning.tasks import stern_task
 
-    return stern_task(net, n_sources, n_targets, rng, candidates=np.ones(net.n_springs, bool),
-                      source_std=source_std, target_std=target_std)
+    return stern_task(
+        net,
+        n_sources,
+        n_targets,
+        rng,
+        candidates=np.ones(net.n_springs, bool),
+        source_std=source_std,
+        target_std=target_std,
+    )
 
 
 def builders(scene: Scene):
@@ -128,10 +184,16 @@ def builders(scene: Scene):
     if net.builder == "paper":
         return functools.partial(_paper_network, noise=noise), paper_task
     return (
-        functools.partial(_stern_network, n_nodes=net.n_nodes, kind=_STERN_KIND[net.builder],
-                          noise=noise),
-        functools.partial(_stern_task, n_sources=task.n_sources, n_targets=task.n_targets,
-                          source_std=task.source_std, target_std=task.target_std),
+        functools.partial(
+            _stern_network, n_nodes=net.n_nodes, kind=_STERN_KIND[net.builder], noise=noise
+        ),
+        functools.partial(
+            _stern_task,
+            n_sources=task.n_sources,
+            n_targets=task.n_targets,
+            source_std=task.source_std,
+            target_std=task.target_std,
+        ),
     )
 
 
@@ -157,17 +219,28 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
     if scene.task.kind == "paper":
         from ..learning.replication import paper_experiments
 
-        exps = paper_experiments(reference=L.reference, solver=eq_solver, alpha_gcl=L.alpha_gcl,
-                                 eta=L.eta, alpha_gpc=L.alpha_gpc, alpha_exact=L.alpha_exact,
-                                 floor=L.floor)
+        exps = paper_experiments(
+            reference=L.reference,
+            solver=eq_solver,
+            alpha_gcl=L.alpha_gcl,
+            eta=L.eta,
+            alpha_gpc=L.alpha_gpc,
+            alpha_exact=L.alpha_exact,
+            floor=L.floor,
+        )
         return {e.name: e.rule for e in exps if e.name in L.rules}
     from ..learning.stern import stern_rules
 
     kw = {"alpha": L.alpha_gcl, "eta": L.eta, "alpha_gpc": L.alpha_gpc, "solver": eq_solver}
     free = stern_rules(**kw, learn_targets=True)
     frozen = stern_rules(**kw, learn_targets=False)
-    table = {"gcl": free["GCL"], "gpc": free["GPC"], "exact": free["exact"],
-             "gcl_frozen": frozen["GCL"], "gpc_frozen": frozen["GPC"]}
+    table = {
+        "gcl": free["GCL"],
+        "gpc": free["GPC"],
+        "exact": free["exact"],
+        "gcl_frozen": frozen["GCL"],
+        "gpc_frozen": frozen["GPC"],
+    }
     return {name: table[name] for name in L.rules}
 
 
@@ -176,9 +249,15 @@ def experiments(scene: Scene, solver: str = "newton"):
     from ..learning.replication import paper_experiments
 
     L = scene.learning
-    exps = paper_experiments(reference=L.reference, solver=_solver(scene, solver),
-                             alpha_gcl=L.alpha_gcl, eta=L.eta, alpha_gpc=L.alpha_gpc,
-                             alpha_exact=L.alpha_exact, floor=L.floor)
+    exps = paper_experiments(
+        reference=L.reference,
+        solver=_solver(scene, solver),
+        alpha_gcl=L.alpha_gcl,
+        eta=L.eta,
+        alpha_gpc=L.alpha_gpc,
+        alpha_exact=L.alpha_exact,
+        floor=L.floor,
+    )
     return tuple(e for e in exps if e.name in L.rules)
 
 
@@ -201,10 +280,19 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext):
         if ctx.on_step is not None:
             ctx.on_step()
 
-    history = train(net, task, rule, L.steps, seeds=(int(params["seed"]),),
-                    noise=float(params["noise"]), measure=L.measure, progress=False,
-                    checkpoint=ctx.checkpoint, checkpoint_every=L.checkpoint_every,
-                    callback=callback)
+    history = train(
+        net,
+        task,
+        rule,
+        L.steps,
+        seeds=(int(params["seed"]),),
+        noise=float(params["noise"]),
+        measure=L.measure,
+        progress=False,
+        checkpoint=ctx.checkpoint,
+        checkpoint_every=L.checkpoint_every,
+        callback=callback,
+    )
     if every:
         _save_frames(frames_file(ctx.directory, ctx.key), frames)
     frames_path.unlink(missing_ok=True)
@@ -227,9 +315,12 @@ def _load_frames(path) -> dict[int, tuple]:
 def _save_frames(path, frames: dict[int, tuple]) -> None:
     steps = sorted(frames)
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
-        np.savez(fh, steps=np.array(steps, dtype=np.int64),
-                 rest_length=np.array([frames[s][0] for s in steps]),
-                 stiffness=np.array([frames[s][1] for s in steps]))
+        np.savez(
+            fh,
+            steps=np.array(steps, dtype=np.int64),
+            rest_length=np.array([frames[s][0] for s in steps]),
+            stiffness=np.array([frames[s][1] for s in steps]),
+        )
 
 
 def sweeps_unit(scene: Scene, params: dict, ctx: UnitContext):
@@ -237,12 +328,17 @@ def sweeps_unit(scene: Scene, params: dict, ctx: UnitContext):
     from ..learning.replication import exact_solver, sweeps
 
     history = ctx.history(params["group"])
-    strains, target = sweeps(history, span=params["sweep_span"],
-                             points=params["sweep_points"], solver=exact_solver())
+    strains, target = sweeps(
+        history, span=params["sweep_span"], points=params["sweep_points"], solver=exact_solver()
+    )
     desired = np.array([t.target_strain[0] for t in history.tasks])
     source = np.array([t.source_strain[0] for t in history.tasks])
-    return {"source_strain": strains, "target_strain": target, "desired": desired,
-            "task_source": source}, {"failed": int(np.sum(np.isnan(target).all(axis=1)))}
+    return {
+        "source_strain": strains,
+        "target_strain": target,
+        "desired": desired,
+        "task_source": source,
+    }, {"failed": int(np.sum(np.isnan(target).all(axis=1)))}
 
 
 def gradient_unit(scene: Scene, params: dict, ctx: UnitContext):
@@ -255,9 +351,15 @@ def gradient_unit(scene: Scene, params: dict, ctx: UnitContext):
     history = ctx.history(params["group"])
     rule = build_rules(scene, "newton")[params["rule"]]
     cost = "strain" if scene.task.kind == "paper" else "length"
-    exact = ExactGradient(1.0, cost=cost, strain_reference=rule.strain_reference,
-                          learn_sources=rule.learn_sources, learn_targets=rule.learn_targets,
-                          dof=rule.dof, solver=Solver())
+    exact = ExactGradient(
+        1.0,
+        cost=cost,
+        strain_reference=rule.strain_reference,
+        learn_sources=rule.learn_sources,
+        learn_targets=rule.learn_targets,
+        dof=rule.dof,
+        solver=Solver(),
+    )
     out = np.full((history.trials, 2), np.nan)
     for i in range(history.trials):
         for j, net in enumerate((history.initial[i], history.final[i])):
@@ -274,8 +376,13 @@ def gradient_unit(scene: Scene, params: dict, ctx: UnitContext):
 def _free_state(net, task, reference: str, x0=None):
     from ..network.equilibrium import relax
 
-    return relax(net, pinned=task.pinned, clamped=task.source_clamps(net, reference), x0=x0,
-                 ramp=1 if x0 is not None else 4)
+    return relax(
+        net,
+        pinned=task.pinned,
+        clamped=task.source_clamps(net, reference),
+        x0=x0,
+        ramp=1 if x0 is not None else 4,
+    )
 
 
 def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
@@ -295,9 +402,15 @@ def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
                 meta["failed"].append(f"trial {k} {stage}: {err.reason}")
                 continue
             p = f"t{k}/{stage}/"
-            arrays.update({p + "positions": net.positions, p + "springs": net.springs,
-                           p + "stiffness": net.stiffness, p + "rest_length": net.rest_length,
-                           p + "x": eq.positions})
+            arrays.update(
+                {
+                    p + "positions": net.positions,
+                    p + "springs": net.springs,
+                    p + "stiffness": net.stiffness,
+                    p + "rest_length": net.rest_length,
+                    p + "x": eq.positions,
+                }
+            )
         arrays[f"t{k}/sources"] = task.sources
         arrays[f"t{k}/targets"] = task.targets
         meta["trials"].append(k)

@@ -40,15 +40,19 @@ _LEFT = 0.6  # nodes within 0.6 spacings of the left (right) edge form the held 
 def plan_physics(scene: Scene) -> list[Unit]:
     """One unit per size."""
     d = scene.to_dict()
-    depends = {k: d[k] for k in ("seed", "network", "task", "continuum", "solver", "dynamics")
-               if k in d}
+    depends = {
+        k: d[k] for k in ("seed", "network", "task", "continuum", "solver", "dynamics") if k in d
+    }
     sizes = scene.network.sizes
     wants_fields = scene.export is not None or scene.report.images
     func = transmission_unit if scene.kind == "transmission" else relaxation_unit
     return [
-        Unit(key=f"{scene.kind}/n{n}", func=func,
-             params={"n": int(n), "fields": bool(wants_fields and n == sizes[-1])},
-             depends=depends)
+        Unit(
+            key=f"{scene.kind}/n{n}",
+            func=func,
+            params={"n": int(n), "fields": bool(wants_fields and n == sizes[-1])},
+            depends=depends,
+        )
         for n in sizes
     ]
 
@@ -120,26 +124,46 @@ def transmission_unit(scene: Scene, params: dict, ctx: UnitContext):
     strain = scene.task.strain
     tol = scene.solver.tol if scene.solver is not None else 1e-10
     a = network_transmission(net, src, strain, tol=tol)
-    arrays: dict[str, Any] = {"springs": a.springs, "distance": a.distance,
-                              "network_strain": a.strain}
+    arrays: dict[str, Any] = {
+        "springs": a.springs,
+        "distance": a.distance,
+        "network_strain": a.strain,
+    }
     fit = _fit(a.distance, a.strain, n)
-    meta: dict[str, Any] = {"n": n, "n_nodes": net.n_nodes, "n_springs": net.n_springs,
-                            "source": src, "strain": strain, "network_seconds": a.seconds,
-                            "network_exponent": fit[0], "network_prefactor": fit[1],
-                            "fit_r_min": fit[2], "fit_r_max": fit[3]}
+    meta: dict[str, Any] = {
+        "n": n,
+        "n_nodes": net.n_nodes,
+        "n_springs": net.n_springs,
+        "source": src,
+        "strain": strain,
+        "network_seconds": a.seconds,
+        "network_exponent": fit[0],
+        "network_prefactor": fit[1],
+        "fit_r_min": fit[2],
+        "fit_r_max": fit[3],
+    }
     if scene.continuum is not None:
         from ..continuum.transmission import continuum_transmission
 
         c = scene.continuum
         length = float(net.lengths()[src])
-        b = continuum_transmission(net, src, strain, material=_material(scene, net),
-                                   refine=c.refine, order=c.order,
-                                   patch_radius=c.patch_radius * length)
+        b = continuum_transmission(
+            net,
+            src,
+            strain,
+            material=_material(scene, net),
+            refine=c.refine,
+            order=c.order,
+            patch_radius=c.patch_radius * length,
+        )
         arrays["continuum_strain"] = b.strain
         cfit = _fit(b.distance, b.strain, n)
-        meta.update(continuum_seconds=b.seconds, continuum_exponent=cfit[0],
-                    continuum_prefactor=cfit[1],
-                    correlation=float(np.corrcoef(a.strain, b.strain)[0, 1]))
+        meta.update(
+            continuum_seconds=b.seconds,
+            continuum_exponent=cfit[0],
+            continuum_prefactor=cfit[1],
+            correlation=float(np.corrcoef(a.strain, b.strain)[0, 1]),
+        )
     if params["fields"]:
         arrays.update(_transmission_fields(scene, net, src, strain, tol))
     return arrays, meta
@@ -149,9 +173,14 @@ def _transmission_fields(scene: Scene, net, src: int, strain: float, tol: float)
     from ..network.equilibrium import relax
 
     eq = relax(net, clamped={src: float(net.clamp_length(src, strain))}, tol=tol)
-    out = {"net/positions": net.positions, "net/springs": net.springs,
-           "net/stiffness": net.stiffness, "net/rest_length": net.rest_length,
-           "net/x": eq.positions, "net/sources": np.array([src])}
+    out = {
+        "net/positions": net.positions,
+        "net/springs": net.springs,
+        "net/stiffness": net.stiffness,
+        "net/rest_length": net.rest_length,
+        "net/x": eq.positions,
+        "net/sources": np.array([src]),
+    }
     if scene.continuum is not None:
         from ..continuum.body import elastic_body
         from ..continuum.mesh import network_mesh
@@ -164,8 +193,13 @@ def _transmission_fields(scene: Scene, net, src: int, strain: float, tol: float)
         r0 = float(np.hypot(*(x[j] - x[i])))
         mat = _material(scene, net)
         body = elastic_body(network_mesh(net, refine=c.refine), mat, order=c.order)
-        fixed = patch_source(body, x[i], x[j], radius=c.patch_radius * r0,
-                             opening=float(net.clamp_length(src, strain)) - r0)
+        fixed = patch_source(
+            body,
+            x[i],
+            x[j],
+            radius=c.patch_radius * r0,
+            opening=float(net.clamp_length(src, strain)) - r0,
+        )
         sol = solve_static(body, fixed)
         out.update(_continuum_fields(body, sol.u, mat))
     return out
@@ -180,9 +214,14 @@ def _continuum_fields(body, u, mat) -> dict:
     sigma = 2 * mat.mu * eps
     sigma[:, 0, 0] += mat.lam * tr
     sigma[:, 1, 1] += mat.lam * tr
-    return {"cont/points": body.mesh.p.T, "cont/triangles": body.mesh.t.T.astype(np.int64),
-            "cont/displacement": vertex_displacement(body, u), "cont/strain": eps,
-            "cont/stress": sigma, "cont/principal": principal_strain(eps)}
+    return {
+        "cont/points": body.mesh.p.T,
+        "cont/triangles": body.mesh.t.T.astype(np.int64),
+        "cont/displacement": vertex_displacement(body, u),
+        "cont/strain": eps,
+        "cont/stress": sigma,
+        "cont/principal": principal_strain(eps),
+    }
 
 
 # -- relaxation ----------------------------------------------------------------------------
@@ -202,8 +241,14 @@ def _decay_rate(lam_min: float, damping: float, inertia: bool) -> float:
 def _smallest_eigenvalue(K, M=None) -> float:
     import scipy.sparse.linalg as spla
 
-    vals = spla.eigsh(K.tocsc(), k=1, M=None if M is None else M.tocsc(), sigma=0.0,
-                      which="LM", return_eigenvectors=False)
+    vals = spla.eigsh(
+        K.tocsc(),
+        k=1,
+        M=None if M is None else M.tocsc(),
+        sigma=0.0,
+        which="LM",
+        return_eigenvectors=False,
+    )
     return float(vals[0])
 
 
@@ -228,29 +273,49 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
     tau = 1.0 / _decay_rate(lam_net, dyn.damping, dyn.inertia)
     dt, t_end = tau / dyn.steps_per_tau, dyn.duration * tau
     t0 = time.perf_counter()
-    tr = simulate(net, dt=dt, t_end=t_end, pinned=left, prescribed=prescribed,
-                  damping=dyn.damping, inertia=dyn.inertia, scheme=dyn.scheme,
-                  jacobian="frozen")
+    tr = simulate(
+        net,
+        dt=dt,
+        t_end=t_end,
+        pinned=left,
+        prescribed=prescribed,
+        damping=dyn.damping,
+        inertia=dyn.inertia,
+        scheme=dyn.scheme,
+        jacobian="frozen",
+    )
     net_seconds = time.perf_counter() - t0
     T = tr.times.size
     disp = tr.positions - x
     dev = np.max(np.abs(disp - disp[-1]).reshape(T, -1), axis=1)
     arrays: dict[str, Any] = {"network_times": tr.times, "network_deviation": dev}
     meta: dict[str, Any] = {
-        "n": n, "n_nodes": net.n_nodes, "dt": dt, "t_end": t_end,
+        "n": n,
+        "n_nodes": net.n_nodes,
+        "dt": dt,
+        "t_end": t_end,
         "network_tau_mode": tau,
         "network_tau": relaxation_time(tr.times, disp.reshape(T, -1), fraction=dyn.fraction),
-        "network_seconds": net_seconds, "network_factorisations": tr.factorisations,
+        "network_seconds": net_seconds,
+        "network_factorisations": tr.factorisations,
     }
     if params["fields"]:
         idx = np.unique(np.linspace(0, T - 1, dyn.frames).round().astype(int))
-        arrays.update({"net/positions": x, "net/springs": net.springs,
-                       "net/stiffness": net.stiffness, "net/rest_length": net.rest_length,
-                       "net/x": tr.positions[-1], "net/series_times": tr.times[idx],
-                       "net/series_x": tr.positions[idx]})
+        arrays.update(
+            {
+                "net/positions": x,
+                "net/springs": net.springs,
+                "net/stiffness": net.stiffness,
+                "net/rest_length": net.rest_length,
+                "net/x": tr.positions[-1],
+                "net/series_times": tr.times[idx],
+                "net/series_x": tr.positions[idx],
+            }
+        )
     if scene.continuum is not None:
-        arrays_c, meta_c = _relax_continuum(scene, net, left, right, shift, dt, t_end,
-                                            fields=params["fields"])
+        arrays_c, meta_c = _relax_continuum(
+            scene, net, left, right, shift, dt, t_end, fields=params["fields"]
+        )
         arrays.update(arrays_c)
         meta.update(meta_c)
     return arrays, meta
@@ -287,8 +352,16 @@ def _relax_continuum(scene: Scene, net, left, right, shift, dt, t_end, *, fields
     scheme = "newmark" if dyn.scheme == "newmark" else "backward_euler"
     probe = displacement_probe(body, x)
     t0 = time.perf_counter()
-    traj = simulate_body(body, fixed=fixed, dt=dt, t_end=t_end, scheme=scheme,
-                         damping=damping, density=density, observe=probe)
+    traj = simulate_body(
+        body,
+        fixed=fixed,
+        dt=dt,
+        t_end=t_end,
+        scheme=scheme,
+        damping=damping,
+        density=density,
+        observe=probe,
+    )
     seconds = time.perf_counter() - t0
     T = traj.times.size
     obs = traj.observed.reshape(T, -1)
@@ -304,11 +377,16 @@ def _relax_continuum(scene: Scene, net, left, right, shift, dt, t_end, *, fields
     else:
         C = damping_matrix(body, damping, density=0.0, K=K)[freedofs][:, freedofs]
         tau_mode = slowest_relaxation_time(Kf, C)
-    arrays = {"continuum_times": traj.times,
-              "continuum_deviation": np.max(np.abs(obs - obs[-1]), axis=1)}
-    meta = {"continuum_tau_mode": tau_mode,
-            "continuum_tau": relaxation_time(traj.times, obs, fraction=dyn.fraction),
-            "continuum_seconds": seconds, "continuum_dofs": body.n_dofs}
+    arrays = {
+        "continuum_times": traj.times,
+        "continuum_deviation": np.max(np.abs(obs - obs[-1]), axis=1),
+    }
+    meta = {
+        "continuum_tau_mode": tau_mode,
+        "continuum_tau": relaxation_time(traj.times, obs, fraction=dyn.fraction),
+        "continuum_seconds": seconds,
+        "continuum_dofs": body.n_dofs,
+    }
     if fields:
         arrays.update(_continuum_fields(body, traj.u, mat))
     return arrays, meta

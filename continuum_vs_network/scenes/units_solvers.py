@@ -56,16 +56,27 @@ def plan_solvers(scene: Scene) -> list[Unit]:
     if scene.kind == "stability":
         for kind, value in cases(scene):
             for method in scene.solver.methods:
-                units.append(Unit(
-                    key=f"stability/{case_name(kind, value)}/{method}", func=stability_unit,
-                    params={"case": kind, "value": value, "method": method},
-                    depends=depends, parallel=False))
+                units.append(
+                    Unit(
+                        key=f"stability/{case_name(kind, value)}/{method}",
+                        func=stability_unit,
+                        params={"case": kind, "value": value, "method": method},
+                        depends=depends,
+                        parallel=False,
+                    )
+                )
     else:
         for n in scene.network.sizes:
             for method in scene.solver.methods:
-                units.append(Unit(key=f"solvers/n{n}/{method}", func=solver_unit,
-                                  params={"n": int(n), "method": method},
-                                  depends=depends, parallel=False))
+                units.append(
+                    Unit(
+                        key=f"solvers/n{n}/{method}",
+                        func=solver_unit,
+                        params={"n": int(n), "method": method},
+                        depends=depends,
+                        parallel=False,
+                    )
+                )
     return units
 
 
@@ -78,8 +89,7 @@ def _warm_up(method: str) -> None:
 
     net = triangular_lattice(3, 3)
     try:
-        relax(net, clamped={0: 1.05 * float(net.rest_length[0])}, method=method,
-              max_seconds=2.0)
+        relax(net, clamped={0: 1.05 * float(net.rest_length[0])}, method=method, max_seconds=2.0)
     except EquilibriumError:
         pass
     _WARM.add(method)
@@ -115,23 +125,38 @@ def stability_unit(scene: Scene, params: dict, ctx: UnitContext):
     _warm_up(method)
     net, clamped, options = _stability_problem(scene, params["case"], params["value"])
     s = scene.solver
-    meta: dict[str, Any] = {"case": params["case"], "value": params["value"],
-                            "method": method, "n_nodes": net.n_nodes,
-                            "force_scale": net.force_scale, "error": ""}
+    meta: dict[str, Any] = {
+        "case": params["case"],
+        "value": params["value"],
+        "method": method,
+        "n_nodes": net.n_nodes,
+        "force_scale": net.force_scale,
+        "error": "",
+    }
     try:
-        eq = relax(net, clamped=clamped, method=method, tol=s.tol, max_seconds=s.max_seconds,
-                   **options)
+        eq = relax(
+            net, clamped=clamped, method=method, tol=s.tol, max_seconds=s.max_seconds, **options
+        )
     except EquilibriumError as err:
         eq = err.state
         meta["error"] = f"EquilibriumError: {err.reason}"
     except Exception as err:  # a stability table reports every failure
         meta["error"] = f"{type(err).__name__}: {err}"
-        meta.update(converged=False, residual=float("nan"), clamp_error=float("nan"),
-                    seconds=float("nan"), iterations=0)
+        meta.update(
+            converged=False,
+            residual=float("nan"),
+            clamp_error=float("nan"),
+            seconds=float("nan"),
+            iterations=0,
+        )
         return {}, meta
-    meta.update(converged=bool(eq.converged), residual=eq.residual / net.force_scale,
-                clamp_error=eq.clamp_error / float(np.mean(net.rest_length)),
-                seconds=eq.seconds, iterations=int(eq.iterations))
+    meta.update(
+        converged=bool(eq.converged),
+        residual=eq.residual / net.force_scale,
+        clamp_error=eq.clamp_error / float(np.mean(net.rest_length)),
+        seconds=eq.seconds,
+        iterations=int(eq.iterations),
+    )
     return {}, meta
 
 
@@ -146,16 +171,30 @@ def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
     s = scene.solver
     error = ""
     try:
-        eq = relax(net, clamped={src: float(net.clamp_length(src, scene.task.strain))},
-                   method=method, tol=s.tol, max_seconds=s.max_seconds)
+        eq = relax(
+            net,
+            clamped={src: float(net.clamp_length(src, scene.task.strain))},
+            method=method,
+            tol=s.tol,
+            max_seconds=s.max_seconds,
+        )
     except EquilibriumError as err:
         eq = err.state
         error = err.reason
     F = net.force_scale
-    arrays = {"residual": np.asarray(eq.residual_trace) / F,
-              "seconds": np.asarray(eq.seconds_trace)}
-    meta = {"n": params["n"], "method": method, "n_nodes": net.n_nodes,
-            "n_springs": net.n_springs, "converged": bool(eq.converged),
-            "residual": eq.residual / F, "iterations": int(eq.iterations),
-            "seconds": eq.seconds, "error": error}
+    arrays = {
+        "residual": np.asarray(eq.residual_trace) / F,
+        "seconds": np.asarray(eq.seconds_trace),
+    }
+    meta = {
+        "n": params["n"],
+        "method": method,
+        "n_nodes": net.n_nodes,
+        "n_springs": net.n_springs,
+        "converged": bool(eq.converged),
+        "residual": eq.residual / F,
+        "iterations": int(eq.iterations),
+        "seconds": eq.seconds,
+        "error": error,
+    }
     return arrays, meta
