@@ -205,7 +205,7 @@ class Problem:
         keep = column[flat] >= 0
         if dense:
             out = np.zeros((m, coords.size))
-            np.add.at(out, (rows[keep], column[flat][keep]), vals[keep])
+            out[rows[keep], column[flat][keep]] = vals[keep]  # (row, column) pairs are distinct
             return out
         return sp.csr_matrix((vals[keep], (rows[keep], column[flat][keep])), shape=(m, coords.size))
 

@@ -95,6 +95,14 @@ def _dense(M) -> NDArray:
     return M.toarray() if sp.issparse(M) else np.asarray(M)
 
 
+def _solve_small(G: NDArray, b: NDArray) -> NDArray:
+    """``G^-1 b`` for a small Gram matrix, least squares where it is singular."""
+    try:
+        return np.linalg.solve(G, b)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(G, b, rcond=None)[0]
+
+
 def factor_pd(W: sp.csr_matrix | NDArray, *, ordered: bool = False) -> _Factor | None:
     """Factorise symmetric ``W``; None when it is not positive definite.
 
@@ -189,7 +197,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
         grad = spring_gradient(x, *all_springs).ravel()[coords]
         if problem.n_clamps:
             A = problem.clamp_jacobian(x, coords, dense=pattern.size <= DENSE_MAX)
-            lam_ls = -np.linalg.lstsq(_dense(A @ A.T), A @ grad, rcond=None)[0]
+            lam_ls = -_solve_small(_dense(A @ A.T), A @ grad)
             force = grad + A.T @ lam_ls  # clamp-normal (rod or constraint) forces removed
         else:
             A, lam_ls, force = None, np.empty(0), grad
