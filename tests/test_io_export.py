@@ -9,7 +9,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from continuum_vs_network import SpringNetwork
+from continuum_vs_network import SpringNetwork, triangular_lattice
 
 meshio = pytest.importorskip("meshio")
 
@@ -26,25 +26,9 @@ from continuum_vs_network.io.export import (  # noqa: E402
 
 
 def _lattice(nx: int = 4, ny: int = 3, spacing: float = 1.0) -> SpringNetwork:
-    """Triangular lattice, rows shifted by half a spacing; all springs at rest."""
-    ids = np.arange(nx * ny).reshape(ny, nx)
-    pos = np.array(
-        [((i + 0.5 * (j % 2)) * spacing, j * spacing * np.sqrt(3) / 2) for j in range(ny)
-         for i in range(nx)]
-    )  # fmt: skip
-    springs = []
-    for j in range(ny):
-        for i in range(nx):
-            if i + 1 < nx:
-                springs.append((ids[j, i], ids[j, i + 1]))
-            if j + 1 < ny:
-                for di in (-1, 0) if j % 2 == 0 else (0, 1):
-                    if 0 <= i + di < nx:
-                        springs.append((ids[j, i], ids[j + 1, i + di]))
-    springs = np.array(springs)
-    rest = np.linalg.norm(pos[springs[:, 1]] - pos[springs[:, 0]], axis=1)
-    stiffness = 1.0 + 0.5 * np.arange(len(springs)) / len(springs)
-    return SpringNetwork(pos, springs, stiffness, rest)
+    """Triangular lattice, all springs at rest, stiffness graded from 1 to 1.5."""
+    net = triangular_lattice(nx, ny, spacing=spacing)
+    return net.with_stiffness(1.0 + 0.5 * np.arange(net.n_springs) / net.n_springs)
 
 
 @pytest.fixture

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from continuum_vs_network import SpringNetwork
+from continuum_vs_network import SpringNetwork, triangular_lattice
 from continuum_vs_network.io import render
 from continuum_vs_network.io.render import (
     SOURCE_COLOR,
@@ -46,20 +46,7 @@ def pv():
 
 def _lattice(nx: int = 5, ny: int = 5) -> SpringNetwork:
     """Triangular lattice, rows shifted by half a spacing, springs at rest."""
-    ids = np.arange(nx * ny).reshape(ny, nx)
-    pos = np.array([(i + 0.5 * (j % 2), j * np.sqrt(3) / 2) for j in range(ny) for i in range(nx)])
-    springs = []
-    for j in range(ny):
-        for i in range(nx):
-            if i + 1 < nx:
-                springs.append((ids[j, i], ids[j, i + 1]))
-            if j + 1 < ny:
-                for di in (-1, 0) if j % 2 == 0 else (0, 1):
-                    if 0 <= i + di < nx:
-                        springs.append((ids[j, i], ids[j + 1, i + di]))
-    springs = np.array(springs)
-    rest = np.linalg.norm(pos[springs[:, 1]] - pos[springs[:, 0]], axis=1)
-    return SpringNetwork(pos, springs, np.ones(len(springs)), rest)
+    return triangular_lattice(nx, ny)
 
 
 def _deformed(net: SpringNetwork) -> np.ndarray:
