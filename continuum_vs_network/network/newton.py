@@ -195,6 +195,8 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
 
     for it in range(stop.max_iter + 1):
         grad = spring_gradient(x, *all_springs).ravel()[coords]
+        if not np.all(np.isfinite(grad)):
+            return Outcome(x, it, False, "forces became non-finite (the network blew up)")
         if problem.n_clamps:
             A = problem.clamp_jacobian(x, coords, dense=pattern.size <= DENSE_MAX)
             lam_ls = -_solve_small(_dense(A @ A.T), A @ grad)
@@ -329,7 +331,7 @@ def _factor_lagrangian_hessian(
         if factor is not None:
             return factor, rho, 0.0, True
         if lam.size:
-            d = problem.net.lengths(x)[problem.clamp_springs]
+            d = np.maximum(problem.net.lengths(x)[problem.clamp_springs], 1e-300)
             rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
             W = _assemble(pattern, _lagrangian_blocks(problem, x, lam, rho))
             factor = factor_pd(W, ordered=pattern.ordered)
