@@ -342,15 +342,11 @@ def _restore(problem: Problem, y: NDArray) -> NDArray:
     """Minimum-norm correction of ``y`` back onto the clamp lengths (Gauss-Newton)."""
     if not problem.n_clamps:
         return y
-    free = problem.free_flat
     target = 1e-13 * float(np.mean(problem.clamp_lengths))
     for _ in range(20):
-        c = problem.clamp_violation(y)
-        if np.max(np.abs(c)) <= target:
+        if np.max(np.abs(problem.clamp_violation(y))) <= target:
             break
-        A = problem.clamp_jacobian(y)
-        y = y.copy()
-        y.ravel()[free] -= A.T @ np.linalg.solve((A @ A.T).toarray(), c)
+        y = problem.toward_clamps(y)
     return y
 
 

@@ -238,6 +238,23 @@ class Problem:
         mu = -np.linalg.lstsq(AAt, A @ g, rcond=None)[0]
         return g + A.T @ mu, mu
 
+    def toward_clamps(
+        self, y: NDArray, coords: NDArray | None = None, A: sp.csr_matrix | NDArray | None = None
+    ) -> NDArray:
+        """One Gauss-Newton step of ``y`` (n_nodes, 2) back onto the clamp lengths.
+
+        The minimum-norm move ``-A^T (A A^T)^-1 (r - l)`` over ``coords`` (default
+        ``free_flat``), with the clamp Jacobian ``A`` at ``y`` unless one is given (columns
+        in ``coords`` order). Returns a new array.
+        """
+        coords = self.free_flat if coords is None else coords
+        A = self.clamp_jacobian(y, coords) if A is None else A
+        AAt = A @ A.T
+        AAt = AAt.toarray() if sp.issparse(AAt) else AAt
+        z = np.array(y, dtype=np.float64, copy=True)
+        z.ravel()[coords] -= A.T @ np.linalg.solve(AAt, self.clamp_violation(y))
+        return z
+
     # -- counting ---------------------------------------------------------------------
     def maxwell_zero_modes(self) -> int:
         """Lower bound on internal zero modes from Maxwell counting.

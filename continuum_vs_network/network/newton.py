@@ -373,12 +373,6 @@ def _line_search(
     """
     all_springs = problem.all_springs()
 
-    def corrected(y: NDArray) -> NDArray:
-        c = problem.clamp_violation(y)
-        z = y.copy()
-        z.ravel()[coords] -= A.T @ np.linalg.solve(_dense(A @ A.T), c)
-        return z
-
     def merit(y: NDArray) -> float:
         e = spring_energy(y, *all_springs)
         if A is None:
@@ -399,7 +393,7 @@ def _line_search(
                 return y, alpha
             if alpha == 1.0:
                 if A is not None:
-                    z = corrected(y)
+                    z = problem.toward_clamps(y, coords, A)
                     if merit(z) <= phi0 + 1e-4 * min(slope, 0.0):
                         return z, alpha
                 trial, _ = problem.residual(y)
