@@ -297,7 +297,8 @@ def trust_region(
     radius = 0.1 * scale
     energy = problem.energy(x)
     for _ in range(max_iter):
-        residual, mu = problem.residual(x)
+        res = problem.residual(x)
+        residual, mu = res.imbalance, res.multipliers
         if residual <= force_tol:
             return x, True
         g = frame.take(problem.gradient(x))
@@ -327,7 +328,7 @@ def trust_region(
         e_y = problem.energy(y)
         ratio = (e_y - energy) / predicted if predicted < 0 else -1.0
         flat = abs(e_y - energy) <= 1e-12 * abs(energy)  # energy at round-off: use the force
-        if e_y < energy or (flat and problem.residual(y)[0] < residual):
+        if e_y < energy or (flat and problem.residual(y).imbalance < residual):
             x, energy = y, e_y
         radius *= 2.0 if ratio > 0.75 else (0.25 if ratio < 0.25 else 1.0)
         radius = max(radius, 1e-12 * scale)
@@ -541,7 +542,7 @@ class Tracker:
         ):
             # a stall at a nearly degenerate equilibrium: follow the exact curvature, polish
             self.stats.trust_regions += 1
-            y, reached = trust_region(problem, x, force_tol=100 * s.tol * net.force_scale)
+            y, reached = trust_region(problem, x, force_tol=100 * s.tol)
             if reached:
                 try:
                     return self._relax_once(net, pinned, clamped, y, 1)
@@ -587,8 +588,7 @@ class Tracker:
             lin = None
         frame = lin.frame if lin is not None else Frame(net, problem.free)
         clamps = problem.clamp_springs
-        f_tol = s.tol * net.force_scale
-        l_tol = s.tol * float(np.mean(net.rest_length))
+        stop = problem.stop_rule(s.tol, max_iter=30, max_seconds=s.max_seconds)
         trace_r: list[float] = []
         trace_t: list[float] = []
         t0 = time.perf_counter()
@@ -608,14 +608,18 @@ class Tracker:
                 force = g + A.T @ mu
             else:
                 viol, mu, force = np.empty(0), np.empty(0), g
-            residual = float(np.max(np.abs(force))) if force.size else 0.0
-            clamp_error = float(np.max(np.abs(viol))) if viol.size else 0.0
-            trace_r.append(residual)
+            relative = stop.imbalance(force, frame.coords)
+            clamp_relative = stop.clamp_error(viol)
+            trace_r.append(relative)
             trace_t.append(time.perf_counter() - t0)
-            if residual <= f_tol and clamp_error <= l_tol:
+            if stop.met(relative, clamp_relative):
                 self.stats.iterations += it
-                return _equilibrium(net, x, r, residual, clamp_error, mu, it, t0, trace_r, trace_t)
-            measure = max(residual / f_tol, clamp_error / l_tol)
+                residual = float(np.max(np.abs(force))) if force.size else 0.0
+                clamp_error = float(np.max(np.abs(viol))) if viol.size else 0.0
+                return _equilibrium(
+                    net, x, r, (residual, relative, clamp_error), mu, it, t0, trace_r, trace_t
+                )
+            measure = max(relative, clamp_relative) / s.tol
             if not np.isfinite(measure):
                 return None
             if lin is None or measure > s.refactor_ratio * previous:
@@ -670,20 +674,21 @@ def _equilibrium(
     net: SpringNetwork,
     x: NDArray,
     r: NDArray,
-    residual: float,
-    clamp_error: float,
+    residuals: tuple[float, float, float],
     mu: NDArray,
     iterations: int,
     t0: float,
     trace_r: list[float],
     trace_t: list[float],
 ) -> Equilibrium:
+    residual, relative, clamp_error = residuals
     x = x.copy()
     x.setflags(write=False)
     return Equilibrium(
         positions=x,
         energy=float(0.5 * np.dot(net.stiffness, (r - net.rest_length) ** 2)),
         residual=residual,
+        relative_residual=relative,
         clamp_error=clamp_error,
         clamp_force=-np.asarray(mu, dtype=np.float64),  # dE/dl_c, as relax reports it
         converged=True,

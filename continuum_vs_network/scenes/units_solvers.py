@@ -152,7 +152,7 @@ def stability_unit(scene: Scene, params: dict, ctx: UnitContext):
         return {}, meta
     meta.update(
         converged=bool(eq.converged),
-        residual=eq.residual / net.force_scale,
+        residual=eq.relative_residual,
         clamp_error=eq.clamp_error / float(np.mean(net.rest_length)),
         seconds=eq.seconds,
         iterations=int(eq.iterations),
@@ -181,9 +181,8 @@ def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
     except EquilibriumError as err:
         eq = err.state
         error = err.reason
-    F = net.force_scale
     arrays = {
-        "residual": np.asarray(eq.residual_trace) / F,
+        "residual": np.asarray(eq.residual_trace),
         "seconds": np.asarray(eq.seconds_trace),
     }
     meta = {
@@ -192,7 +191,7 @@ def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
         "n_nodes": net.n_nodes,
         "n_springs": net.n_springs,
         "converged": bool(eq.converged),
-        "residual": eq.residual / F,
+        "residual": eq.relative_residual,
         "iterations": int(eq.iterations),
         "seconds": eq.seconds,
         "error": error,
