@@ -35,19 +35,19 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
 from .energy import HessianPattern, spring_energy_change, spring_gradient
+from .kkt import DENSE_MAX, Factor, factor_spd, range_space
 from .ordering import coordinate_order, nested_dissection
 from .stopping import Outcome, StopRule, Trace
 
 __all__ = ["DENSE_MAX", "factor_pd", "newton", "pattern_for"]
 
-DENSE_MAX = 400
+factor_pd = factor_spd  # the name dynamics and benchmarks use
 DAMP_UP = 10.0
 DAMP_MIN = 1e-6
 _PATTERNS: dict[int, dict] = {}
@@ -82,13 +82,6 @@ class _SolveFailed(RuntimeError):
     """A reused factorisation did not solve the new system (indefinite or too far off)."""
 
 
-class _Factor:
-    """A solver for ``W s = b`` (vectors or (n, m) matrices)."""
-
-    def __init__(self, solve) -> None:
-        self.solve = solve
-
-
 def _reuse_budget(size: int) -> int:
     """Preconditioned CG iterations allowed before a new factorisation of (size, size).
 
@@ -100,46 +93,7 @@ def _reuse_budget(size: int) -> int:
     return max(2, int(0.3 * np.sqrt(size)))
 
 
-def _dense(M) -> NDArray:
-    return M.toarray() if sp.issparse(M) else np.asarray(M)
-
-
-def _solve_small(G: NDArray, b: NDArray) -> NDArray:
-    """``G^-1 b`` for a small Gram matrix, least squares where it is singular."""
-    try:
-        return np.linalg.solve(G, b)
-    except np.linalg.LinAlgError:
-        return np.linalg.lstsq(G, b, rcond=None)[0]
-
-
-def factor_pd(W: sp.csr_matrix | NDArray, *, ordered: bool = False) -> _Factor | None:
-    """Factorise symmetric ``W``; None when it is not positive definite.
-
-    ``ordered``: the rows are already in a fill-reducing order (see :func:`pattern_for`);
-    otherwise SuperLU orders them by minimum degree on ``A^T + A``.
-    """
-    n = W.shape[0]
-    if n <= DENSE_MAX:
-        try:
-            c = sla.cho_factor(_dense(W), lower=True, check_finite=False)
-        except sla.LinAlgError:
-            return None
-        return _Factor(lambda b: sla.cho_solve(c, b, check_finite=False))
-    try:
-        lu = spla.splu(
-            W.tocsc(),
-            permc_spec="NATURAL" if ordered else "MMD_AT_PLUS_A",
-            diag_pivot_thresh=0.0,
-            options={"SymmetricMode": True},
-        )
-    except RuntimeError:  # exactly singular
-        return None
-    if not np.array_equal(lu.perm_r, lu.perm_c) or not np.all(lu.U.diagonal() > 0):
-        return None
-    return _Factor(lu.solve)
-
-
-def _pcg(W: sp.csr_matrix, preconditioner: _Factor, *, rtol: float, max_iter: int) -> _Factor:
+def _pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int) -> Factor:
     """Conjugate gradients on ``W`` preconditioned by an earlier factorisation.
 
     ``max_iter`` bounds the iterations of all right-hand sides together.
@@ -180,7 +134,7 @@ def _pcg(W: sp.csr_matrix, preconditioner: _Factor, *, rtol: float, max_iter: in
             return solve_one(b)
         return np.column_stack([solve_one(col) for col in b.T])
 
-    return _Factor(solve)
+    return Factor(solve, W.shape[0])
 
 
 def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
@@ -199,7 +153,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     rho0 = rho = float(np.max(k)) if m else 0.0
     shift = 0.0
     exact_ok = True
-    reusable: _Factor | None = None
+    reusable: Factor | None = None
     x = np.array(x, dtype=np.float64)
     stiff = _StiffSprings.find(problem, coords)
 
@@ -353,17 +307,13 @@ class _StiffSprings:
 
 
 def _kkt_step(
-    solver: _Factor, grad: NDArray, A: sp.csr_matrix | None, viol: NDArray, m: int
+    solver: Factor, grad: NDArray, A: sp.csr_matrix | None, viol: NDArray, m: int
 ) -> tuple[NDArray, NDArray]:
-    """Range-space solution of the KKT system: returns ``(step, multipliers)``."""
-    z = solver.solve(grad)
+    """Newton step of the KKT system (:func:`~.kkt.range_space`): ``(step, multipliers)``
+    with ``W step + A^T lam = -grad`` and ``A step = -viol``."""
     if not m:
-        return -z, np.empty(0)
-    Z = solver.solve(_dense(A.T))
-    if Z.ndim == 1:
-        Z = Z[:, None]
-    lam = np.linalg.solve(A @ Z, viol - A @ z)
-    return -z - Z @ lam, lam
+        return -np.asarray(solver.solve(grad)), np.empty(0)
+    return range_space(solver, A).solve(-grad, -viol)
 
 
 def _assemble(pattern: HessianPattern, blocks: NDArray) -> sp.csr_matrix | NDArray:
@@ -404,7 +354,7 @@ def _factor_lagrangian_hessian(
     lam: NDArray,
     rho: float,
     shift: float,
-) -> tuple[_Factor | None, float, float, bool]:
+) -> tuple[Factor | None, float, float, bool]:
     """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
     Order: the exact Hessian (when ``try_exact``), also with a larger augmentation ``rho``
