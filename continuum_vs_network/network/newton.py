@@ -32,8 +32,6 @@ then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves ``W
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -42,7 +40,7 @@ from numpy.typing import NDArray
 from .constraints import Problem, clamp_tensions
 from .energy import HessianPattern, spring_energy_change, spring_gradient
 from .kkt import DENSE_MAX, Factor, factor_spd, range_space
-from .ordering import coordinate_order, nested_dissection
+from .lagrangian import lagrangian_blocks, pattern_for
 from .stopping import Outcome, StopRule, Trace
 
 __all__ = ["DENSE_MAX", "factor_pd", "newton", "pattern_for"]
@@ -50,32 +48,6 @@ __all__ = ["DENSE_MAX", "factor_pd", "newton", "pattern_for"]
 factor_pd = factor_spd  # the name dynamics and benchmarks use
 DAMP_UP = 10.0
 DAMP_MIN = 1e-6
-_PATTERNS: dict[int, dict] = {}
-
-
-def pattern_for(
-    springs: NDArray, n_nodes: int, free: NDArray, positions: NDArray
-) -> HessianPattern:
-    """The Hessian pattern of a topology and pin mask, cached while the springs array lives.
-
-    Above ``DENSE_MAX`` free coordinates the rows follow a nested-dissection elimination
-    order computed from ``positions`` (n_nodes, 2); ``pattern.ordered`` says so. Networks
-    made with ``with_*`` share their read-only springs array, so a learning loop builds the
-    pattern once.
-    """
-    key_array = id(springs)
-    if key_array not in _PATTERNS:
-        _PATTERNS[key_array] = {}
-        weakref.finalize(springs, _PATTERNS.pop, key_array, None)
-    per_topology = _PATTERNS[key_array]
-    key = (n_nodes, free.tobytes())
-    if key not in per_topology:
-        coords = None
-        if int(free.sum()) > DENSE_MAX:
-            coords = coordinate_order(nested_dissection(positions, springs), free)
-        per_topology[key] = HessianPattern(springs, n_nodes, free, coords)
-        per_topology[key].ordered = coords is not None
-    return per_topology[key]
 
 
 class _SolveFailed(RuntimeError):
@@ -186,7 +158,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             # inexact Newton: a relative solve error eta leaves a residual ~ eta * residual
             eta = min(1e-2, residual)
             budget = _reuse_budget(pattern.size)
-            W = _assemble(pattern, _lagrangian_blocks(problem, x, lam_ls[:m], rho))
+            W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             try:
                 solver = _pcg(W, reusable, rtol=eta, max_iter=budget)
                 step, lam = _kkt_step(solver, grad, A if m else None, viol, m)
@@ -323,30 +295,6 @@ def _assemble(pattern: HessianPattern, blocks: NDArray) -> sp.csr_matrix | NDArr
     return pattern.assemble(blocks)
 
 
-def _lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) -> NDArray:
-    """Per-spring 2x2 blocks of the augmented Lagrangian's Hessian, (n_springs, 2, 2).
-
-    Axial ``k (+ rho)`` along ``u u^T`` and tangential ``k (1 - L/r) (+ lam / r)`` along
-    ``I - u u^T``; rods add theirs on their spring's node pair.
-    """
-    net = problem.net
-    springs, clamps = net.springs, problem.clamp_springs
-    d = x[springs[:, 1]] - x[springs[:, 0]]
-    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
-    axial = net.stiffness.copy()
-    tangential = net.stiffness * (1.0 - net.rest_length / r)
-    if problem.clamp == "rod" and problem.n_clamps:
-        k_rod = problem.rod_stiffness
-        axial[clamps] += k_rod
-        tangential[clamps] += k_rod * (1.0 - problem.clamp_lengths / r[clamps])
-    elif lam.size:
-        axial[clamps] += rho
-        tangential[clamps] += lam / r[clamps]
-    u = d / r[:, None]
-    uu = u[:, :, None] * u[:, None, :]
-    return axial[:, None, None] * uu + tangential[:, None, None] * (np.eye(2) - uu)
-
-
 def _factor_lagrangian_hessian(
     problem: Problem,
     pattern: HessianPattern,
@@ -368,7 +316,7 @@ def _factor_lagrangian_hessian(
     Returns ``(factor, rho, shift, exact_used)``. The exact Hessian is used whenever it is
     positive definite, so the last iterations are pure Newton steps.
     """
-    W = _assemble(pattern, _lagrangian_blocks(problem, x, lam, rho))
+    W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
     if shift == 0.0:
         factor = factor_pd(W, ordered=pattern.ordered)
         if factor is not None:
@@ -376,7 +324,7 @@ def _factor_lagrangian_hessian(
         if lam.size:
             d = np.maximum(problem.net.lengths(x)[problem.clamp_springs], 1e-300)
             rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
-            W = _assemble(pattern, _lagrangian_blocks(problem, x, lam, rho))
+            W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
             factor = factor_pd(W, ordered=pattern.ordered)
             if factor is not None:
                 return factor, rho, 0.0, True
