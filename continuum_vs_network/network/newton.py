@@ -21,7 +21,7 @@ Stiffness contrast: a linear step that rotates a spring lengthens it by
 ``|rotation|^2 r / 2``; for springs ``1e3``-``1e12`` times stiffer than the median that
 second-order error alone would cut every step to a crawl. Each trial step is therefore
 also tried after a Gauss-Newton projection that puts the stiff springs (and exact clamps)
-back to the lengths the linear model predicted (:class:`_StiffSprings`). With it the
+back to the lengths the linear model predicted (:class:`StiffSprings`). With it the
 8x8 lattices with 20 % of springs 1e9-1e12 times stiffer converge in 5-12 iterations
 instead of creeping.
 
@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
@@ -42,6 +41,7 @@ from .energy import HessianPattern, spring_energy_change, spring_gradient
 from .kkt import DENSE_MAX, Factor, factor_spd, range_space
 from .lagrangian import lagrangian_blocks, pattern_for
 from .stopping import Outcome, StopRule, Trace
+from .trust import TR_DENSE_MAX, StiffSprings, trust_region_newton
 
 __all__ = ["DENSE_MAX", "factor_pd", "newton", "pattern_for"]
 
@@ -116,6 +116,8 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     conjugate gradients preconditioned by that factorisation (a few triangular solves
     instead of a new factorisation); it refactorises when that fails.
     """
+    if problem.free_flat.size <= TR_DENSE_MAX:
+        return trust_region_newton(problem, x, stop, trace)
     net = problem.net
     springs, k = net.springs, net.stiffness
     all_springs = problem.all_springs()
@@ -127,7 +129,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     exact_ok = True
     reusable: Factor | None = None
     x = np.array(x, dtype=np.float64)
-    stiff = _StiffSprings.find(problem, coords)
+    stiff = StiffSprings.find(problem, coords)
 
     for it in range(stop.max_iter + 1):
         grad = spring_gradient(x, *all_springs).ravel()[coords]
@@ -208,76 +210,6 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     return Outcome(x, stop.max_iter, False, "no convergence")
 
 
-class _StiffSprings:
-    """Springs much stiffer than the network's median (and exact clamps), and a projection
-    onto their lengths.
-
-    ``restore(y, x, dx)`` moves ``y = x + dx`` the least (Gauss-Newton, minimum norm)
-    so that every stiff spring has the length the linear model predicted,
-    ``r(x) + u(x) . (dx_b - dx_a)``; None when that does not converge.
-    """
-
-    CONTRAST = 1e3
-
-    def __init__(self, springs: NDArray, index: NDArray, n: int) -> None:
-        self.springs = springs
-        self.index = index
-        self.n = n
-
-    @classmethod
-    def find(cls, problem: Problem, coords: NDArray) -> _StiffSprings | None:
-        springs, k, _ = problem.all_springs()
-        positive = k[k > 0]
-        if not positive.size:
-            return None
-        stiff = np.flatnonzero(k > cls.CONTRAST * float(np.median(positive)))
-        if not stiff.size:
-            return None
-        if problem.exact:  # clamps are infinitely stiff springs: restored the same way
-            stiff = np.union1d(stiff, problem.clamp_springs)
-        index = np.full(2 * problem.net.n_nodes, -1, dtype=np.int64)
-        index[coords] = np.arange(coords.size)
-        return cls(springs[stiff], index, coords.size)
-
-    def _jacobian(self, x: NDArray) -> tuple[sp.csr_matrix, NDArray]:
-        s = self.springs
-        d = x[s[:, 1]] - x[s[:, 0]]
-        r = np.hypot(d[:, 0], d[:, 1])
-        u = d / np.maximum(r, 1e-300)[:, None]
-        flat = np.stack([2 * s[:, 0], 2 * s[:, 0] + 1, 2 * s[:, 1], 2 * s[:, 1] + 1], 1)
-        vals = np.concatenate([-u, u], axis=1)
-        cols = self.index[flat]
-        keep = cols >= 0
-        rows = np.broadcast_to(np.arange(len(s))[:, None], flat.shape)
-        J = sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(len(s), self.n))
-        return J, r
-
-    def restore(self, y: NDArray, x: NDArray, dx: NDArray) -> NDArray | None:
-        J0, r0 = self._jacobian(x)
-        target = r0 + J0 @ dx
-        z = y.copy()
-        coords = np.flatnonzero(self.index >= 0)
-        order = self.index[coords]
-        for _ in range(8):
-            J, r = self._jacobian(z)
-            c = r - target
-            if np.max(np.abs(c)) <= 1e-14 * max(float(np.max(r0)), 1e-300):
-                return z
-            G = (J @ J.T).tocsc()
-            G = G + 1e-12 * sp.identity(G.shape[0], format="csc")
-            try:
-                lam = spla.splu(G).solve(c)
-            except RuntimeError:
-                return None
-            move = np.zeros(self.n)
-            move[:] = -(J.T @ lam)
-            flat = z.ravel()
-            flat[coords] += move[order]
-            if not np.all(np.isfinite(z)):
-                return None
-        return z
-
-
 def _kkt_step(
     solver: Factor, grad: NDArray, A: sp.csr_matrix | None, viol: NDArray, m: int
 ) -> tuple[NDArray, NDArray]:
@@ -353,7 +285,7 @@ def _line_search(
     lam: NDArray,
     rho: float,
     residual: float,
-    stiff: _StiffSprings | None = None,
+    stiff: StiffSprings | None = None,
 ) -> tuple[NDArray, float]:
     """Armijo backtracking on the augmented Lagrangian; accepts any step halving the residual.
 
