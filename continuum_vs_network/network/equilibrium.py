@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .checks import collapsed_springs, escape_direction, floppy_modes, lowest_curvature
 from .constraints import ClampMode, Pins, Problem, default_pins
 from .energy import spring_energy
 from .minimizers import fire, lbfgs, paper_adagrad
@@ -187,6 +188,7 @@ def relax(
             f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
             f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
         )
+    _check_rank(problem)
     stop = problem.stop_rule(
         tol, max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]), max_seconds=max_seconds
     )
@@ -216,7 +218,80 @@ def relax(
         problem = problem.with_free(~default_pins(net.with_positions(outcome.x), avoid))
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
-    return _finish(problem, outcome, iterations, method, stop, trace)
+    outcome, extra = _second_order(problem, outcome, solve, stop, trace)
+    return _finish(problem, outcome, iterations + extra, method, stop, trace)
+
+
+def _check_rank(problem: Problem) -> None:
+    """Raise a clear error when the rigidity matrix is rank deficient (generic positions)."""
+    modes = floppy_modes(problem) - max(0, 3 - int((~problem.free).sum()))
+    if modes <= 0:
+        return
+    net = problem.net
+    stiff = net.stiffness > 0
+    degree = np.bincount(net.springs[stiff].ravel(), minlength=net.n_nodes)
+    degree += np.bincount(net.springs[problem.clamp_springs].ravel(), minlength=net.n_nodes)
+    free_nodes = problem.free.any(axis=1)
+    dangling = np.flatnonzero(free_nodes & (degree < 2))
+    where = (
+        f"; nodes with fewer than two springs: {dangling[:8].tolist()}"
+        if dangling.size
+        else " (a hinge or a floppy region: rigid parts joined by fewer than three springs)"
+    )
+    raise ValueError(
+        f"network is floppy: {modes} zero modes beyond rigid motion by the rank of the "
+        f"rigidity matrix, though Maxwell's count passes{where}; add springs or pins"
+    )
+
+
+_ESCAPES = 3
+_CURVATURE_TOL = 1e-8  # smallest scaled reduced-Hessian eigenvalue accepted as >= 0
+
+
+def _second_order(
+    problem: Problem, outcome: Outcome, solve: Method, stop: StopRule, trace: Trace
+) -> tuple[Outcome, int]:
+    """No saddle and no collapsed spring returned as an equilibrium: escape, or fail.
+
+    A converged state with a spring of ``k > 0`` collapsed to (almost) zero length is
+    unfolded (each collapsed spring's second node moved by 1e-3 of its rest length in a
+    fixed direction) and relaxed again; one whose scaled reduced Hessian has an eigenvalue
+    below ``-1e-8`` is moved by 1 % of the mean rest length along that eigenvector (the
+    side of lower energy) and relaxed again. After three escapes the outcome is a failure.
+    Returns the outcome and the iterations spent.
+    """
+    extra = 0
+    for _ in range(_ESCAPES):
+        if not outcome.converged:
+            return outcome, extra
+        x = outcome.x
+        collapsed = collapsed_springs(problem, x)
+        if collapsed.size:
+            y = np.array(x, dtype=np.float64, copy=True)
+            angle = 2.399963229728653 * np.arange(collapsed.size)
+            b = problem.net.springs[collapsed, 1]
+            move = 1e-3 * problem.net.rest_length[collapsed, None]
+            move = move * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+            np.add.at(y, b, move * problem.free[b])
+        elif outcome.certified:
+            return outcome, extra
+        else:
+            lowest = lowest_curvature(problem, x)
+            if lowest is not None and lowest >= -_CURVATURE_TOL:
+                return outcome, extra
+            direction = escape_direction(problem, x)
+            if direction is None:
+                return Outcome(
+                    x, outcome.iterations, False, "saddle: the reduced Hessian is indefinite"
+                ), extra
+            trials = [problem.start(x + s * 1e-2 * direction) for s in (1.0, -1.0)]
+            y = min(trials, key=problem.energy)
+        outcome = solve(problem, problem.start(y), stop, trace)
+        extra += outcome.iterations
+    if outcome.converged:
+        reason = "a saddle or a collapsed spring persists after 3 escapes"
+        return Outcome(outcome.x, outcome.iterations, False, reason), extra
+    return outcome, extra
 
 
 def _pin_reaction(problem: Problem, x: NDArray) -> float:

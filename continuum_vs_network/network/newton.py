@@ -149,7 +149,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             clamp_error = stop.clamp_error(viol)
         trace.record(residual)
         if stop.met(residual, clamp_error):
-            return Outcome(x, it, True)
+            return Outcome(x, it, True, certified=it > 0 and exact_ok and shift == 0.0)
         if it == stop.max_iter:
             return Outcome(x, it, False, f"no convergence in {stop.max_iter} iterations")
         if trace.elapsed() > stop.max_seconds:

@@ -105,9 +105,15 @@ class Trace:
 
 @dataclass(frozen=True)
 class Outcome:
-    """What a method returns to :func:`~.equilibrium.relax`."""
+    """What a method returns to :func:`~.equilibrium.relax`.
+
+    ``certified``: the method has already shown the reduced Hessian to be positive
+    definite at the last iterates (a Newton step with an exact, positive-definite
+    factorisation), so :func:`relax` skips its own second-order check.
+    """
 
     x: NDArray[np.float64]
     iterations: int
     converged: bool
     message: str = ""
+    certified: bool = False

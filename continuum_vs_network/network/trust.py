@@ -193,6 +193,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     root_d = np.sqrt(_node_stiffness(problem)[coords])
     x = _onto_clamps(problem, np.array(x, dtype=np.float64), coords)
     radius = 0.25 * float(np.mean(net.rest_length)) * float(np.sqrt(np.median(root_d**2) * n))
+    lowest = -np.inf  # smallest eigenvalue of the last reduced Hessian
     for it in range(stop.max_iter + 1):
         g = spring_gradient(x, *all_springs).ravel()[coords]
         if not np.all(np.isfinite(g)):
@@ -210,7 +211,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             clamp_error = stop.clamp_error(problem.clamp_violation(x) if m else np.empty(0))
         trace.record(residual)
         if stop.met(residual, clamp_error):
-            return Outcome(x, it, True)
+            return Outcome(x, it, True, certified=lowest > 1e-8)
         if it == stop.max_iter:
             return Outcome(x, it, False, f"no convergence in {stop.max_iter} iterations")
         if trace.elapsed() > stop.max_seconds:
@@ -227,6 +228,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             Q, H, gr = None, Ws, gs
         H = 0.5 * (H + H.T)
         vals, vecs = np.linalg.eigh(H)
+        lowest = float(vals[0]) if vals.size else np.inf
         gt = vecs.T @ gr
         accepted = False
         for _ in range(40):
