@@ -105,7 +105,7 @@ METHODS: dict[str, Method] = {
     "lbfgs": lbfgs,
     "paper": paper_adagrad,
 }
-_DEFAULT_MAX_ITER = {"newton": 200, "fire": 200_000, "lbfgs": 50_000, "paper": 20_000}
+_DEFAULT_MAX_ITER = {"newton": 2000, "fire": 200_000, "lbfgs": 50_000, "paper": 20_000}
 
 
 def relax(
@@ -157,7 +157,17 @@ def relax(
         Strain continuation: approach the clamp lengths in ``ramp`` equal steps from the
         starting lengths, each relaxed in turn. At large strains the energy has several
         local minima and the one found depends on this path.
-    max_iter, max_seconds : budgets; exceeding either raises :class:`EquilibriumError`.
+    max_iter, max_seconds : budgets; exceeding either raises :class:`EquilibriumError`
+        (Newton's default of 2000 iterations is a safety net, not a working limit: on the
+        500-network family of ``benchmarks/bench_family.py`` no converging case needs it).
+
+    A converged state is also checked to second order: a saddle (the reduced Hessian of
+    the Lagrangian, scaled by node stiffness, with an eigenvalue below ``-1e-8``) or a
+    state with a collapsed spring (``k > 0``, length ``<= 1e-9 L``) is escaped (a step
+    along the lowest eigenvector, or the collapsed springs unfolded) and relaxed again, at
+    most three times, else :class:`EquilibriumError`. Networks whose rigidity matrix is
+    rank deficient at a generic configuration (a dangling node, a hinge) are refused with a
+    ``ValueError`` even when Maxwell's count passes.
 
     Returns
     -------

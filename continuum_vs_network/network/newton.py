@@ -1,5 +1,9 @@
 """Sparse Newton for spring-network equilibria with exact clamps.
 
+Problems of at most :data:`~.trust.TR_DENSE_MAX` free coordinates go to the dense
+trust-region Newton of :mod:`.trust` (exact reduced Hessian, negative curvature followed);
+larger ones use the shifted sparse Newton below.
+
 Clamps are equality constraints ``r_c(x) = l_c`` handled by sequential quadratic
 programming in range-space form. With ``A = dr_c/dx`` (m, n_free) and
 ``W = H_E + sum_c mu_c d^2 r_c/dx^2 + rho A^T A`` (the Hessian of the augmented Lagrangian,

@@ -37,7 +37,7 @@ from .stopping import Outcome, StopRule, Trace
 
 __all__ = ["TR_DENSE_MAX", "StiffSprings", "trust_region_newton"]
 
-TR_DENSE_MAX = 1200  # free coordinates; above, the sparse shifted Newton of newton.py
+TR_DENSE_MAX = 400  # free coordinates; above, the sparse shifted Newton of newton.py (faster there)
 _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
 _GROW = 2.0  # radius growth after a good step that reached the boundary (4 and 8: no better)
 
