@@ -86,6 +86,13 @@ def main() -> None:
             rows.append((kind, prestressed, its, False, f"{type(err).__name__}: {err}"))
             if args.verbose:
                 print(f"#{i} {kind} prestressed={prestressed} clamps={len(clamped)}: {err}")
+        if args.verbose and (i + 1) % 50 == 0:
+            done = np.array([r[2] for r in rows if r[3]])
+            print(
+                f"# {i + 1} done, {sum(not r[3] for r in rows)} failures, median "
+                f"{np.median(done):.0f}, {time.perf_counter() - t0:.0f} s",
+                flush=True,
+            )
     seconds = time.perf_counter() - t0
 
     def line(name, sel):

@@ -110,7 +110,7 @@ class StiffSprings:
             z.ravel()[coords] += move[order]
             if not np.all(np.isfinite(z)):
                 return None
-        return z
+        return None  # no convergence: the caller keeps the unprojected point
 
 
 def _node_stiffness(problem: Problem) -> NDArray:
@@ -237,10 +237,10 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             step = (Q @ ps if Q is not None else ps) / root_d
             y = x.copy()
             y.ravel()[coords] += step
-            y = _onto_clamps(problem, y, coords)
             if stiff is not None:
                 z = stiff.restore(y, x, step)
                 y = z if z is not None else y
+            y = _onto_clamps(problem, y, coords)
             if np.all(np.isfinite(y)):
                 actual = spring_energy_change(y, x, *all_springs)
                 ratio = actual / predicted if predicted < 0 else -1.0
