@@ -128,7 +128,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     pattern = pattern_for(springs, net.n_nodes, problem.free, net.positions)
     coords = pattern.coords
     m = problem.n_clamps if problem.exact else 0
-    rho0 = rho = float(np.max(k)) if m else 0.0
+    rho = float(np.max(k)) if m else 0.0
     shift = 0.0
     exact_ok = True
     reusable: Factor | None = None
@@ -172,7 +172,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                 step = None
         if step is None:
             factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
-                problem, pattern, x, lam_ls[:m], rho0, shift
+                problem, pattern, x, lam_ls[:m], rho, shift
             )
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
@@ -274,7 +274,7 @@ def _factor_lagrangian_hessian(
         factor = factor_pd(W + shift * scaling, ordered=pattern.ordered)
         if factor is not None:
             return factor, rho, shift, False
-        shift *= 10
+        shift *= 100
     return None, rho, shift, False
 
 
