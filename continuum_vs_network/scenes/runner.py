@@ -27,10 +27,8 @@ import dataclasses
 import hashlib
 import json
 import os
-import platform
 import shutil
 import signal
-import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -42,6 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..io.atomic import atomic_path, write_text_atomic
+from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
 
 __all__ = [
@@ -134,50 +133,6 @@ class UnitResult:
     arrays: Mapping[str, NDArray]
     meta: Mapping[str, Any]
     seconds: float
-
-
-@dataclass(frozen=True)
-class Provenance:
-    """Where a result comes from.
-
-    Attributes
-    ----------
-    version : str
-        Package version.
-    commit : str
-        Git commit of the package source ("unknown" outside a git checkout), with
-        ``+dirty`` when tracked files were modified.
-    python, numpy, scipy, platform : str
-    command : str
-        The command line of the run that completed the result.
-    seeds : tuple of int
-        The seeds the scene used.
-    started : str
-        ISO time the completing run started.
-    wall_seconds : float
-        Wall-clock time of the completing run (units reused from earlier runs excluded).
-    compute_seconds : float
-        Sum of every unit's own wall-clock time (across resumed runs).
-    units : int
-    reused : int
-        Units taken from an earlier (interrupted or finished) run.
-    workers : int
-    """
-
-    version: str
-    commit: str
-    python: str
-    numpy: str
-    scipy: str
-    platform: str
-    command: str
-    seeds: tuple[int, ...]
-    started: str
-    wall_seconds: float
-    compute_seconds: float
-    units: int
-    reused: int
-    workers: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -425,6 +380,7 @@ def run_scene(
         for sub in ("units", "checkpoints", "frames"):
             shutil.rmtree(directory / sub, ignore_errors=True)
         (directory / "run.json").unlink(missing_ok=True)
+    env = environment()  # before this run writes anything (cached for the process)
     _units_dir(directory).mkdir(parents=True, exist_ok=True)
     write_text_atomic(
         directory / "scene.json", json.dumps(scene.to_dict(), indent=1, sort_keys=True)
@@ -462,11 +418,11 @@ def run_scene(
     compute = sum(_read_record(directory, k)["seconds"] for k in keys)
     prov = Provenance(
         version=_version(),
-        commit=_git_commit(),
-        python=platform.python_version(),
-        numpy=np.__version__,
-        scipy=_scipy_version(),
-        platform=platform.platform(terse=True),
+        commit=env["commit"],
+        python=env["python"],
+        numpy=env["libraries"]["numpy"],
+        scipy=env["libraries"]["scipy"],
+        platform=env["platform"],
         command=command
         if command is not None
         else " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
@@ -477,6 +433,9 @@ def run_scene(
         units=len(units),
         reused=reused,
         workers=int(workers),
+        libraries=dict(env["libraries"]),
+        cpu=env["cpu"],
+        threads=blas_threads(),
     )
     write_text_atomic(
         directory / "run.json", json.dumps(dataclasses.asdict(prov), indent=1, sort_keys=True)
@@ -594,36 +553,6 @@ def _version() -> str:
         return metadata.version("continuum_vs_network")
     except metadata.PackageNotFoundError:  # pragma: no cover - not installed
         return "unknown"
-
-
-def _scipy_version() -> str:
-    import scipy
-
-    return scipy.__version__
-
-
-def _git_commit() -> str:
-    src = Path(__file__).resolve().parents[2]
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=src,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=src,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return head + ("+dirty" if dirty else "")
 
 
 def _seeds(scene: Scene) -> tuple[int, ...]:
