@@ -45,9 +45,13 @@ class Equilibrium:
     seconds : float
         Wall-clock time of the solve.
     method : str
-    residual_trace, seconds_trace : (iterations + 1,) float arrays
-        Residual after each iteration and the wall-clock time at which it was reached,
-        for error-against-run-time plots.
+    residual_trace, seconds_trace : (n_records,) float arrays
+        Residual at each recorded iteration and the wall-clock time at which it was
+        reached, for error-against-run-time plots.
+    iteration_trace : (n_records,) int array
+        The iteration (counted over every stage of the solve) of each record: Newton
+        records every iteration, FIRE, L-BFGS and Adagrad every tenth and the last.
+        Default: ``arange(n_records)`` (one record per iteration).
     """
 
     positions: NDArray[np.float64]
@@ -61,6 +65,13 @@ class Equilibrium:
     method: str
     residual_trace: NDArray[np.float64] = field(repr=False)
     seconds_trace: NDArray[np.float64] = field(repr=False)
+    iteration_trace: NDArray[np.int64] | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.iteration_trace is None:
+            object.__setattr__(
+                self, "iteration_trace", np.arange(np.asarray(self.residual_trace).size)
+            )
 
 
 class EquilibriumError(RuntimeError):
@@ -87,16 +98,24 @@ class EquilibriumError(RuntimeError):
 
 
 class Trace:
-    """Residual against wall-clock time, recorded by a solver as it iterates."""
+    """Residual against wall-clock time and iteration, recorded by a solver as it iterates.
+
+    A solver records ``record(residual, it)`` with its own iteration count ``it``; the
+    caller that chains solves (stages, inner loops) sets ``base`` to the iterations done
+    before, so the recorded iteration is the count over the whole solve.
+    """
 
     def __init__(self) -> None:
         self.t0 = time.perf_counter()
+        self.base = 0
         self.residual: list[float] = []
         self.seconds: list[float] = []
+        self.iteration: list[int] = []
 
-    def record(self, residual: float) -> None:
+    def record(self, residual: float, it: int) -> None:
         self.residual.append(float(residual))
         self.seconds.append(time.perf_counter() - self.t0)
+        self.iteration.append(self.base + int(it))
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.t0
@@ -246,6 +265,7 @@ def relax(
         stage = Problem(
             net, problem.free, problem.clamp_springs, lengths, problem.clamp, problem.rod_stiffness
         )
+        trace.base = iterations
         outcome = solve(stage, stage.start(outcome.x), stop, trace)
         iterations += outcome.iterations
         if not outcome.converged:
@@ -268,6 +288,7 @@ def relax(
             problem.clamp,
             problem.rod_stiffness,
         )
+        trace.base = iterations
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
     return _finish(problem, outcome, iterations, method, stop, trace)
@@ -327,6 +348,7 @@ def _finish(
         method=method,
         residual_trace=np.asarray(trace.residual),
         seconds_trace=np.asarray(trace.seconds),
+        iteration_trace=np.asarray(trace.iteration, dtype=np.int64),
     )
     if not converged:
         reason = outcome.message or "did not reach the requested residual"

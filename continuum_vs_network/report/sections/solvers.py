@@ -41,7 +41,7 @@ def section(doc: Document, result) -> None:
         for j, method in enumerate(methods):
             u = result.units[f"solvers/n{n}/{method}"]
             a, m = u.arrays, u.meta
-            it = np.arange(a["residual"].size)
+            it = a["iteration"]  # the solver's own iteration count of each record
             it_s.append(Series(it, a["residual"], method, color=COLORS[j]))
             t_s.append(Series(a["seconds"], a["residual"], method, color=COLORS[j]))
             rows.append(
@@ -83,7 +83,9 @@ def section(doc: Document, result) -> None:
     doc.figure(
         "solvers_iterations",
         it_panels,
-        "Residual against iterations, every method and size (dotted: the tolerance).",
+        "Residual against the solver's iteration number, every method and size (dotted: "
+        "the tolerance; FIRE, L-BFGS and Adagrad record every tenth iteration and the last; "
+        "the starting residual, iteration 0, is off the log axis).",
         ncols=ncols,
     )
     doc.figure("solvers_seconds", t_panels, "Residual against wall-clock seconds.", ncols=ncols)
