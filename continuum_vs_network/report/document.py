@@ -81,11 +81,22 @@ class Document:
         return finding
 
     def findings_table(self, findings: Sequence[Finding]) -> None:
-        """A claim / metric / measured / verdict / rule table of the given findings."""
-        self.table(
-            ["claim", "metric", "measured", "verdict", "rule"],
-            [[f.claim, f.metric, f.measured_text(), f"**{f.verdict}**", f.rule] for f in findings],
-        )
+        """A claim / metric / measured / verdict / rule table of the given findings.
+
+        When every finding has the same rule, it is stated once below the table.
+        """
+        if not findings:
+            return
+        rules = {f.rule for f in findings}
+        one = len(rules) == 1
+        headers = ["claim", "metric", "measured", "verdict"] + ([] if one else ["rule"])
+        rows = [
+            [f.claim, f.metric, f.measured_text(), f"**{f.verdict}**"] + ([] if one else [f.rule])
+            for f in findings
+        ]
+        self.table(headers, rows)
+        if one:
+            self.add(f"Verdict rule: {rules.pop()}.", "")
 
     def table(self, headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
         if self.lines and self.lines[-1] != "":

@@ -202,6 +202,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_physics import plan_physics
 
         return plan_physics(scene)
+    if scene.kind == "accuracy":
+        from .units_accuracy import plan_accuracy
+
+        return plan_accuracy(scene)
     from .units_solvers import plan_solvers
 
     return plan_solvers(scene)

@@ -6,12 +6,14 @@ A scene is data only (no code is executed from it). Top-level keys::
     description = "one line"  # shown by ``cvn scenes`` and in the report
     seed = 0                  # first seed; trial i uses seed + i
     kind = "learning"         # learning | transmission | relaxation | stability | solvers
+                              # | accuracy
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
-``[continuum]``, ``[dynamics]``, ``[export]``, ``[report]``. Which tables a kind needs and
-which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an error (a scene
-never carries settings that are silently ignored). Every key of every table is listed, with
-its type, default and meaning, in the dataclasses below (``cvn scenes --keys`` prints them).
+``[continuum]``, ``[dynamics]``, ``[accuracy]``, ``[export]``, ``[report]``. Which tables a
+kind needs and which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an
+error (a scene never carries settings that are silently ignored). Every key of every table is
+listed, with its type, default and meaning, in the dataclasses below (``cvn scenes --keys``
+prints them).
 
 Unknown keys, wrong types and impossible values raise :class:`SceneError`, a ``ValueError``
 whose message and attributes name the file, the table and the key.
@@ -35,6 +37,7 @@ __all__ = [
     "KIND_TABLES",
     "RULES",
     "SOLVER_METHODS",
+    "AccuracySpec",
     "ContinuumSpec",
     "DynamicsSpec",
     "ExportSpec",
@@ -52,7 +55,7 @@ __all__ = [
     "parse_scene",
 ]
 
-KINDS = ("learning", "transmission", "relaxation", "stability", "solvers")
+KINDS = ("learning", "transmission", "relaxation", "stability", "solvers", "accuracy")
 
 #: For each kind: (tables it needs, tables it also accepts).
 KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
@@ -70,6 +73,7 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     ),
     "stability": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
     "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
+    "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
 }
 
 #: Learning runs a scene can name (the paper's experiments, see
@@ -366,6 +370,54 @@ class DynamicsSpec:
 
 
 @dataclass(frozen=True)
+class AccuracySpec:
+    """``[accuracy]``: error against run time of the continuum and the time integrators.
+
+    Finite elements on Lamé's thick cylinder (closed form), network time integrators
+    against an independent DOP853 reference, continuum time integrators against the closed
+    form of a lowest-mode decay (see :mod:`~continuum_vs_network.scenes.units_accuracy`).
+    """
+
+    elements: tuple[str, ...] = _key(
+        "list[str]",
+        ("P1", "P2", "P2_curved"),
+        "finite elements (P2: straight-sided, P2_curved: isoparametric)",
+        choices=("P1", "P2", "P2_curved"),
+        check=_unique_nonempty,
+    )
+    mesh_sizes: tuple[float, ...] = _key(
+        "list[float]",
+        (0.4, 0.2, 0.1, 0.05),
+        "mesh sizes h of the cylinder (radii 1 and 2)",
+        check=_all(_unique_nonempty, _each(_between(0.01, 0.5))),
+    )
+    poisson: float = _key(
+        "float", 0.3, "Poisson's ratio of the cylinder (plane strain)", check=_between(0.0, 0.499)
+    )
+    schemes: tuple[str, ...] = _key(
+        "list[str]",
+        ("backward_euler", "newmark", "explicit"),
+        "time integrators (the continuum has no explicit scheme)",
+        choices=("backward_euler", "newmark", "explicit"),
+        check=_unique_nonempty,
+    )
+    problems: tuple[str, ...] = _key(
+        "list[str]",
+        ("overdamped", "inertial"),
+        "dynamics: overdamped (first order) or inertial (unit masses)",
+        choices=("overdamped", "inertial"),
+        check=_unique_nonempty,
+    )
+    steps: tuple[int, ...] = _key(
+        "list[int]",
+        (8, 16, 32, 64, 128, 256, 512, 1024),
+        "time steps over the run (one per entry)",
+        check=_all(_unique_nonempty, _each(_at_least(2)), _increasing),
+    )
+    size: int = _key("int", 6, "n x n lattice of the network integrators", check=_between(3, 30))
+
+
+@dataclass(frozen=True)
 class ExportSpec:
     """``[export]``: meshes written to ``meshes/<scene>/`` (VTU, PVD series)."""
 
@@ -397,6 +449,7 @@ _TABLES: dict[str, type] = {
     "solver": SolverSpec,
     "continuum": ContinuumSpec,
     "dynamics": DynamicsSpec,
+    "accuracy": AccuracySpec,
     "export": ExportSpec,
     "report": ReportSpec,
 }
@@ -412,7 +465,7 @@ class Scene:
     seed : int
     kind : str
         One of :data:`KINDS`.
-    network, task, learning, solver, continuum, dynamics, export : spec or None
+    network, task, learning, solver, continuum, dynamics, accuracy, export : spec or None
         The tables given (None when absent).
     report : ReportSpec
         Always present (defaults when the table is absent).
@@ -430,6 +483,7 @@ class Scene:
     solver: SolverSpec | None = None
     continuum: ContinuumSpec | None = None
     dynamics: DynamicsSpec | None = None
+    accuracy: AccuracySpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
     source: str = field(default="", compare=False)
@@ -608,6 +662,8 @@ def _check_kind(scene: Scene, file: str) -> None:
 
     net, task = scene.network, scene.task
     kind = scene.kind
+    if kind == "accuracy":
+        return
     if kind == "learning":
         assert net is not None and task is not None and scene.learning is not None
         if net.builder == "paper" and task.kind != "paper":

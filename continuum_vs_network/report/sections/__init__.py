@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from . import learning, relaxation, solvers, stability, transmission
+from . import accuracy, learning, relaxation, solvers, stability, transmission
 
 __all__ = ["SECTIONS"]
 
@@ -22,4 +22,5 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "relaxation": relaxation.section,
     "stability": stability.section,
     "solvers": solvers.section,
+    "accuracy": accuracy.section,
 }
