@@ -7,7 +7,7 @@ on them with a message that names nothing the user wrote.
 
 :class:`ArgumentError` subclasses both ``ValueError`` and ``TypeError``, so code that
 caught either for a bad argument keeps working. Memory estimates compare a planned
-allocation with :func:`available_memory` before it is made (:func:`check_memory`).
+allocation with :func:`available_memory` before it is made (:func:`memory`).
 """
 
 from __future__ import annotations
@@ -26,13 +26,13 @@ __all__ = [
     "ArgumentError",
     "available_memory",
     "boolean",
-    "check_memory",
     "choice",
     "float_array",
     "format_bytes",
     "index_array",
     "integer",
     "mapping",
+    "memory",
     "real",
     "seed",
     "show",
@@ -54,9 +54,11 @@ class ArgumentError(ValueError, TypeError):
         What is allowed, in words.
     """
 
-    def __init__(self, argument: str, value: Any, allowed: str, *, detail: str = "") -> None:
+    def __init__(
+        self, argument: str, value: Any, allowed: str, *, detail: str = "", message: str = ""
+    ) -> None:
         self.argument, self.value, self.allowed = argument, value, allowed
-        msg = f"{argument} must be {allowed}, got {show(value)}"
+        msg = message or f"{argument} must be {allowed}, got {show(value)}"
         super().__init__(msg + (f"; {detail}" if detail else ""))
 
 
@@ -315,7 +317,7 @@ def format_bytes(n: float) -> str:
     return f"{int(n)} bytes"
 
 
-def check_memory(name: str, value: Any, needed: float, what: str) -> None:
+def memory(name: str, value: Any, needed: float, what: str) -> None:
     """Refuse ``value`` of ``name`` when ``what`` would need more memory than is available.
 
     ``needed`` is an estimate in bytes (Python ints or floats: no overflow however large).
@@ -330,6 +332,7 @@ def check_memory(name: str, value: Any, needed: float, what: str) -> None:
         raise ArgumentError(
             name,
             value,
-            f"small enough to fit in memory: {what} needs about {format_bytes(needed)} but "
-            f"{format_bytes(avail)} are available",
+            f"small enough for {what} to fit in the {format_bytes(avail)} of memory available",
+            message=f"{name} = {show(value)} is too large: {what} needs about "
+            f"{format_bytes(needed)} of memory but {format_bytes(avail)} are available",
         )
