@@ -97,7 +97,8 @@ def estimate(scene: Scene) -> Estimate:
         c = scene.continuum
         vertices = nodes * 4**c.refine
         dofs = 2 * vertices * (4 if c.order == 2 else 1)
-        est.add("continuum", "refine", dofs * FE_BYTES_PER_DOF, f"{dofs} finite-element unknowns")
+        what = f"{dofs} finite-element unknowns (refine {c.refine}, order {c.order})"
+        est.add("network", key, dofs * FE_BYTES_PER_DOF, what)
     if scene.kind == "relaxation":
         d = scene.dynamics
         assert d is not None
@@ -127,6 +128,6 @@ def check_resources(scene: Scene, file: str) -> None:
         file,
         table,
         key,
-        f"= {value!r} is too large: the scene needs about {check.format_bytes(est.total)} of "
+        f"{value!r} is too large: the scene needs about {check.format_bytes(est.total)} of "
         f"memory ({parts}) but {check.format_bytes(avail)} are available",
     )
