@@ -572,7 +572,7 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
             "(top level)",
             "name",
             f"must be a plain name of at most {_NAME_MAX} characters (letters, digits, '_', "
-            f"'-', '.'; starting with a letter or digit), got {_short(top['name'])}",
+            f"'-', '.'; starting with a letter or digit), got {_short(repr(top['name']))}",
         )
     desc = top["description"].strip()
     if not desc or "\n" in desc:
@@ -606,7 +606,8 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
 
 
 def _short(value: Any, width: int = 60) -> str:
-    text = repr(value)
+    """``repr(value)`` (strings: the text itself) cut to ``width`` characters."""
+    text = value if isinstance(value, str) else repr(value)
     return text if len(text) <= width else text[: width - 3] + "..."
 
 
@@ -737,6 +738,8 @@ def load_scene(scene: str | Path) -> Scene:
     except OSError as err:  # a name too long, a symlink loop
         raise SceneError(_short(str(scene)), "", "", f"cannot read: {err.strerror}") from None
     if not is_file:
+        if path.is_dir():
+            raise SceneError(_short(str(scene)), "", "", "is a folder, not a scene file")
         if str(scene).endswith(".toml") or "/" in str(scene) or path.exists():
             raise SceneError(_short(str(scene)), "", "", "no such scene file")
         if not _NAME.fullmatch(str(scene)) or len(str(scene)) > _NAME_MAX:
