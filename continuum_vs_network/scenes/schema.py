@@ -82,7 +82,9 @@ RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact")
 #: Equilibrium methods of :func:`continuum_vs_network.relax`.
 SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]*")
+_NAME_MAX = 100  # it names folders and files (file systems allow 255 bytes per name)
+_SEED_MAX = 2**63 - 1  # seeds are stored as int64
 _REQUIRED = object()
 
 
@@ -618,19 +620,22 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
             if default is _REQUIRED:
                 raise SceneError(file, "(top level)", key, "is required")
             top[key] = default
-    if not _NAME.match(top["name"]):
+    if not _NAME.fullmatch(top["name"]) or len(top["name"]) > _NAME_MAX:
         raise SceneError(
             file,
             "(top level)",
             "name",
-            f"must be a plain name (letters, digits, '_', '-', '.'), got {top['name']!r}",
+            f"must be a plain name of at most {_NAME_MAX} characters (letters, digits, '_', "
+            f"'-', '.'; starting with a letter or digit), got {_short(repr(top['name']))}",
         )
     desc = top["description"].strip()
     if not desc or "\n" in desc:
         raise SceneError(file, "(top level)", "description", "must be one non-empty line")
     top["description"] = desc
-    if top["seed"] < 0:
-        raise SceneError(file, "(top level)", "seed", f"must be >= 0, got {top['seed']}")
+    if not 0 <= top["seed"] <= _SEED_MAX:
+        raise SceneError(
+            file, "(top level)", "seed", f"must be in 0..2**63-1, got {_short(top['seed'])}"
+        )
     if top["kind"] not in KINDS:
         raise SceneError(
             file,
@@ -640,7 +645,24 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
         )
     scene = Scene(**top, **tables, source=str(file))
     _check_kind(scene, file)
+    if scene.learning is not None and scene.seed + scene.learning.trials - 1 > _SEED_MAX:
+        raise SceneError(
+            file,
+            "(top level)",
+            "seed",
+            f"trial i uses seed + i, so seed + trials - 1 must be <= 2**63-1; got seed = "
+            f"{scene.seed} with [learning] trials = {scene.learning.trials}",
+        )
+    from .limits import check_resources
+
+    check_resources(scene, str(file))
     return scene
+
+
+def _short(value: Any, width: int = 60) -> str:
+    """``repr(value)`` (strings: the text itself) cut to ``width`` characters."""
+    text = value if isinstance(value, str) else repr(value)
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def _check_kind(scene: Scene, file: str) -> None:
@@ -764,16 +786,40 @@ def builtin_path(name: str) -> Path:
 
 def load_scene(scene: str | Path) -> Scene:
     """Read a scene: a path to a ``.toml`` file or the name of a built-in scene."""
+    if not isinstance(scene, str | Path):
+        raise SceneError(repr(scene), "", "", "a scene is a path or a built-in name")
     path = Path(scene)
-    if not path.is_file():
-        if str(scene).endswith(".toml") or "/" in str(scene):
-            raise SceneError(str(scene), "", "", "no such scene file")
+    try:
+        is_file = path.is_file()
+    except OSError as err:  # a name too long, a symlink loop
+        raise SceneError(_short(str(scene)), "", "", f"cannot read: {err.strerror}") from None
+    if not is_file:
+        if path.is_dir():
+            raise SceneError(_short(str(scene)), "", "", "is a folder, not a scene file")
+        if str(scene).endswith(".toml") or "/" in str(scene) or path.exists():
+            raise SceneError(_short(str(scene)), "", "", "no such scene file")
+        if not _NAME.fullmatch(str(scene)) or len(str(scene)) > _NAME_MAX:
+            raise SceneError(
+                _short(str(scene)),
+                "",
+                "",
+                f"no such scene file or built-in scene; built-in scenes: "
+                f"{', '.join(builtin_names())}",
+            )
         path = builtin_path(str(scene))
     try:
         with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+            data = tomllib.loads(fh.read().decode("utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise SceneError(str(path), "(syntax)", "", f"not valid TOML: {err}") from err
+    except UnicodeDecodeError as err:
+        raise SceneError(
+            str(path), "(syntax)", "", f"not UTF-8 text (byte {err.start}): a scene is TOML"
+        ) from None
+    except RecursionError:
+        raise SceneError(str(path), "(syntax)", "", "nested too deeply to be a scene") from None
+    except OSError as err:
+        raise SceneError(str(path), "", "", f"cannot read: {err.strerror or err}") from None
     return parse_scene(data, str(path))
 
 
