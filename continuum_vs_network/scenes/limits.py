@@ -86,7 +86,14 @@ def estimate(scene: Scene) -> Estimate:
                 f"sweeps of {L.sweep_points} points",
             )
         return est
-    assert net is not None
+    acc = getattr(scene, "accuracy", None)
+    if acc is not None:
+        # a trajectory per time-step count; the finite-element meshes are bounded by the schema
+        frames = max(acc.steps) + 1
+        est.add("accuracy", "steps", 4 * frames * acc.size**2 * 16, f"{frames} time steps")
+        return est
+    if net is None or scene.kind not in ("transmission", "relaxation", "stability", "solvers"):
+        return est  # a kind without an estimate yet
     sizes = (net.size,) if scene.kind == "stability" else net.sizes
     n = max(sizes)
     nodes = n * n
