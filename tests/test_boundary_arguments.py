@@ -296,3 +296,9 @@ def test_tasks_refuse_bad_arguments(make, words):
     with pytest.raises(ArgumentError) as info:
         make()
     _assert_named(info.value, *words)
+
+
+def test_a_pinned_node_without_springs_is_allowed():
+    net = cvn.SpringNetwork(np.vstack([P, [[9.0, 9.0]]]), S, K, L)
+    eq = cvn.relax(net, pinned=[0, 3, 16])
+    assert eq.converged and np.array_equal(eq.positions[16], [9.0, 9.0])
