@@ -343,3 +343,13 @@ def test_descriptions_with_pipes_and_html_are_escaped_in_reports(tmp_path):
     report = (tmp_path / "reports" / "trans" / "report.md").read_text().splitlines()
     assert "a | b &lt;script&gt;alert(1)&lt;/script&gt; &amp; c" in report
     assert escape.cell("x|y\nz") == "x\\|y z"
+
+
+def test_oversized_scene_file_and_absurd_worker_count_exit_2(tmp_path, capsys):
+    big = tmp_path / "big.toml"
+    big.write_bytes(b"#" * (2 << 20))
+    assert main(["run", str(big), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "larger than" in _one_line(capsys.readouterr().err)
+    scene = _write(tmp_path, TRANS)
+    assert main(["run", scene, "--workers", "100000", "--out", str(tmp_path / "o")]) == 2
+    assert "--workers must be in 1.." in _one_line(capsys.readouterr().err)

@@ -85,6 +85,7 @@ SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]*")
 _NAME_MAX = 100  # it names folders and files (file systems allow 255 bytes per name)
 _SEED_MAX = 2**63 - 1  # seeds are stored as int64
+_FILE_MAX = 1 << 20  # bytes; a scene is a few dozen lines
 _REQUIRED = object()
 
 
@@ -809,7 +810,10 @@ def load_scene(scene: str | Path) -> Scene:
         path = builtin_path(str(scene))
     try:
         with open(path, "rb") as fh:
-            data = tomllib.loads(fh.read().decode("utf-8"))
+            raw = fh.read(_FILE_MAX + 1)
+        if len(raw) > _FILE_MAX:
+            raise SceneError(str(path), "", "", f"larger than {_FILE_MAX} bytes: not a scene file")
+        data = tomllib.loads(raw.decode("utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise SceneError(str(path), "(syntax)", "", f"not valid TOML: {err}") from err
     except UnicodeDecodeError as err:
