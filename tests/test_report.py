@@ -10,7 +10,7 @@ from PIL import Image
 
 from continuum_vs_network.io.render import rendering_available
 from continuum_vs_network.report import write_index, write_report
-from continuum_vs_network.report.writer import _time_to
+from continuum_vs_network.report.sections.solvers import time_to as _time_to
 from continuum_vs_network.scenes import load_scene, run_scene
 
 PAPER = """
