@@ -13,7 +13,9 @@ Fixed DOFs jump to their prescribed values at ``t = 0`` (a step, before the firs
 recorded frame) and are held. The step is an impulse through the coupling ``C_fb`` (and
 ``M_fb``) to the free DOFs, applied exactly (:func:`_step_impulse`): a Kelvin-Voigt body
 is at its elastic solution at every ``t > 0``. A Maxwell arm (:mod:`.maxwell`, a standard
-linear solid) adds internal strains to the unknowns, integrated by the same schemes. Schemes (each factorises one matrix, once):
+linear solid) adds internal strains to the unknowns, integrated by the same schemes.
+
+Schemes (each factorises one matrix, once):
 
 ``"backward_euler"``
     L-stable, first order. Overdamped limit (``rho = 0``): ``(C + dt K) v = f - K u``.
