@@ -53,9 +53,12 @@ exponentially when the target should stretch (or runs to 0 when it should shrink
 Prospective configuration in the ``"current"`` convention has the same runaway on every
 clamped spring (``dL = alpha k S L``).
 
-Options every rule honours: ``dof``, ``learn_sources``, ``learn_targets``,
-``strain_reference`` (``"current"``: the paper's literal ``S = r / L - 1`` with the learning
-``L``; ``"initial"``: fixed clamp lengths from the task's recorded rest lengths),
+Options every rule honours: ``dof``, ``learn_sources`` and ``learn_targets`` (both False by
+default: bulk learning; a target that learns its own rest length meets the task trivially,
+without the bulk transmitting anything, see :mod:`.coupling`),
+``strain_reference`` (``"initial"``, the default: fixed clamp lengths from the task's
+recorded rest lengths, the convention in which the rules learn; ``"current"``: the paper's
+literal ``S = r / L - 1`` with the learning ``L``),
 floors ``min_rest_length`` / ``min_stiffness``, and the equilibrium ``solver``.
 """
 
@@ -73,7 +76,7 @@ from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
 from .sensitivity import Cost, cost_gradient
 from .states import Solver, Tracker
-from .tasks import AllosteryTask, Reference
+from .tasks import AllosteryTask, StrainReference, check_strain_reference
 
 __all__ = [
     "CoupledLearning",
@@ -217,16 +220,16 @@ class Rule:
     """Options shared by every rule (see the module docstring)."""
 
     dof: Dof = "rest_length"
-    learn_sources: bool = True
-    learn_targets: bool = True
-    strain_reference: Reference = "current"
+    learn_sources: bool = False
+    learn_targets: bool = False
+    strain_reference: StrainReference = "initial"
     min_rest_length: float | None = None
     min_stiffness: float | None = None
     solver: Solver = field(default_factory=Solver)
 
     def __post_init__(self) -> None:
         check.choice("dof", self.dof, ("rest_length", "stiffness"))
-        check.choice("strain_reference", self.strain_reference, ("current", "initial"))
+        check_strain_reference(self.strain_reference)
         check.boolean("learn_sources", self.learn_sources)
         check.boolean("learn_targets", self.learn_targets)
         for name in ("min_rest_length", "min_stiffness"):
@@ -484,7 +487,7 @@ class ExactGradient(Rule):
                 net,
                 task,
                 free,
-                reference=self.strain_reference,
+                strain_reference=self.strain_reference,
                 dof=self.dof,
                 cost=self.cost,
                 target_lengths=r_free[task.targets],

@@ -5,14 +5,17 @@ the strains they should show in the free state (Sec. 6.4). The task error is Eq.
 ``C = sum_T (S_T^F - S_T)^2 / 2``.
 
 A strain ``S = r / L - 1`` (Eq. 24) needs a reference rest length. Two conventions are
-supported everywhere (``reference``):
+supported everywhere, under one parameter name, ``strain_reference``:
 
+``"initial"`` (the default everywhere)
+    ``L`` is the rest length the spring had when the task was made (stored on the task), so
+    clamp lengths are fixed and the strain error is a length error in disguise: the targets
+    are fixed geometries. Coupled learning descends the task error in this convention.
 ``"current"``
     The paper's literal convention: ``L`` is the spring's current, learning rest length, so
-    clamp lengths ``L (S + 1)`` (Eq. 25) and measured strains move as ``L`` learns.
-``"initial"``
-    ``L`` is the rest length the spring had when the task was made (stored on the task), so
-    clamp lengths are fixed and the strain error is a length error in disguise.
+    clamp lengths ``L (S + 1)`` (Eq. 25) and measured strains move as ``L`` learns (where
+    coupled learning does not descend Eq. 26 and prospective configuration runs away; see
+    :mod:`.rules`).
 """
 
 from __future__ import annotations
@@ -27,15 +30,26 @@ from .. import _validate as check
 from ..network.constraints import default_pins
 from ..network.model import SpringNetwork
 
-__all__ = ["AllosteryTask", "Reference", "paper_task", "stern_task"]
+__all__ = [
+    "STRAIN_REFERENCES",
+    "AllosteryTask",
+    "StrainReference",
+    "check_strain_reference",
+    "paper_task",
+    "stern_task",
+]
 
-Reference = Literal["current", "initial"]
-_REFERENCES = ("current", "initial")
+StrainReference = Literal["initial", "current"]
+#: the strain conventions, the default first
+STRAIN_REFERENCES = ("initial", "current")
 
 
-def _check_reference(reference: str) -> None:
-    if reference not in _REFERENCES:
-        raise ValueError(f"reference must be 'current' or 'initial', got {reference!r}")
+def check_strain_reference(strain_reference: object) -> None:
+    """Raise ``ValueError`` unless ``strain_reference`` is ``"initial"`` or ``"current"``."""
+    if strain_reference not in STRAIN_REFERENCES:
+        raise ValueError(
+            f"strain_reference must be 'initial' or 'current', got {strain_reference!r}"
+        )
 
 
 def _frozen(value: ArrayLike, dtype: type, name: str) -> NDArray:
@@ -194,42 +208,60 @@ class AllosteryTask:
     def n_targets(self) -> int:
         return int(self.targets.size)
 
-    def _reference(self, net: SpringNetwork, reference: str, which: str) -> NDArray:
-        _check_reference(reference)
-        if reference == "initial":
+    def _reference(self, net: SpringNetwork, strain_reference: str, which: str) -> NDArray:
+        check_strain_reference(strain_reference)
+        if strain_reference == "initial":
             return self.source_rest_length if which == "source" else self.target_rest_length
         return net.rest_length[self.sources if which == "source" else self.targets]
 
-    def source_rest(self, net: SpringNetwork, reference: Reference) -> NDArray:
+    def source_rest(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
         """Reference rest lengths of the sources, (n_sources,)."""
-        return self._reference(net, reference, "source")
+        return self._reference(net, strain_reference, "source")
 
-    def target_rest(self, net: SpringNetwork, reference: Reference) -> NDArray:
+    def target_rest(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
         """Reference rest lengths of the targets, (n_targets,)."""
-        return self._reference(net, reference, "target")
+        return self._reference(net, strain_reference, "target")
 
-    def source_lengths(self, net: SpringNetwork, reference: Reference) -> NDArray:
+    def source_lengths(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
         """Clamp lengths ``L_s (S_s + 1)`` of the sources (Eq. 25), (n_sources,)."""
-        return self.source_rest(net, reference) * (self.source_strain + 1.0)
+        return self.source_rest(net, strain_reference) * (self.source_strain + 1.0)
 
-    def desired_lengths(self, net: SpringNetwork, reference: Reference) -> NDArray:
+    def desired_lengths(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
         """Target lengths ``L_T (S_T + 1)`` that realise the desired strains, (n_targets,)."""
-        return self.target_rest(net, reference) * (self.target_strain + 1.0)
+        return self.target_rest(net, strain_reference) * (self.target_strain + 1.0)
 
-    def source_clamps(self, net: SpringNetwork, reference: Reference) -> dict[int, float]:
+    def source_clamps(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> dict[int, float]:
         """``{source: clamp length}`` for :func:`~continuum_vs_network.relax`."""
-        return dict(zip(self.sources.tolist(), self.source_lengths(net, reference).tolist()))
+        return dict(zip(self.sources.tolist(), self.source_lengths(net, strain_reference).tolist()))
 
     def target_strains(
-        self, net: SpringNetwork, target_lengths: ArrayLike, reference: Reference
+        self,
+        net: SpringNetwork,
+        target_lengths: ArrayLike,
+        strain_reference: StrainReference = "initial",
     ) -> NDArray:
         """Strains ``r_T / L_T - 1`` of targets of lengths ``target_lengths`` (n_targets,)."""
-        return np.asarray(target_lengths, float) / self.target_rest(net, reference) - 1.0
+        return np.asarray(target_lengths, float) / self.target_rest(net, strain_reference) - 1.0
 
-    def error(self, net: SpringNetwork, positions: ArrayLike, reference: Reference) -> float:
+    def error(
+        self,
+        net: SpringNetwork,
+        positions: ArrayLike,
+        strain_reference: StrainReference = "initial",
+    ) -> float:
         """Task error ``C = sum_T (S_T^F - S_T)^2 / 2`` (Eq. 26) at free-state ``positions``."""
         r = net.lengths(positions)[self.targets]
-        err = self.target_strains(net, r, reference) - self.target_strain
+        err = self.target_strains(net, r, strain_reference) - self.target_strain
         return float(0.5 * np.sum(err**2))
 
 

@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from .. import _validate as check
 from ..network.equilibrium import Equilibrium, EquilibriumError
 from ..network.model import SpringNetwork
-from .history import MEASUREMENTS, UPDATES, History
+from .history import LEGACY, MEASUREMENTS, UPDATES, History
 from .rules import LearningError, Rule, Step, Warm
 from .states import Tracker
 from .tasks import AllosteryTask
@@ -52,7 +52,9 @@ _PER_TARGET = {
     "clamp_length",
 }
 _COUNTERS = ("solves", "factorisations", "iterations")
-_CURRENT_STATE = ("rest_length", "stiffness", "warm_free", "warm_clamped", "warm_previous_free")
+_CURRENT_STATE = frozenset(
+    {"rest_length", "stiffness", "warm_free", "warm_clamped", "warm_previous_free"}
+)
 
 
 def train(
@@ -321,7 +323,6 @@ def _record_measure(rec, t, net, task, rule, free, mask) -> None:
     r_t = net.lengths(x)[task.targets]
     rec["target_length"][t] = r_t
     rec["target_strain"][t] = task.target_strains(net, r_t, ref)
-    rec["error"][t] = task.error(net, x, ref)
     rec["error_current"][t] = task.error(net, x, "current")
     rec["error_initial"][t] = task.error(net, x, "initial")
     rec["energy_free"][t] = free.energy
@@ -534,7 +535,11 @@ class _Checkpoint:
         for j in range(n):
             prefix = f"rec/{j}/"
             self.records.append(
-                {k[len(prefix) :]: v.copy() for k, v in files.items() if k.startswith(prefix)}
+                {
+                    k[len(prefix) :]: v.copy()
+                    for k, v in files.items()
+                    if k.startswith(prefix) and k[len(prefix) :] not in LEGACY
+                }
             )
             self.initial.append(_net_from(files, f"initial/{j}"))
             self.final.append(_net_from(files, f"final/{j}"))
@@ -552,7 +557,7 @@ class _Checkpoint:
                 "record": {
                     k[4:]: v.copy()
                     for k, v in files.items()
-                    if k.startswith("cur/") and k[4:] not in _CURRENT_STATE
+                    if k.startswith("cur/") and k[4:] not in _CURRENT_STATE | LEGACY
                 },
                 "rest_length": files["cur/rest_length"],
                 "stiffness": files["cur/stiffness"],

@@ -86,11 +86,16 @@ def estimate(scene: Scene) -> Estimate:
                 f"sweeps of {L.sweep_points} points",
             )
         return est
-    acc = getattr(scene, "accuracy", None)
-    if acc is not None:
-        # a trajectory per time-step count; the finite-element meshes are bounded by the schema
-        frames = max(acc.steps) + 1
-        est.add("accuracy", "steps", 4 * frames * acc.size**2 * 16, f"{frames} time steps")
+    if scene.kind == "accuracy":
+        a = scene.accuracy
+        assert a is not None
+        # Lamé's annulus (radii 1 and 2, area 3 pi) meshed at the finest h: about
+        # area / (0.43 h^2) vertices, four times as many unknowns per vertex for P2
+        vertices = 3 * math.pi / (0.43 * min(a.mesh_sizes) ** 2)
+        dofs = 2 * vertices * (4 if any(e.startswith("P2") for e in a.elements) else 1)
+        est.add("accuracy", "mesh_sizes", dofs * FE_BYTES_PER_DOF, f"{dofs:.0f} FE unknowns")
+        frames = max(a.steps) + 1
+        est.add("accuracy", "steps", frames * 2 * a.size**2 * 16, f"{frames} time steps")
         return est
     if net is None or scene.kind not in ("transmission", "relaxation", "stability", "solvers"):
         return est  # a kind without an estimate yet

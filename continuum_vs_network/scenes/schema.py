@@ -76,9 +76,17 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
 }
 
-#: Learning runs a scene can name (the paper's experiments, see
-#: :func:`continuum_vs_network.learning.replication.paper_experiments`).
-RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact")
+#: Learning runs a scene can name. Paper task: the paper's experiments (see
+#: :func:`continuum_vs_network.learning.replication.paper_experiments`; ``gcl``, ``gpc`` and
+#: ``exact`` let every spring learn, as the paper does). Stern-scale tasks: ``gcl``, ``gpc``
+#: and ``exact`` learn in the bulk only (sources and targets frozen), ``gcl_all`` and
+#: ``gpc_all`` let every spring learn (a target can then meet the task alone).
+RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact", "gcl_all", "gpc_all")
+#: Rules only the paper task knows, and only Stern-scale tasks know.
+PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
+STERN_RULES = ("gcl_all", "gpc_all")
+#: Keys renamed: (table, old key) -> new key; an old key is an error naming the new one.
+RENAMED = {("learning", "reference"): "strain_reference"}
 #: Equilibrium methods of :func:`continuum_vs_network.relax`.
 SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 
@@ -267,11 +275,21 @@ class LearningSpec:
         "int", 10, "independent trials (seeds seed, seed + 1, ...)", check=_at_least(1)
     )
     steps: int = _key("int", 300, "learning steps per trial", check=_at_least(1))
-    reference: str = _key(
-        "str", "current", "strain convention of clamps and error", choices=("current", "initial")
+    strain_reference: str = _key(
+        "str",
+        "initial",
+        "strain convention of clamps and error: 'initial' (fixed target geometries) or "
+        "'current' (the paper's literal S = r / L - 1 with the learning L)",
+        choices=("initial", "current"),
     )
     alpha_gcl: float = _key("float", 1e-3, "GCL learning rate", check=_positive)
     eta: float = _key("float", 0.1, "GCL nudge amplitude", check=_positive)
+    etas: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
+        check=_each(_positive),
+    )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
     alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
     floor: float = _key(
@@ -290,7 +308,8 @@ class LearningSpec:
         "bool",
         True,
         "solve the free state after every step to measure the "
-        "error even when the rule does not need it (GPC)",
+        "error even when the rule does not need it (GPC), and measure the coupling of "
+        "every trained network",
     )
     sweeps: bool = _key("bool", False, "source sweeps of the trained networks (Fig. 5)")
     sweep_span: float = _key("float", 5.0, "sweep source strains S +- span", check=_positive)
@@ -567,6 +586,8 @@ def _parse_table(cls: type, data: Any, file: str, table: str) -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
+        if (table, key) in RENAMED:
+            raise SceneError(file, table, key, f"renamed; use {RENAMED[table, key]} = ...")
         if key not in fields:
             raise SceneError(
                 file, table, key, f"unknown key; [{table}] accepts {', '.join(sorted(fields))}"
@@ -699,18 +720,33 @@ def _check_kind(scene: Scene, file: str) -> None:
                     file, "task", "kind", f"a {net.builder!r} network takes kind = 'stern'"
                 )
             need_key("network", "n_nodes", "for a learning scene on a large network")
-            if scene.learning.reference != "initial":
+            if scene.learning.strain_reference != "initial":
                 raise SceneError(
                     file,
                     "learning",
-                    "reference",
+                    "strain_reference",
                     "Stern-scale runs measure strains against the initial rest "
-                    "lengths; set reference = 'initial'",
+                    "lengths; set strain_reference = 'initial'",
                 )
-            bad = [r for r in scene.learning.rules if r in ("gcl_floor",)]
+            bad = [r for r in scene.learning.rules if r in PAPER_RULES]
             if bad:
                 raise SceneError(
-                    file, "learning", "rules", f"{bad[0]!r} exists for the paper task only"
+                    file,
+                    "learning",
+                    "rules",
+                    f"{bad[0]!r} exists for the paper task only (Stern-scale 'gcl', 'gpc' "
+                    "and 'exact' already freeze sources and targets; 'gcl_all' and "
+                    "'gpc_all' let every spring learn)",
+                )
+        else:
+            bad = [r for r in scene.learning.rules if r in STERN_RULES]
+            if bad:
+                raise SceneError(
+                    file,
+                    "learning",
+                    "rules",
+                    f"{bad[0]!r} exists for Stern-scale tasks only (the paper's 'gcl' and "
+                    "'gpc' already let every spring learn)",
                 )
         if scene.solver is not None:
             bad = [m for m in scene.solver.methods if m not in ("newton", "paper")]
