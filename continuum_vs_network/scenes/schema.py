@@ -9,11 +9,11 @@ A scene is data only (no code is executed from it). Top-level keys::
                               # | accuracy
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
-``[continuum]``, ``[dynamics]``, ``[accuracy]``, ``[export]``, ``[report]``. Which tables a
-kind needs and which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an
-error (a scene never carries settings that are silently ignored). Every key of every table is
-listed, with its type, default and meaning, in the dataclasses below (``cvn scenes --keys``
-prints them).
+``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[export]``, ``[report]``.
+Which tables a kind needs and which it accepts is in :data:`KIND_TABLES`; a table a kind
+does not use is an error (a scene never carries settings that are silently ignored). Every key
+of every table is listed, with its type, default and meaning, in the dataclasses below
+(``cvn scenes --keys`` prints them).
 
 Unknown keys, wrong types and impossible values raise :class:`SceneError`, a ``ValueError``
 whose message and attributes name the file, the table and the key.
@@ -47,6 +47,7 @@ __all__ = [
     "Scene",
     "SceneError",
     "SolverSpec",
+    "StabilitySpec",
     "TaskSpec",
     "builtin_names",
     "builtin_path",
@@ -71,7 +72,7 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
         frozenset({"network", "dynamics"}),
         frozenset({"continuum", "export", "report"}),
     ),
-    "stability": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
+    "stability": (frozenset({"network", "task", "solver"}), frozenset({"stability", "report"})),
     "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
     "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
 }
@@ -370,6 +371,54 @@ class DynamicsSpec:
 
 
 @dataclass(frozen=True)
+class StabilitySpec:
+    """``[stability]``: degenerate, dynamic, continuum and learning cases of a stability scene.
+
+    See :mod:`~continuum_vs_network.scenes.units_stability` for what each case runs.
+    """
+
+    collinear_heights: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "apex heights of a nearly collinear triangle (base 2, sides 1.2)",
+        check=_each(_positive),
+    )
+    float32: bool = _key("bool", False, "the lattice given as float32 arrays")
+    floppy: bool = _key("bool", False, "the lattice with 12 springs removed (must raise)")
+    explicit_dt: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "explicit dynamics steps, in units of the stability limit",
+        check=_each(_positive),
+    )
+    implicit_dt: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "backward Euler and Newmark steps, in units of the explicit limit (stiff lattice)",
+        check=_each(_positive),
+    )
+    implicit_stiffness: float = _key(
+        "float", 1e6, "stiffness ratio of the implicit-dynamics lattice", check=_at_least(1.0)
+    )
+    poisson: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "Poisson's ratios of the locking study (Lamé's cylinder, P1 and curved P2)",
+        check=_each(_between(0.0, 0.4999)),
+    )
+    locking_h: float = _key(
+        "float", 0.1, "mesh size of the locking study", check=_between(0.01, 0.5)
+    )
+    learning_stiffness_ratios: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "stiffness ratios of coupled learning on a stiff lattice",
+        check=_each(_at_least(1.0)),
+    )
+    learning_steps: int = _key("int", 5, "learning steps of those runs", check=_at_least(1))
+
+
+@dataclass(frozen=True)
 class AccuracySpec:
     """``[accuracy]``: error against run time of the continuum and the time integrators.
 
@@ -449,6 +498,7 @@ _TABLES: dict[str, type] = {
     "solver": SolverSpec,
     "continuum": ContinuumSpec,
     "dynamics": DynamicsSpec,
+    "stability": StabilitySpec,
     "accuracy": AccuracySpec,
     "export": ExportSpec,
     "report": ReportSpec,
@@ -465,7 +515,8 @@ class Scene:
     seed : int
     kind : str
         One of :data:`KINDS`.
-    network, task, learning, solver, continuum, dynamics, accuracy, export : spec or None
+    network, task, learning, solver, continuum, dynamics, stability, accuracy, export : spec
+        or None
         The tables given (None when absent).
     report : ReportSpec
         Always present (defaults when the table is absent).
@@ -483,6 +534,7 @@ class Scene:
     solver: SolverSpec | None = None
     continuum: ContinuumSpec | None = None
     dynamics: DynamicsSpec | None = None
+    stability: StabilitySpec | None = None
     accuracy: AccuracySpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
