@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
+from .arguments import relax_arguments
 from .constraints import ClampMode, Pins, Problem, default_pins
 from .energy import spring_energy
 from .model import SpringNetwork
@@ -229,12 +231,13 @@ def relax(
     EquilibriumError
         The method did not reach ``tol``; ``err.state`` holds the last iterate.
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be finite and > 0, got {tol}")
-    if int(ramp) != ramp or ramp < 1:
-        raise ValueError(f"ramp must be an integer >= 1, got {ramp}")
+    args = relax_arguments(
+        net, methods=tuple(METHODS), method=method, tol=tol, clamp=clamp,
+        rod_stiffness=rod_stiffness, ramp=ramp, max_iter=max_iter, max_seconds=max_seconds,
+    )  # fmt: skip
+    method, tol, ramp, max_iter, max_seconds = (
+        args.method, args.tol, args.ramp, args.max_iter, args.max_seconds
+    )  # fmt: skip
     if method == "paper":
         clamp = "rod"
     problem = Problem.build(
@@ -250,7 +253,7 @@ def relax(
     stop = StopRule(
         force=tol * net.force_scale,
         length=tol * float(np.mean(net.rest_length)),
-        max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]),
+        max_iter=max_iter or _DEFAULT_MAX_ITER[method],
         max_seconds=float(max_seconds),
     )
     x = _start(problem, x0)
@@ -307,12 +310,7 @@ def _pin_reaction(problem: Problem, x: NDArray) -> float:
 def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
     if x0 is None:
         return problem.net.positions.copy()
-    x = np.array(x0, dtype=np.float64, copy=True)
-    if x.shape != (problem.net.n_nodes, 2):
-        raise ValueError(f"x0 must have shape ({problem.net.n_nodes}, 2), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("x0 must be finite")
-    return x
+    return check.float_array("x0", x0, (problem.net.n_nodes, 2))
 
 
 def _finish(

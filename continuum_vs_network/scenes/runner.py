@@ -39,7 +39,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..io.atomic import atomic_path, write_text_atomic
+from ..io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
+from ..io.lock import folder_lock
 from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
 
@@ -228,14 +229,35 @@ def _payload_path(directory: Path, key: str) -> Path:
     return _units_dir(directory) / (key.replace("/", "__") + ".npz")
 
 
-def _is_done(directory: Path, unit: Unit) -> bool:
+def _is_done(directory: Path, unit: Unit, *, verify: bool = False) -> bool:
+    """The unit's record matches its fingerprint (and, with ``verify``, its payload loads)."""
     rec = _record_path(directory, unit.key)
     if not (rec.exists() and _payload_path(directory, unit.key).exists()):
         return False
     try:
-        return json.loads(rec.read_text())["fingerprint"] == unit.fingerprint
-    except (OSError, ValueError, KeyError):
+        record = json.loads(rec.read_text())
+        if record["fingerprint"] != unit.fingerprint:
+            return False
+    except (OSError, ValueError, KeyError, TypeError):
         return False
+    return not verify or _payload_loads(directory, unit.key, bool(record.get("history")))
+
+
+def _payload_loads(directory: Path, key: str, history: bool) -> bool:
+    """True when the unit's payload reads back completely (every array, every CRC)."""
+    path = _payload_path(directory, key)
+    try:
+        if history:
+            from ..learning.history import History
+
+            History.load(path)
+        else:
+            with np.load(path, allow_pickle=False) as z:
+                for name in z.files:
+                    z[name]
+    except Exception:  # any failure to read back means: compute the unit again
+        return False
+    return True
 
 
 def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None:
@@ -348,7 +370,28 @@ def _worker(scene: Scene, unit: Unit, directory: str) -> tuple[str, float]:
     return unit.key, seconds
 
 
-def run_scene(
+def _log_unreadable(directory: Path, units: list[Unit], done: set[str], log) -> None:
+    """Say which units are recomputed because their payload does not read back."""
+    bad = [u.key for u in units if u.key not in done and _is_done(directory, u)]
+    if bad and log:
+        log(f"{len(bad)} unit(s) with an unreadable payload are computed again (first: {bad[0]})")
+
+
+def run_scene(scene: Scene, directory: str | os.PathLike[str], **options: Any) -> SceneResult:
+    """Compute every unit of ``scene`` not already in ``directory``; return the result.
+
+    The folder is locked for the run (:func:`~continuum_vs_network.io.lock.folder_lock`): a
+    second run on it raises :class:`~continuum_vs_network.io.lock.FolderBusyError` at once.
+    Temporaries that killed runs left in it are removed first, and a unit whose stored
+    payload does not read back is computed again. The keyword options (``workers``,
+    ``progress``, ``fresh``, ``command``, ``log``) are described at :func:`_run_scene`.
+    """
+    with folder_lock(directory):
+        remove_stale_temporaries(directory, locked=True)
+        return _run_scene(scene, directory, **options)
+
+
+def _run_scene(
     scene: Scene,
     directory: str | os.PathLike[str],
     *,
@@ -399,7 +442,8 @@ def run_scene(
         raise AssertionError("duplicate unit keys")
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     t_start = time.perf_counter()
-    done = {u.key for u in units if _is_done(directory, u)}
+    done = {u.key for u in units if _is_done(directory, u, verify=True)}
+    _log_unreadable(directory, units, done, log)
     reused = len(done)
     if log and done:
         log(f"{scene.name}: resuming, {len(done)} of {len(units)} units already computed")

@@ -77,13 +77,23 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
 }
 
-#: Learning runs a scene can name (the paper's experiments, see
-#: :func:`continuum_vs_network.learning.replication.paper_experiments`).
-RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact")
+#: Learning runs a scene can name. Paper task: the paper's experiments (see
+#: :func:`continuum_vs_network.learning.replication.paper_experiments`; ``gcl``, ``gpc`` and
+#: ``exact`` let every spring learn, as the paper does). Stern-scale tasks: ``gcl``, ``gpc``
+#: and ``exact`` learn in the bulk only (sources and targets frozen), ``gcl_all`` and
+#: ``gpc_all`` let every spring learn (a target can then meet the task alone).
+RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact", "gcl_all", "gpc_all")
+#: Rules only the paper task knows, and only Stern-scale tasks know.
+PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
+STERN_RULES = ("gcl_all", "gpc_all")
+#: Keys renamed: (table, old key) -> new key; an old key is an error naming the new one.
+RENAMED = {("learning", "reference"): "strain_reference"}
 #: Equilibrium methods of :func:`continuum_vs_network.relax`.
 SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]*")
+_NAME_MAX = 100  # it names folders and files (file systems allow 255 bytes per name)
+_SEED_MAX = 2**63 - 1  # seeds are stored as int64
 _REQUIRED = object()
 
 
@@ -265,11 +275,21 @@ class LearningSpec:
         "int", 10, "independent trials (seeds seed, seed + 1, ...)", check=_at_least(1)
     )
     steps: int = _key("int", 300, "learning steps per trial", check=_at_least(1))
-    reference: str = _key(
-        "str", "current", "strain convention of clamps and error", choices=("current", "initial")
+    strain_reference: str = _key(
+        "str",
+        "initial",
+        "strain convention of clamps and error: 'initial' (fixed target geometries) or "
+        "'current' (the paper's literal S = r / L - 1 with the learning L)",
+        choices=("initial", "current"),
     )
     alpha_gcl: float = _key("float", 1e-3, "GCL learning rate", check=_positive)
     eta: float = _key("float", 0.1, "GCL nudge amplitude", check=_positive)
+    etas: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
+        check=_each(_positive),
+    )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
     alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
     floor: float = _key(
@@ -616,6 +636,8 @@ def _parse_table(cls: type, data: Any, file: str, table: str) -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
+        if (table, key) in RENAMED:
+            raise SceneError(file, table, key, f"renamed; use {RENAMED[table, key]} = ...")
         if key not in fields:
             raise SceneError(
                 file, table, key, f"unknown key; [{table}] accepts {', '.join(sorted(fields))}"
@@ -670,19 +692,22 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
             if default is _REQUIRED:
                 raise SceneError(file, "(top level)", key, "is required")
             top[key] = default
-    if not _NAME.match(top["name"]):
+    if not _NAME.fullmatch(top["name"]) or len(top["name"]) > _NAME_MAX:
         raise SceneError(
             file,
             "(top level)",
             "name",
-            f"must be a plain name (letters, digits, '_', '-', '.'), got {top['name']!r}",
+            f"must be a plain name of at most {_NAME_MAX} characters (letters, digits, '_', "
+            f"'-', '.'; starting with a letter or digit), got {_short(repr(top['name']))}",
         )
     desc = top["description"].strip()
     if not desc or "\n" in desc:
         raise SceneError(file, "(top level)", "description", "must be one non-empty line")
     top["description"] = desc
-    if top["seed"] < 0:
-        raise SceneError(file, "(top level)", "seed", f"must be >= 0, got {top['seed']}")
+    if not 0 <= top["seed"] <= _SEED_MAX:
+        raise SceneError(
+            file, "(top level)", "seed", f"must be in 0..2**63-1, got {_short(top['seed'])}"
+        )
     if top["kind"] not in KINDS:
         raise SceneError(
             file,
@@ -692,7 +717,24 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
         )
     scene = Scene(**top, **tables, source=str(file))
     _check_kind(scene, file)
+    if scene.learning is not None and scene.seed + scene.learning.trials - 1 > _SEED_MAX:
+        raise SceneError(
+            file,
+            "(top level)",
+            "seed",
+            f"trial i uses seed + i, so seed + trials - 1 must be <= 2**63-1; got seed = "
+            f"{scene.seed} with [learning] trials = {scene.learning.trials}",
+        )
+    from .limits import check_resources
+
+    check_resources(scene, str(file))
     return scene
+
+
+def _short(value: Any, width: int = 60) -> str:
+    """``repr(value)`` (strings: the text itself) cut to ``width`` characters."""
+    text = value if isinstance(value, str) else repr(value)
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def _check_kind(scene: Scene, file: str) -> None:
@@ -728,18 +770,33 @@ def _check_kind(scene: Scene, file: str) -> None:
                     file, "task", "kind", f"a {net.builder!r} network takes kind = 'stern'"
                 )
             need_key("network", "n_nodes", "for a learning scene on a large network")
-            if scene.learning.reference != "initial":
+            if scene.learning.strain_reference != "initial":
                 raise SceneError(
                     file,
                     "learning",
-                    "reference",
+                    "strain_reference",
                     "Stern-scale runs measure strains against the initial rest "
-                    "lengths; set reference = 'initial'",
+                    "lengths; set strain_reference = 'initial'",
                 )
-            bad = [r for r in scene.learning.rules if r in ("gcl_floor",)]
+            bad = [r for r in scene.learning.rules if r in PAPER_RULES]
             if bad:
                 raise SceneError(
-                    file, "learning", "rules", f"{bad[0]!r} exists for the paper task only"
+                    file,
+                    "learning",
+                    "rules",
+                    f"{bad[0]!r} exists for the paper task only (Stern-scale 'gcl', 'gpc' "
+                    "and 'exact' already freeze sources and targets; 'gcl_all' and "
+                    "'gpc_all' let every spring learn)",
+                )
+        else:
+            bad = [r for r in scene.learning.rules if r in STERN_RULES]
+            if bad:
+                raise SceneError(
+                    file,
+                    "learning",
+                    "rules",
+                    f"{bad[0]!r} exists for Stern-scale tasks only (the paper's 'gcl' and "
+                    "'gpc' already let every spring learn)",
                 )
         if scene.solver is not None:
             bad = [m for m in scene.solver.methods if m not in ("newton", "paper")]
@@ -816,16 +873,40 @@ def builtin_path(name: str) -> Path:
 
 def load_scene(scene: str | Path) -> Scene:
     """Read a scene: a path to a ``.toml`` file or the name of a built-in scene."""
+    if not isinstance(scene, str | Path):
+        raise SceneError(repr(scene), "", "", "a scene is a path or a built-in name")
     path = Path(scene)
-    if not path.is_file():
-        if str(scene).endswith(".toml") or "/" in str(scene):
-            raise SceneError(str(scene), "", "", "no such scene file")
+    try:
+        is_file = path.is_file()
+    except OSError as err:  # a name too long, a symlink loop
+        raise SceneError(_short(str(scene)), "", "", f"cannot read: {err.strerror}") from None
+    if not is_file:
+        if path.is_dir():
+            raise SceneError(_short(str(scene)), "", "", "is a folder, not a scene file")
+        if str(scene).endswith(".toml") or "/" in str(scene) or path.exists():
+            raise SceneError(_short(str(scene)), "", "", "no such scene file")
+        if not _NAME.fullmatch(str(scene)) or len(str(scene)) > _NAME_MAX:
+            raise SceneError(
+                _short(str(scene)),
+                "",
+                "",
+                f"no such scene file or built-in scene; built-in scenes: "
+                f"{', '.join(builtin_names())}",
+            )
         path = builtin_path(str(scene))
     try:
         with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+            data = tomllib.loads(fh.read().decode("utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise SceneError(str(path), "(syntax)", "", f"not valid TOML: {err}") from err
+    except UnicodeDecodeError as err:
+        raise SceneError(
+            str(path), "(syntax)", "", f"not UTF-8 text (byte {err.start}): a scene is TOML"
+        ) from None
+    except RecursionError:
+        raise SceneError(str(path), "(syntax)", "", "nested too deeply to be a scene") from None
+    except OSError as err:
+        raise SceneError(str(path), "", "", f"cannot read: {err.strerror or err}") from None
     return parse_scene(data, str(path))
 
 

@@ -16,6 +16,14 @@ from ..document import (
     stats,
 )
 from ..figures import COLORS, Panel, Series
+from .learning_checks import (
+    CONVENTION_TEXT,
+    claims,
+    coupling,
+    curve_caption,
+    error_label,
+    noise_floor,
+)
 from .learning_studies import gradient, noise, solver_comparison, sweeps
 from .renders import learning_renders
 
@@ -23,11 +31,14 @@ from .renders import learning_renders
 def section(doc: Document, result) -> None:
     """The learning section: claims or Stern table, error figures, studies, renders."""
     from ...learning.metrics import length_error, rest_length_error
+    from ...scenes.units_learning import run_names
 
     scene = result.scene
     L = scene.learning
     solvers = scene.solver.methods if scene.solver is not None else ("newton",)
     H = result.histories
+    names = run_names(scene)
+    ref = L.strain_reference
 
     def h(solver: str, rule: str, i: int = 0):
         return H[f"{solver}/{rule}/noise{i}"]
@@ -35,12 +46,16 @@ def section(doc: Document, result) -> None:
     first = solvers[0]
     doc.add(
         f"{L.trials} trials x {L.steps} learning steps for each of "
-        f"{', '.join(f'`{r}`' for r in L.rules)}; equilibria by "
+        f"{', '.join(f'`{r}`' for r in names)}; equilibria by "
         f"{' and '.join(SOLVER_NAMES[s] for s in solvers)}; strain convention "
-        f"`{L.reference}`."
+        f"{CONVENTION_TEXT[ref]}; C below is Eq. 26 in that convention unless a column "
+        "says otherwise."
     )
     stopped = [
-        (f"{s}/{r}", int(np.sum(h(s, r).completed < L.steps))) for s in solvers for r in L.rules
+        (f"{s}/{r}/noise{i}", int(np.sum(h(s, r, i).completed < L.steps)))
+        for s in solvers
+        for r in names
+        for i in range(len(L.noise))
     ]
     if any(n for _, n in stopped):
         doc.add(
@@ -52,41 +67,29 @@ def section(doc: Document, result) -> None:
         )
 
     if scene.task.kind == "paper":
-        from ...learning.replication import table
-        from ...scenes.units_learning import experiments
-
-        doc.heading("The paper's claims and what this package measures")
-        doc.add(
-            "Medians over trials of final-over-initial ratios, quartiles in brackets "
-            "(`C/C0` is Eq. 26)."
-        )
-        for solver in solvers:
-            rows = table(
-                {r: h(solver, r) for r in L.rules}, experiments(scene, solver), solver_name=solver
-            )
-            doc.add("", f"**{SOLVER_NAMES[solver]}**", "")
-            if rows:
-                doc.table(list(rows[0]), [list(r.values()) for r in rows])
+        claims(doc, result, h, solvers)
     else:
         from ...learning.stern import stern_table
 
         doc.heading("Stern-scale allostery")
         for solver in solvers:
-            rows = stern_table({(scene.network.n_nodes, r): h(solver, r) for r in L.rules})
+            rows = stern_table({(scene.network.n_nodes, r): h(solver, r) for r in names})
             if rows:
                 doc.table(list(rows[0]), [list(r.values()) for r in rows])
         doc.add(
             f"{scene.task.n_sources} sources, {scene.task.n_targets} targets; `C/C0` is "
-            "the final over the initial task error (median [quartiles])."
+            f"the final over the initial task error, {error_label(ref)} (median "
+            "[quartiles]). Whether a low C/C0 is learned or trivial: next section."
         )
+    coupling(doc, result, h, solvers, names)
 
     doc.heading("Error against iterations and against wall-clock time")
     panels = []
     for solver in solvers:
         step_series, time_series = [], []
-        for j, rule in enumerate(L.rules):
+        for j, rule in enumerate(names):
             hist = h(solver, rule)
-            st = stats(normalised(hist.error))
+            st = stats(normalised(hist.task_error(ref)))
             steps = np.arange(hist.steps + 1)
             secs = quiet(np.nanmedian, hist.seconds, axis=0)
             color = COLORS[j % len(COLORS)]
@@ -115,7 +118,7 @@ def section(doc: Document, result) -> None:
     doc.figure(
         "error",
         panels,
-        "Task error (Eq. 26, normalised by its initial value) against "
+        f"Task error {error_label(ref)}, normalised by its initial value, against "
         "learning steps and against wall-clock seconds; line: median over trials, band: "
         "quartiles.",
     )
@@ -126,7 +129,9 @@ def section(doc: Document, result) -> None:
         sweeps(doc, result, first)
     if L.compare_gradient:
         gradient(doc, result, h)
-    if len(L.noise) > 1:
+    if len(L.noise) > 1 and L.etas:
+        noise_floor(doc, result, h, first, names)
+    elif len(L.noise) > 1:
         noise(doc, result, h, first)
     if len(solvers) > 1:
         solver_comparison(doc, result, h, solvers)
@@ -174,8 +179,16 @@ def _paper_figures(doc: Document, scene, h, solver: str, length_error, rest_leng
             hist = h(solver, rule)
             doc.figure(
                 f"{rule}_mean",
-                [_mean_panel(hist, f"{fig}: {rule}", hist.error, "C / C0")],
-                f"{fig}: normalised error of {rule} ({hist.trials} trials).",
+                [
+                    _mean_panel(
+                        hist,
+                        f"{fig}: {rule}",
+                        hist.task_error(hist.strain_reference),
+                        "C / C0",
+                    )
+                ],
+                f"{fig}: normalised error of {rule}, {error_label(hist.strain_reference)} "
+                f"({hist.trials} trials).",
                 ncols=1,
             )
     if "gpc" in rules:
@@ -199,7 +212,11 @@ def _paper_figures(doc: Document, scene, h, solver: str, length_error, rest_leng
                     yscale="log",
                 ),
             ],
-            "Fig. 7: GPC descends the clamped energy and its gradient (trial 0).",
+            "Fig. 7 (trial 0): "
+            + curve_caption("the clamped energy E^C", hist.energy_clamped[0])
+            + "; "
+            + curve_caption("|dE^C/dL|", hist.energy_gradient_clamped[0])
+            + ".",
         )
         doc.figure(
             "gpc_lengths",
@@ -260,17 +277,19 @@ def _paper_figures(doc: Document, scene, h, solver: str, length_error, rest_leng
 
 
 def _trials_appendix(doc: Document, scene, h, solver: str) -> None:
-    rules = scene.learning.rules
+    from ...scenes.units_learning import run_names
+
     panels = []
-    for rule in rules:
+    for rule in run_names(scene):
         hist = h(solver, rule)
         steps = np.arange(hist.steps + 1)
+        err = hist.task_error(hist.strain_reference)
         panels.append(
             Panel(
-                [Series(steps, hist.error[i], width=1.0) for i in range(hist.trials)],
+                [Series(steps, err[i], width=1.0) for i in range(hist.trials)],
                 f"{rule}: C of every trial",
                 "learning step",
-                "C (Eq. 26)",
+                error_label(hist.strain_reference),
                 yscale="log",
                 legend=False,
             )

@@ -25,7 +25,8 @@ def sweeps(doc: Document, result, solver: str) -> None:
     doc.add(
         "The trained network's target strain for other source strains (blue) against the "
         "trivial, decoupled response that stays at the desired strain (orange); the "
-        "black dot is the trained point."
+        "black dot is the task: its source strain and the desired target strain (where a "
+        "met task's curve passes)."
     )
     for rule in result.scene.learning.rules:
         u = result.units[f"sweeps/{solver}/{rule}"]
@@ -41,7 +42,7 @@ def sweeps(doc: Document, result, solver: str) -> None:
                         Series(
                             [a["task_source"][i]],
                             [a["desired"][i]],
-                            "trained",
+                            "task",
                             style="",
                             marker="o",
                             color="black",
@@ -86,7 +87,12 @@ def gradient(doc: Document, result, h) -> None:
     if "exact" in result.scene.learning.rules:
         solver = (result.scene.solver.methods if result.scene.solver else ("newton",))[0]
         rows = [
-            [r, summary_text(h(solver, r).error, h(solver, r).completed)]
+            [
+                r,
+                summary_text(
+                    h(solver, r).task_error(h(solver, r).strain_reference), h(solver, r).completed
+                ),
+            ]
             for r in result.scene.learning.rules
         ]
         doc.add(
@@ -118,16 +124,19 @@ def noise(doc: Document, result, h, solver: str) -> None:
     positive = levels[levels > 0]
     x0 = positive.min() / 10 if positive.size else 1e-4
     xs = np.where(levels > 0, levels, x0)
-    for j, rule in enumerate(L.rules):
+    from ...scenes.units_learning import run_names
+
+    for j, rule in enumerate(run_names(result.scene)):
         med, lo, hi, cells = [], [], [], []
         for i in range(len(L.noise)):
             hist = h(solver, rule, i)
-            f = final_values(normalised(hist.error), hist.completed)
+            err = hist.task_error(hist.strain_reference)
+            f = final_values(normalised(err), hist.completed)
             f = f[np.isfinite(f)]
             med.append(np.median(f) if f.size else np.nan)
             lo.append(np.quantile(f, 0.25) if f.size else np.nan)
             hi.append(np.quantile(f, 0.75) if f.size else np.nan)
-            cells.append(summary_text(hist.error, hist.completed))
+            cells.append(summary_text(err, hist.completed))
         series.append(Series(xs, med, rule, lo, hi, marker="o", color=COLORS[j % 10]))
         rows.append([rule, *cells])
     doc.figure(
@@ -150,11 +159,12 @@ def noise(doc: Document, result, h, solver: str) -> None:
 
 
 def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
-    L = result.scene.learning
+    from ...scenes.units_learning import run_names
+
     doc.heading("Exact equilibria against the paper's relaxation")
     doc.add("The same networks and tasks (same seeds), trained with each equilibrium solver.")
     rows, panels = [], []
-    for rule in L.rules:
+    for rule in run_names(result.scene):
         cells = []
         step_s, time_s = [], []
         for j, solver in enumerate(solvers):
@@ -163,8 +173,9 @@ def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
             last = np.array(
                 [hist.seconds[i, min(hist.completed[i], hist.steps)] for i in range(hist.trials)]
             )
-            cells += [summary_text(hist.error, hist.completed), fmt(float(np.median(last / done)))]
-            st = stats(normalised(hist.error))
+            err = hist.task_error(hist.strain_reference)
+            cells += [summary_text(err, hist.completed), fmt(float(np.median(last / done)))]
+            st = stats(normalised(err))
             style = "-" if j == 0 else "--"
             step_s.append(
                 Series(
