@@ -13,7 +13,8 @@ centre clamped:
   length 1.2): a nearly singular tangent stiffness; closed form: the apex rises to
   ``sqrt(1.2^2 - 1)``;
 * ``float32``: the lattice given as float32 arrays, against the same lattice in float64;
-* ``floppy``: the lattice with 12 springs removed; must raise ``ValueError``.
+* ``floppy``: the lattice with 12 springs removed (every node keeps two); must raise
+  ``ValueError``.
 
 Each records converged, the error raised, time, iterations and, independently of the
 solver, the *local imbalance* at the returned positions: the largest net force on a free
@@ -158,6 +159,22 @@ def local_imbalance(
 
 
 # -- equilibrium cases ---------------------------------------------------------------------
+def _floppy_springs(net) -> np.ndarray:
+    """Mask keeping all but ``_FLOPPY_REMOVED`` springs, every node left with two or more."""
+    keep = np.ones(net.n_springs, dtype=bool)
+    degree = np.bincount(net.springs.ravel(), minlength=net.n_nodes)
+    removed = 0
+    for j, (a, b) in enumerate(net.springs):
+        if removed == _FLOPPY_REMOVED:
+            break
+        if degree[a] > 2 and degree[b] > 2:
+            keep[j] = False
+            degree[a] -= 1
+            degree[b] -= 1
+            removed += 1
+    return keep
+
+
 def _collinear(height: float):
     from ..network.model import SpringNetwork
 
@@ -209,8 +226,7 @@ def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
     else:
         net, clamped, options = _equilibrium_problem(scene, kind, value)
         if kind == "floppy":
-            keep = np.ones(net.n_springs, dtype=bool)
-            keep[:_FLOPPY_REMOVED] = False
+            keep = _floppy_springs(net)
             net = SpringNetwork(
                 net.positions, net.springs[keep], net.stiffness[keep], net.rest_length[keep]
             )
@@ -376,7 +392,7 @@ def learning_unit(scene: Scene, params: dict, ctx: UnitContext):
             finite=True,
         )
         return {}, meta
-    err = np.asarray(hist.error, dtype=float)[0]
+    err = np.asarray(hist.error_initial, dtype=float)[0]
     done = int(hist.completed[0])
     meta.update(
         completed=done,
