@@ -183,7 +183,9 @@ def _target_strains(
     start = tracker.solve(
         net, task.pinned, task.source_clamps(net, strain_reference), None, key="free"
     ).positions
-    for side in (scales >= 1.0, scales < 1.0):
+    one = np.flatnonzero(scales == 1.0)
+    out[one] = task.target_strains(net, net.lengths(start)[task.targets], strain_reference)
+    for side in (scales > 1.0, scales < 1.0):
         x = start
         for i in np.flatnonzero(side)[np.argsort(np.abs(scales[side] - 1.0))]:
             strain = scales[i] * task.source_strain

@@ -86,6 +86,17 @@ def estimate(scene: Scene) -> Estimate:
                 f"sweeps of {L.sweep_points} points",
             )
         return est
+    if scene.kind == "accuracy":
+        a = scene.accuracy
+        assert a is not None
+        # Lamé's annulus (radii 1 and 2, area 3 pi) meshed at the finest h: about
+        # area / (0.43 h^2) vertices, four times as many unknowns per vertex for P2
+        vertices = 3 * math.pi / (0.43 * min(a.mesh_sizes) ** 2)
+        dofs = 2 * vertices * (4 if any(e.startswith("P2") for e in a.elements) else 1)
+        est.add("accuracy", "mesh_sizes", dofs * FE_BYTES_PER_DOF, f"{dofs:.0f} FE unknowns")
+        frames = max(a.steps) + 1
+        est.add("accuracy", "steps", frames * 2 * a.size**2 * 16, f"{frames} time steps")
+        return est
     assert net is not None
     sizes = (net.size,) if scene.kind == "stability" else net.sizes
     n = max(sizes)

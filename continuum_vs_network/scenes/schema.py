@@ -308,7 +308,8 @@ class LearningSpec:
         "bool",
         True,
         "solve the free state after every step to measure the "
-        "error even when the rule does not need it (GPC)",
+        "error even when the rule does not need it (GPC), and measure the coupling of "
+        "every trained network",
     )
     sweeps: bool = _key("bool", False, "source sweeps of the trained networks (Fig. 5)")
     sweep_span: float = _key("float", 5.0, "sweep source strains S +- span", check=_positive)

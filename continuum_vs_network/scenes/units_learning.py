@@ -7,7 +7,8 @@
   (Fig. 5 and the appendix), noise level 0 (the first listed).
 * ``gradient/<rule>`` (``[learning] compare_gradient``): cosine between each rule's step and
   the exact gradient's, at every trial's initial and final network;
-* ``coupling/<solver>/<rule>/noise<i>`` (every run): target strains of every trained network
+* ``coupling/<solver>/<rule>/noise<i>`` (every run, unless ``measure = false`` asks for the
+  rules' own work only): target strains of every trained network
   with the sources on, off and over a source sweep, and of the initial network with the
   sources off (:mod:`~continuum_vs_network.learning.coupling`), so that every learning
   result states whether the sources cause the target strains;
@@ -15,8 +16,9 @@
   the exported trials' initial and final networks and, with ``[export] series``, of the
   trajectory frames.
 
-Nothing else is solved: a prospective-configuration run with ``measure = false`` and
-neither sweeps, gradient comparison, export nor images solves no free state at all.
+Nothing else is solved: a prospective-configuration run with ``measure = false`` (which
+also skips the coupling measurement) and neither sweeps, gradient comparison, export nor
+images solves no free state at all.
 """
 
 from __future__ import annotations
@@ -121,7 +123,7 @@ def plan_learning(scene: Scene) -> list[Unit]:
     first = {"sweep_span": L.sweep_span, "sweep_points": L.sweep_points}
     for solver in _solvers(scene):
         for rule in run_names(scene):
-            for i, noise in enumerate(L.noise):
+            for i, noise in enumerate(L.noise if L.measure else ()):
                 units.append(
                     Unit(
                         key=f"coupling/{group_key(solver, rule, i)}",

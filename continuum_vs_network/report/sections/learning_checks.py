@@ -138,6 +138,13 @@ def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> 
                         "not reproduced otherwise",
                     )
                 )
+    if not rows:
+        doc.add(
+            "",
+            "**Not measured**: the scene sets `measure = false` (the rules' own work only), "
+            "so no result of this report can be told from a trivial solution.",
+        )
+        return
     doc.table(
         [
             "run",
