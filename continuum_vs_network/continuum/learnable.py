@@ -288,6 +288,167 @@ class LearnableBody:
 
         return self.body.mesh.p.T + vertex_displacement(self.body, u)
 
+    # -- the learning-medium protocol (continuum_vs_network.learning.medium) ------------
+    def learning_dof(self, dof: str) -> MaterialDof:
+        """The field a rule's ``dof`` names here: ``"rest_length"`` / ``"eigenstrain"`` ->
+        ``"eigenstrain"``; ``"stiffness"`` / ``"modulus"`` -> ``"modulus"``."""
+        table = {
+            "rest_length": "eigenstrain",
+            "eigenstrain": "eigenstrain",
+            "stiffness": "modulus",
+            "modulus": "modulus",
+        }
+        if dof not in table:
+            raise ValueError(
+                f"dof must be 'eigenstrain' (or 'rest_length') or 'modulus' (or 'stiffness') "
+                f"on a LearnableBody, got {dof!r}"
+            )
+        return table[dof]  # type: ignore[return-value]
+
+    def check_task(self, task: Any) -> None:
+        """Raise ``ValueError`` unless ``task`` is a MaterialTask that fits this body."""
+        from .material_task import MaterialTask
+
+        if not isinstance(task, MaterialTask):
+            raise ValueError(f"a LearnableBody learns a MaterialTask, got {type(task).__name__}")
+        task.check(self)
+
+    def free_state(self, task: Any, *, tracker: Any = None) -> Any:
+        """Sources clamped: :func:`.learning_states.free_state`."""
+        from .learning_states import free_state
+
+        return free_state(self, task, tracker=tracker)
+
+    def clamped_state(self, task: Any, target_strain: ArrayLike, *, tracker: Any = None) -> Any:
+        """Sources and targets clamped: :func:`.learning_states.clamped_state`."""
+        from .learning_states import clamped_state
+
+        return clamped_state(self, task, target_strain, tracker=tracker)
+
+    def local_gradient(self, state: Any, dof: str, *, minus: Any = None) -> NDArray[np.float64]:
+        """:meth:`energy_gradient` of a state (minus another state's)."""
+        return self.energy_gradient(
+            state.u, self.learning_dof(dof), minus=None if minus is None else minus.u
+        )
+
+    def task_gradient(
+        self, task: Any, free: Any, dof: str, *, cost: str = "strain", tracker: Any = None
+    ) -> NDArray[np.float64]:
+        """Adjoint ``dC/dtheta`` per unit area of Eq. 26 (``cost="strain"``) or of the
+        length cost ``sum_T |ab|^2 (S^F_T - S_T)^2 / 2`` (``cost="length"``)."""
+        from .learning_states import cost_gradient
+
+        weight = None if cost == "strain" else np.diag(task.target_length**2)
+        return cost_gradient(
+            self, task, free, self.learning_dof(dof), weight=weight, tracker=tracker
+        )
+
+    def learning_mask(
+        self, task: Any, *, learn_sources: bool = True, learn_targets: bool = True
+    ) -> NDArray[np.bool_]:
+        """Elements whose fields may learn, (n_elements,) bool: not those a source (or
+        target) material spring crosses when ``learn_sources`` (``learn_targets``) is False."""
+        mask = np.ones(self.n_elements, dtype=bool)
+        for learn, a, b in (
+            (learn_sources, task.source_a, task.source_b),
+            (learn_targets, task.target_a, task.target_b),
+        ):
+            if not learn:
+                mask[self.elements_crossed(a, b)] = False
+        return mask
+
+    def elements_crossed(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.int64]:
+        """Elements that the segments ``a_i -> b_i`` pass through (both sides of an edge)."""
+        from .probes import locate
+
+        a, b = np.atleast_2d(np.asarray(a, float)), np.atleast_2d(np.asarray(b, float))
+        t = np.linspace(0.02, 0.98, 17)
+        pts = []
+        for ai, bi in zip(a, b):
+            d = bi - ai
+            nrm = np.array([-d[1], d[0]]) * 1e-6
+            for side in (nrm, -nrm):
+                pts.append(ai + t[:, None] * d + side)
+        cells, _ = locate(self.body, np.vstack(pts), tol=1e-3)
+        return np.unique(cells)
+
+    def apply_update(self, dof: str, delta: ArrayLike) -> LearnableBody:
+        """The body after adding ``delta`` to the learning degrees of freedom of ``dof``.
+        ``ValueError`` when a modulus would become negative."""
+        dof = self.learning_dof(dof)
+        new = self.parameters(dof) + np.asarray(delta, float)
+        if dof == "modulus" and np.any(new < 0):
+            j = int(np.argmin(new))
+            raise ValueError(
+                f"modulus of element {j} would become {new[j]:.3g} < 0; set min_stiffness"
+            )
+        return self.with_parameters(dof, new)
+
+    def floor(self, dof: str, raw: NDArray, minimum: float | None) -> NDArray:
+        """``raw`` with decreases stopped at ``minimum`` (moduli only; eigenstrain has none)."""
+        if minimum is None or self.learning_dof(dof) != "modulus":
+            return raw
+        old = self.modulus
+        return np.maximum(old + raw, np.minimum(old, minimum)) - old
+
+    def measurements(self, task: Any, free: Any, dof: str, mask: NDArray) -> dict[str, Any]:
+        """What :func:`~continuum_vs_network.train` records of a free state (lengths are
+        those of the material springs: undeformed ``|ab|``, deformed ``|ab| (1 + S)``)."""
+        length = task.target_length
+        g = self.local_gradient(free, dof)
+        err = task.error(free.target_strain)
+        return {
+            "target_rest_length": length,
+            "desired_length": length * (1.0 + task.target_strain),
+            "target_length": length * (1.0 + free.target_strain),
+            "target_strain": free.target_strain,
+            "error": err,
+            "error_current": err,
+            "error_initial": err,
+            "energy_free": free.energy,
+            "energy_gradient_free": float(np.linalg.norm(g[mask])),
+            "residual": free.residual,
+        }
+
+    def to_arrays(self) -> dict[str, NDArray]:
+        """Plain arrays that :meth:`from_arrays` rebuilds the body from."""
+        return {
+            "p": self.body.mesh.p,
+            "t": self.body.mesh.t,
+            "order": np.array(self.body.order),
+            "lam": self.body.lam,
+            "mu": self.body.mu,
+            "kind": np.array(self.kind),
+            "eigenstrain": self.eigenstrain,
+            "modulus": self.modulus,
+        }
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, NDArray]) -> LearnableBody:
+        """Inverse of :meth:`to_arrays`."""
+        from skfem import MeshTri1
+
+        lam, mu = np.asarray(arrays["lam"]), np.asarray(arrays["mu"])
+        mesh = MeshTri1(np.asarray(arrays["p"], float), np.asarray(arrays["t"]), sort_t=False)
+        out = learnable_body(
+            mesh,
+            Material(float(lam[0]), float(mu[0])),
+            order=int(arrays["order"]),
+            kind=str(arrays["kind"]),
+            eigenstrain=arrays["eigenstrain"],
+            modulus=arrays["modulus"],
+        )
+        if np.any(lam != lam[0]) or np.any(mu != mu[0]):
+            from .body import ElasticBody
+
+            eb = out.body
+            body = ElasticBody(
+                eb.mesh, eb.basis, eb.order, lam, mu, eb.dof_locations, eb.dof_component
+            )
+            ops = _operators(body.basis, lam, mu)
+            out = dataclasses.replace(out, body=body, _ops=ops, _cache={})
+        return out
+
     def __repr__(self) -> str:
         return (
             f"LearnableBody(P{self.body.order}, n_elements={self.n_elements}, "

@@ -18,6 +18,16 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = ["MaterialTask"]
 
+_FIELDS = (
+    "source_a",
+    "source_b",
+    "source_strain",
+    "target_a",
+    "target_b",
+    "target_strain",
+    "fixed",
+)
+
 
 def _frozen(value: ArrayLike, shape: tuple, name: str, dtype=np.float64) -> NDArray:
     arr = np.array(value, dtype=dtype, copy=True)
@@ -106,6 +116,15 @@ class MaterialTask:
         """Task error ``C = sum_T (S_T^F - S_T)^2 / 2`` (Eq. 26) of free target strains."""
         d = np.asarray(target_strain, float) - self.target_strain
         return float(0.5 * np.sum(d**2))
+
+    def to_arrays(self) -> dict[str, NDArray]:
+        """Plain arrays (the fields) for files."""
+        return {f: getattr(self, f) for f in _FIELDS}
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, NDArray]) -> MaterialTask:
+        """Inverse of :meth:`to_arrays`."""
+        return cls(**{f: np.asarray(arrays[f]) for f in _FIELDS})
 
     @classmethod
     def from_network(cls, net, task, body) -> MaterialTask:
