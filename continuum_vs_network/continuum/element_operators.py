@@ -8,7 +8,7 @@ stiffness with the scatter map that assembles ``sum_e s_e K_e`` by one ``bincoun
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -49,6 +49,7 @@ class _Operators:
     indptr: NDArray[np.int64]
     scatter: NDArray[np.int64]  # (n_el * nb * nb,) entry -> position in the CSR data
     n_dofs: int
+    memo: dict = field(default_factory=dict, repr=False)  # per-mesh caches (masks)
 
 
 def _operators(basis: Any, lam: NDArray, mu: NDArray) -> _Operators:
