@@ -1246,6 +1246,10 @@ def write_report(
         _side_by_side(doc, result, "relaxation/", render, reason, "relaxation")
     elif scene.kind == "stability":
         _stability(doc, result)
+    elif scene.kind == "continuum_learning":
+        from .continuum_learning import continuum_learning_section
+
+        continuum_learning_section(doc, result)
     else:
         _solvers(doc, result)
     if meshes:

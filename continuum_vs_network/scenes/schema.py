@@ -52,7 +52,7 @@ __all__ = [
     "parse_scene",
 ]
 
-KINDS = ("learning", "transmission", "relaxation", "stability", "solvers")
+KINDS = ("learning", "transmission", "relaxation", "stability", "solvers", "continuum_learning")
 
 #: For each kind: (tables it needs, tables it also accepts).
 KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
@@ -70,11 +70,17 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     ),
     "stability": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
     "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
+    "continuum_learning": (
+        frozenset({"network", "task", "learning", "continuum"}),
+        frozenset({"export", "report"}),
+    ),
 }
 
 #: Learning runs a scene can name (the paper's experiments, see
 #: :func:`continuum_vs_network.learning.replication.paper_experiments`).
 RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact")
+#: The rules a ``continuum_learning`` scene trains both media with.
+CONTINUUM_RULES = ("gcl", "gcl_frozen", "gpc", "gpc_frozen", "exact")
 #: Equilibrium methods of :func:`continuum_vs_network.relax`.
 SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 
@@ -608,6 +614,9 @@ def _check_kind(scene: Scene, file: str) -> None:
 
     net, task = scene.network, scene.task
     kind = scene.kind
+    if kind == "continuum_learning":
+        _check_continuum_learning(scene, file, need_key)
+        return
     if kind == "learning":
         assert net is not None and task is not None and scene.learning is not None
         if net.builder == "paper" and task.kind != "paper":
@@ -683,6 +692,32 @@ def _check_kind(scene: Scene, file: str) -> None:
                 "scheme",
                 "the continuum has no explicit scheme; use 'implicit' or 'newmark'",
             )
+
+
+def _check_continuum_learning(scene: Scene, file: str, need_key) -> None:
+    if scene.network.builder != "triangular":
+        raise SceneError(
+            file, "network", "builder", "continuum_learning runs on a triangular lattice"
+        )
+    need_key("network", "size", "for a continuum_learning scene (an n x n lattice)")
+    if scene.task.kind != "stern":
+        raise SceneError(file, "task", "kind", "continuum_learning takes kind = 'stern'")
+    bad = [r for r in scene.learning.rules if r not in CONTINUUM_RULES]
+    if bad:
+        raise SceneError(
+            file,
+            "learning",
+            "rules",
+            f"{bad[0]!r} is not a continuum_learning rule ({', '.join(CONTINUUM_RULES)})",
+        )
+    if scene.learning.reference != "initial":
+        raise SceneError(
+            file,
+            "learning",
+            "reference",
+            "a continuum's material springs measure strain against the undeformed body; "
+            "set reference = 'initial'",
+        )
 
 
 # -- files ---------------------------------------------------------------------------------

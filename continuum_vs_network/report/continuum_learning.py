@@ -1,0 +1,292 @@
+"""Report section of a ``continuum_learning`` scene: network against continuum learning.
+
+Everything here is computed from the scene's stored units by the rules stated in the text
+(it runs nothing): error against steps and seconds, steps to ``C / C0 <= 1e-3``, the learned
+fields side by side on the lattice's triangles, their change under refinement, their
+localisation, and the paper's 1 -> 1 task in the continuum.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .figures import COLORS, Panel, Series
+
+__all__ = ["continuum_learning_section", "field_summary", "steps_to"]
+
+TOLERANCE = 1e-3  # C / C0 a run must reach to count as having learned the task
+SHRINK = 1.5  # a field converges when successive refinements change it less by this factor
+LOCALISED = 0.1  # localisation threshold: a fraction of the largest change
+
+
+def steps_to(error: NDArray, tol: float = TOLERANCE) -> float:
+    """First step with ``error <= tol * error[0]`` (NaN when never reached)."""
+    e = np.asarray(error, dtype=float)
+    hit = np.flatnonzero(e <= tol * e[0])
+    return float(hit[0]) if hit.size else math.nan
+
+
+def _magnitude(eps: NDArray) -> NDArray:
+    from ..continuum.learned_fields import field_magnitude
+
+    return field_magnitude(eps)
+
+
+def field_summary(units: dict[str, Any], rule: str, refine: int) -> dict[str, list[float]]:
+    """Per refinement ``r``: relative L2 change of the field on the lattice triangles from
+    ``r - 1`` (area-weighted), correlation with the network's field, and the area fraction
+    whose change exceeds ``LOCALISED`` of the largest (native mesh)."""
+    net = units[f"continuum_learning/network/{rule}"].arrays
+    out: dict[str, list[float]] = {"change": [], "correlation": [], "localised": []}
+    prev = None
+    area0 = None
+    for r in range(refine + 1):
+        a = units[f"continuum_learning/refine{r}/{rule}"].arrays
+        coarse = np.asarray(a["coarse"])
+        if area0 is None:
+            area0 = np.asarray(a["area"])
+        w = np.sqrt(area0)[:, None]
+        norm = float(np.linalg.norm(coarse * w))
+        if prev is None or norm == 0:
+            out["change"].append(math.nan)
+        else:
+            out["change"].append(float(np.linalg.norm((coarse - prev) * w)) / norm)
+        prev = coarse
+        c = np.corrcoef(coarse.ravel(), np.asarray(net["coarse"]).ravel())[0, 1]
+        out["correlation"].append(float(c))
+        mag = _magnitude(np.asarray(a["field"]))
+        area = np.asarray(a["area"])
+        top = float(mag.max())
+        out["localised"].append(
+            float(np.sum(area[mag > LOCALISED * top]) / np.sum(area)) if top > 0 else math.nan
+        )
+    return out
+
+
+def _h(r: int) -> str:
+    return "continuum h" if r == 0 else f"continuum h/{2**r}"
+
+
+def _g(x: float, digits: int = 3) -> str:
+    if x is None or not np.isfinite(x):
+        return "-"
+    return f"{x:.{digits}g}"
+
+
+def _field_figure(doc, units, rule: str, refine: int) -> None:
+    """Learned rest-strain magnitude: network on its triangles | continuum at every h."""
+    from ..io.atomic import atomic_path
+    from .figures import _pyplot
+
+    plt = _pyplot()
+    net = units[f"continuum_learning/network/{rule}"].arrays
+    panels = [
+        (
+            "network (rest-length change per triangle)",
+            net["points"],
+            net["triangles"],
+            _magnitude(np.asarray(net["coarse"])),
+        )
+    ]
+    for r in range(refine + 1):
+        a = units[f"continuum_learning/refine{r}/{rule}"].arrays
+        panels.append((_h(r), a["points"], a["triangles"], _magnitude(np.asarray(a["field"]))))
+    vmax = max(float(np.max(p[3])) for p in panels) or 1.0
+    fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 3.4))
+    for ax, (title, pts, tri, val) in zip(np.atleast_1d(axes), panels):
+        pts = np.asarray(pts)
+        m = ax.tripcolor(
+            pts[:, 0], pts[:, 1], np.asarray(tri), facecolors=val, cmap="magma", vmin=0.0, vmax=vmax
+        )
+        ax.set_title(title, fontsize=9)
+        ax.set_aspect("equal")
+        ax.set_axis_off()
+    fig.colorbar(m, ax=list(np.atleast_1d(axes)), shrink=0.8, label="|learned rest strain|")
+    dest = doc.folder / f"fig_continuum_fields_{rule}.png"
+    with atomic_path(dest) as tmp:
+        fig.savefig(tmp, format="png", dpi=doc.dpi, metadata={"Software": None})
+    plt.close(fig)
+    doc.image(
+        dest,
+        f"Learned rest strain |eps0| ({rule}): the network's rest-length changes as the rest "
+        "strain of each lattice triangle (left) and the continuum's eigenstrain at every "
+        "refinement, one colour scale.",
+    )
+
+
+def continuum_learning_section(doc, result) -> None:
+    """The section (see the module docstring)."""
+    scene = result.scene
+    units = result.units
+    R = scene.continuum.refine
+    L = scene.learning
+    doc.add(
+        f"A {scene.network.size} x {scene.network.size} triangular lattice and the elastic "
+        f"continuum on its own triangles (P{scene.continuum.order}, lattice Lamé parameters "
+        f"lam = mu = sqrt(3) k / 4), refined to h/{2**R}, learn one task: "
+        f"{scene.task.n_sources} source and {scene.task.n_targets} target springs (material "
+        f"springs in the continuum, clamped and read exactly), strains ~ N(0, "
+        f"{scene.task.source_std:g}) and N(0, {scene.task.target_std:g}). The same rule "
+        "object trains both media; the network learns rest lengths, the continuum its "
+        "eigenstrain field (per unit area, so the rate means the same on every mesh). "
+        f"{L.steps} steps. A run *learns the task* when C / C0 <= {TOLERANCE:g}."
+    )
+    for rule in L.rules:
+        doc.heading(f"Rule `{rule}`", 3)
+        media = [("network", f"continuum_learning/network/{rule}")] + [
+            (_h(r), f"continuum_learning/refine{r}/{rule}") for r in range(R + 1)
+        ]
+        rows, s_err, s_time = [], [], []
+        needed = []
+        for i, (name, key) in enumerate(media):
+            u = units[key]
+            e = np.asarray(u.arrays["error"], dtype=float)
+            t = np.asarray(u.arrays["seconds"], dtype=float)
+            ratio = e / e[0]
+            k = steps_to(e)
+            needed.append(k)
+            per_step = (t[-1] - t[0]) / max(1, len(t) - 1)
+            rows.append(
+                [
+                    name,
+                    u.meta.get("n_dofs", 2 * u.meta.get("n_nodes", 0)),
+                    _g(k),
+                    _g(t[int(k)]) if np.isfinite(k) else "-",
+                    _g(float(ratio[-1])),
+                    _g(1e3 * per_step),
+                    u.meta["stop_reason"] or "",
+                ]
+            )
+            color = COLORS[i % len(COLORS)]
+            s_err.append(Series(np.arange(e.size), ratio, name, color=color))
+            s_time.append(Series(t, ratio, name, color=color))
+        doc.table(
+            [
+                "medium",
+                "DOFs",
+                "steps to 1e-3",
+                "seconds to 1e-3",
+                f"C/C0 at {L.steps}",
+                "ms per step",
+                "stopped",
+            ],
+            rows,
+        )
+        doc.figure(
+            f"continuum_error_{rule}",
+            [
+                Panel(
+                    s_err,
+                    "error against steps",
+                    "step",
+                    "C / C0",
+                    yscale="log",
+                    hlines=(TOLERANCE,),
+                ),
+                Panel(
+                    s_time,
+                    "error against wall time",
+                    "seconds",
+                    "C / C0",
+                    yscale="log",
+                    xscale="log",
+                    hlines=(TOLERANCE,),
+                    legend=False,
+                ),
+            ],
+            f"Task error ({rule}) of the network and of the continuum at every refinement, "
+            "against steps and against wall-clock seconds (one run each).",
+        )
+        summary = field_summary(units, rule, R)
+        doc.table(
+            [
+                "continuum",
+                "change from h/2^(r-1) (L2, lattice triangles)",
+                "correlation with the network's field",
+                f"area with change > {LOCALISED:g} max",
+            ],
+            [
+                [
+                    f"h/{2**r}",
+                    _g(summary["change"][r]),
+                    _g(summary["correlation"][r]),
+                    _g(summary["localised"][r]),
+                ]
+                for r in range(R + 1)
+            ],
+        )
+        _field_figure(doc, units, rule, R)
+        doc.add(*_verdicts(summary, needed, R))
+    _paper(doc, units, R, L.rules[0])
+
+
+def _verdicts(summary: dict[str, list[float]], needed: list[float], R: int) -> list[str]:
+    lines = [""]
+    change = [c for c in summary["change"][1:] if np.isfinite(c)]
+    if len(change) >= 2:
+        shrinks = all(b * SHRINK <= a for a, b in itertools.pairwise(change))
+        verdict = "converges" if shrinks else "does not converge"
+        lines.append(
+            f"- **Refinement.** The learned field, averaged on the lattice triangles, {verdict} "
+            f"under refinement by the rule "
+            f"'every halving of h changes it at least {SHRINK:g} times less than the one "
+            f"before' (changes {', '.join(_g(c, 2) for c in change)})."
+        )
+    loc = summary["localised"]
+    if len(loc) >= 2 and all(np.isfinite(loc)):
+        trend = "shrinks" if loc[-1] < loc[0] else "does not shrink"
+        lines.append(
+            f"- **Localisation.** The area whose rest strain changed by more than "
+            f"{LOCALISED:g} of the largest change {trend} with refinement "
+            f"({' -> '.join(_g(x, 2) for x in loc)}): the change concentrates near the "
+            "material springs' end points."
+            if loc[-1] < loc[0]
+            else f"- **Localisation.** The area fraction above {LOCALISED:g} of the largest "
+            f"change does not shrink with refinement ({' -> '.join(_g(x, 2) for x in loc)})."
+        )
+    cont = np.array(needed[1:], dtype=float)
+    if np.all(np.isfinite(cont)) and cont.size >= 2 and np.all(cont > 0):
+        h = 0.5 ** np.arange(cont.size)
+        slope = float(np.polyfit(np.log(h), np.log(cont), 1)[0])
+        lines.append(
+            f"- **Steps needed.** Steps to C/C0 <= {TOLERANCE:g} scale as h^{slope:.2f} "
+            f"(least-squares fit over h ... h/{2**R}; network: {_g(needed[0])} steps)."
+        )
+    corr = summary["correlation"][0]
+    lines.append(
+        f"- **Network vs continuum on the same triangles.** The correlation of the learned "
+        f"rest strains on the lattice triangles is {_g(corr, 2)} at h (one rule, one task, "
+        "two media)."
+    )
+    return [*lines, ""]
+
+
+def _paper(doc, units, R: int, rule: str) -> None:
+    doc.heading("The paper's 1 -> 1 task in the continuum", 3)
+    rows = []
+    for r in range(R + 1):
+        u = units[f"continuum_learning/paper/refine{r}"]
+        e = np.asarray(u.arrays["error"], dtype=float)
+        rows.append(
+            [
+                f"h/{2**r}",
+                u.meta["n_dofs"],
+                _g(u.meta["source_strain"][0]),
+                _g(u.meta["target_strain"][0]),
+                _g(steps_to(e)),
+                _g(e[-1] / e[0]),
+            ]
+        )
+    doc.add(
+        f"One source and one target material spring with the paper's strains (about 5; "
+        f"linear elasticity is scale-free), rule `{rule}`:"
+    )
+    doc.table(
+        ["continuum", "DOFs", "source strain", "target strain", "steps to 1e-3", "C/C0 at the end"],
+        rows,
+    )
