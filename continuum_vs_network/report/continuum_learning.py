@@ -212,7 +212,7 @@ def continuum_learning_section(doc, result) -> None:
             ],
             [
                 [
-                    f"h/{2**r}",
+                    _h(r).removeprefix("continuum "),
                     _g(summary["change"][r]),
                     _g(summary["correlation"][r]),
                     _g(summary["localised"][r]),
