@@ -274,7 +274,7 @@ def _paper(doc, units, R: int, rule: str) -> None:
         e = np.asarray(u.arrays["error"], dtype=float)
         rows.append(
             [
-                f"h/{2**r}",
+                _h(r).removeprefix("continuum "),
                 u.meta["n_dofs"],
                 _g(u.meta["source_strain"][0]),
                 _g(u.meta["target_strain"][0]),
