@@ -119,8 +119,8 @@ def _field_figure(doc, units, rule: str, refine: int) -> None:
     )
 
 
-def continuum_learning_section(doc, result) -> None:
-    """The section (see the module docstring)."""
+def continuum_learning_section(doc, result, *, render: bool = False, reason: str = "") -> None:
+    """The section (see the module docstring); pyvista renders when ``render``."""
     scene = result.scene
     units = result.units
     R = scene.continuum.refine
@@ -223,6 +223,38 @@ def continuum_learning_section(doc, result) -> None:
         _field_figure(doc, units, rule, R)
         doc.add(*_verdicts(summary, needed, R))
     _paper(doc, units, R, L.rules[0])
+    _renders(doc, units, L.rules[0], R, render, reason)
+
+
+def _renders(doc, units, rule: str, R: int, render: bool, reason: str) -> None:
+    """pyvista renders of the network's and the finest continuum's learned fields."""
+    doc.heading("Renders", 3)
+    if not render:
+        doc.add(f"Renders skipped: {reason}.")
+        return
+    from ..io.render import render_continuum
+
+    shown = [
+        ("network", units[f"continuum_learning/network/{rule}"].arrays, "coarse"),
+        (_h(R), units[f"continuum_learning/refine{R}/{rule}"].arrays, "field"),
+    ]
+    vmax = max(float(np.max(_magnitude(np.asarray(a[f])))) for _, a, f in shown) or 1.0
+    for name, a, f in shown:
+        pts = np.asarray(a["points"], dtype=float)
+        path = render_continuum(
+            pts,
+            a["triangles"],
+            np.zeros_like(pts),
+            _magnitude(np.asarray(a[f])),
+            doc.folder / f"render_learned_{name.replace(' ', '_').replace('/', '_')}.png",
+            clim=(0.0, vmax),
+            scale=0.0,
+            location="cell",
+            window_size=(700, 600),
+            title=f"{name}: learned rest strain ({rule})",
+            scalar_bar_title="|rest strain|",
+        )
+        doc.image(path, f"pyvista: {name}, |learned rest strain| ({rule}), shared colour scale.")
 
 
 def _verdicts(summary: dict[str, list[float]], needed: list[float], R: int) -> list[str]:

@@ -1249,7 +1249,7 @@ def write_report(
     elif scene.kind == "continuum_learning":
         from .continuum_learning import continuum_learning_section
 
-        continuum_learning_section(doc, result)
+        continuum_learning_section(doc, result, render=render, reason=reason)
     else:
         _solvers(doc, result)
     if meshes:
