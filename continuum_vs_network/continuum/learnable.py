@@ -356,7 +356,6 @@ class LearnableBody:
             "desired_length": length * (1.0 + task.target_strain),
             "target_length": length * (1.0 + free.target_strain),
             "target_strain": free.target_strain,
-            "error": err,
             "error_current": err,
             "error_initial": err,
             "energy_free": free.energy,

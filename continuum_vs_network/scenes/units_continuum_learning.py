@@ -13,10 +13,11 @@ for every rule of ``[learning] rules`` the *same* rule object trains
   continuum patch with the first rule (linear elasticity: the continuum is scale-free; the
   network at strain 5 is far outside linear response and is not compared there).
 
-Rules (``[learning] rules``): ``gcl``, ``gpc``, ``exact`` and ``gcl_frozen`` /
-``gpc_frozen`` (targets' material frozen: the network's target springs, the continuum's
-elements the target material springs cross; the task is then not met by a target learning
-its own rest state). Learning rates are ``[learning] alpha_*`` for both media: the
+Rules (``[learning] rules``), as in Stern-scale learning scenes: ``gcl``, ``gpc`` and
+``exact`` learn in the bulk (the material of the sources and targets frozen: the network's
+source and target springs, the continuum's elements their material springs cross; the task
+is then not met by a target learning its own rest state); ``gcl_all`` and ``gpc_all`` let
+everything learn. Learning rates are ``[learning] alpha_*`` for both media: the
 continuum's update is per unit area, so a rate means the same on every mesh.
 
 Each unit records the error and the wall-clock seconds after every step, and the learned
@@ -43,11 +44,13 @@ def continuum_rule(scene: Scene, name: str):
     from ..learning.rules import CoupledLearning, ExactGradient, ProspectiveConfiguration
 
     L = scene.learning
+    bulk = not name.endswith("_all")
     common: dict[str, Any] = {
         "strain_reference": "initial",
-        "learn_targets": not name.endswith("_frozen"),
+        "learn_sources": not bulk,
+        "learn_targets": not bulk,
     }
-    base = name.removesuffix("_frozen")
+    base = name.removesuffix("_all")
     if base == "gcl":
         return CoupledLearning(L.alpha_gcl, L.eta, **common)
     if base == "gpc":
@@ -117,7 +120,7 @@ def _lattice_and_task(scene: Scene, which: str):
 
 
 def _history_arrays(h) -> tuple[dict[str, Any], dict[str, Any]]:
-    arrays = {"error": h.error[0], "seconds": h.seconds[0]}
+    arrays = {"error": h.error_initial[0], "seconds": h.seconds[0]}
     meta = {
         "completed": int(h.completed[0]),
         "stop_reason": h.stop_reason[0],

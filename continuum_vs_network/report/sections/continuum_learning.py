@@ -15,9 +15,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .figures import COLORS, Panel, Series
+from ..document import Document
+from ..figures import COLORS, Panel, Series
+from ..findings import CONTRADICTED, NOT_REPRODUCED, REPRODUCED, Finding
 
-__all__ = ["continuum_learning_section", "field_summary", "steps_to"]
+__all__ = ["field_summary", "section", "steps_to"]
 
 TOLERANCE = 1e-3  # C / C0 a run must reach to count as having learned the task
 SHRINK = 1.5  # a field converges when successive refinements change it less by this factor
@@ -32,7 +34,7 @@ def steps_to(error: NDArray, tol: float = TOLERANCE) -> float:
 
 
 def _magnitude(eps: NDArray) -> NDArray:
-    from ..continuum.learned_fields import field_magnitude
+    from ...continuum.learned_fields import field_magnitude
 
     return field_magnitude(eps)
 
@@ -80,8 +82,8 @@ def _g(x: float, digits: int = 3) -> str:
 
 def _field_figure(doc, units, rule: str, refine: int) -> None:
     """Learned rest-strain magnitude: network on its triangles | continuum at every h."""
-    from ..io.atomic import atomic_path
-    from .figures import _pyplot
+    from ...io.atomic import atomic_path
+    from ..figures import _pyplot
 
     plt = _pyplot()
     net = units[f"continuum_learning/network/{rule}"].arrays
@@ -119,8 +121,8 @@ def _field_figure(doc, units, rule: str, refine: int) -> None:
     )
 
 
-def continuum_learning_section(doc, result, *, render: bool = False, reason: str = "") -> None:
-    """The section (see the module docstring); pyvista renders when ``render``."""
+def section(doc: Document, result) -> None:
+    """The section (see the module docstring); pyvista renders when ``doc.render``."""
     scene = result.scene
     units = result.units
     R = scene.continuum.refine
@@ -221,9 +223,9 @@ def continuum_learning_section(doc, result, *, render: bool = False, reason: str
             ],
         )
         _field_figure(doc, units, rule, R)
-        doc.add(*_verdicts(summary, needed, R))
+        doc.add(*_verdicts(doc, rule, units, summary, needed, R))
     _paper(doc, units, R, L.rules[0])
-    _renders(doc, units, L.rules[0], R, render, reason)
+    _renders(doc, units, L.rules[0], R, doc.render, doc.render_reason)
 
 
 def _renders(doc, units, rule: str, R: int, render: bool, reason: str) -> None:
@@ -232,7 +234,7 @@ def _renders(doc, units, rule: str, R: int, render: bool, reason: str) -> None:
     if not render:
         doc.add(f"Renders skipped: {reason}.")
         return
-    from ..io.render import render_continuum
+    from ...io.render import render_continuum
 
     shown = [
         ("network", units[f"continuum_learning/network/{rule}"].arrays, "coarse"),
@@ -257,53 +259,96 @@ def _renders(doc, units, rule: str, R: int, render: bool, reason: str) -> None:
         doc.image(path, f"pyvista: {name}, |learned rest strain| ({rule}), shared colour scale.")
 
 
-def _verdicts(summary: dict[str, list[float]], needed: list[float], R: int) -> list[str]:
+def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
+    """Findings of one rule (registered on ``doc``) and the sentences that show them."""
     lines = [""]
+    final = {
+        name: float(
+            np.asarray(units[key].arrays["error"])[-1] / np.asarray(units[key].arrays["error"])[0]
+        )
+        for name, key in (
+            ("network", f"continuum_learning/network/{rule}"),
+            ("continuum h", f"continuum_learning/refine0/{rule}"),
+        )
+    }
+    both = all(v <= TOLERANCE for v in final.values())
+    doc.finding(
+        Finding(
+            claim=f"one rule object ({rule}) trains a lattice and its continuum on one task",
+            metric="final C/C0 of the network and of the continuum on the lattice triangles",
+            measured={f"C/C0 {k}": v for k, v in final.items()},
+            verdict=REPRODUCED if both else NOT_REPRODUCED,
+            rule=f"reproduced when both reach C/C0 <= {TOLERANCE:g}",
+        )
+    )
+    corr = summary["correlation"][0]
+    doc.finding(
+        Finding(
+            claim=f"at the lattice's resolution the continuum learns the network's field ({rule})",
+            metric="correlation of the learned rest strains on the lattice triangles",
+            measured={"correlation": corr},
+            verdict=REPRODUCED if corr >= 0.9 else NOT_REPRODUCED,
+            rule="reproduced when the correlation is >= 0.9",
+        )
+    )
     change = [c for c in summary["change"][1:] if np.isfinite(c)]
     if len(change) >= 2:
         shrinks = all(b * SHRINK <= a for a, b in itertools.pairwise(change))
-        verdict = "converges" if shrinks else "does not converge"
+        grows = all(b > a for a, b in itertools.pairwise(change))
+        verdict = REPRODUCED if shrinks else (CONTRADICTED if grows else NOT_REPRODUCED)
+        doc.finding(
+            Finding(
+                claim=f"the learned field converges under refinement ({rule})",
+                metric="relative L2 change of the field on the lattice triangles per halving of h",
+                measured={f"change h/{2 ** (i + 1)}": c for i, c in enumerate(change)},
+                verdict=verdict,
+                rule=f"reproduced when every halving changes it at least {SHRINK:g} times less "
+                "than the one before; contradicted when the changes grow",
+            )
+        )
         lines.append(
-            f"- **Refinement.** The learned field, averaged on the lattice triangles, {verdict} "
-            f"under refinement by the rule "
-            f"'every halving of h changes it at least {SHRINK:g} times less than the one "
-            f"before' (changes {', '.join(_g(c, 2) for c in change)})."
+            f"- **Refinement.** Successive changes of the field on the lattice triangles: "
+            f"{', '.join(_g(c, 2) for c in change)} ({verdict} by the rule in the findings)."
         )
     loc = summary["localised"]
     if len(loc) >= 2 and all(np.isfinite(loc)):
-        trend = "shrinks" if loc[-1] < loc[0] else "does not shrink"
+        falls = all(b < a for a, b in itertools.pairwise(loc))
+        doc.finding(
+            Finding(
+                claim=f"the learned change localises as the mesh is refined ({rule})",
+                metric=f"area fraction whose change exceeds {LOCALISED:g} of the largest",
+                measured={_h(r).removeprefix("continuum "): x for r, x in enumerate(loc)},
+                verdict=REPRODUCED if falls else NOT_REPRODUCED,
+                rule="reproduced when the fraction falls at every refinement",
+            )
+        )
         lines.append(
-            f"- **Localisation.** The area whose rest strain changed by more than "
-            f"{LOCALISED:g} of the largest change {trend} with refinement "
-            f"({' -> '.join(_g(x, 2) for x in loc)}): the change concentrates near the "
-            "material springs' end points."
-            if loc[-1] < loc[0]
-            else f"- **Localisation.** The area fraction above {LOCALISED:g} of the largest "
-            f"change does not shrink with refinement ({' -> '.join(_g(x, 2) for x in loc)})."
+            f"- **Localisation.** Area fraction whose rest strain changed by more than "
+            f"{LOCALISED:g} of the largest change: {' -> '.join(_g(x, 2) for x in loc)}."
         )
     cont = np.array(needed[1:], dtype=float)
     if np.all(np.isfinite(cont)) and cont.size >= 2 and np.all(cont > 0):
         h = 0.5 ** np.arange(cont.size)
         slope = float(np.polyfit(np.log(h), np.log(cont), 1)[0])
         lines.append(
-            f"- **Steps needed.** Steps to C/C0 <= {TOLERANCE:g} scale as h^{slope:.2f} "
-            f"(least-squares fit over h ... h/{2**R}; network: {_g(needed[0])} steps)."
+            f"- **Steps needed.** Steps to C/C0 <= {TOLERANCE:g}: "
+            f"{', '.join(_g(c) for c in cont)} from h to h/{2**R}, a power h^{slope:.2f} "
+            f"by least squares (network: {_g(needed[0])} steps)."
         )
-    corr = summary["correlation"][0]
     lines.append(
-        f"- **Network vs continuum on the same triangles.** The correlation of the learned "
-        f"rest strains on the lattice triangles is {_g(corr, 2)} at h (one rule, one task, "
-        "two media)."
+        f"- **Same triangles.** Correlation of the network's and the continuum's learned "
+        f"rest strains on the lattice triangles at h: {_g(corr, 2)}."
     )
     return [*lines, ""]
 
 
 def _paper(doc, units, R: int, rule: str) -> None:
     doc.heading("The paper's 1 -> 1 task in the continuum", 3)
-    rows = []
+    rows, finals = [], []
     for r in range(R + 1):
         u = units[f"continuum_learning/paper/refine{r}"]
         e = np.asarray(u.arrays["error"], dtype=float)
+        finals.append(float(e[-1] / e[0]) if np.isfinite(e[-1]) else math.inf)
         rows.append(
             [
                 _h(r).removeprefix("continuum "),
@@ -321,4 +366,14 @@ def _paper(doc, units, R: int, rule: str) -> None:
     doc.table(
         ["continuum", "DOFs", "source strain", "target strain", "steps to 1e-3", "C/C0 at the end"],
         rows,
+    )
+    worst = max(finals)
+    doc.finding(
+        Finding(
+            claim="an elastic continuum learns the paper's 1 -> 1 task by a local rule",
+            metric=f"final C/C0 at every refinement (rule {rule})",
+            measured={"largest C/C0": worst},
+            verdict=REPRODUCED if worst <= TOLERANCE else NOT_REPRODUCED,
+            rule=f"reproduced when C/C0 <= {TOLERANCE:g} at every refinement",
+        )
     )
