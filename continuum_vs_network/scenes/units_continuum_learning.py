@@ -20,7 +20,9 @@ is then not met by a target learning its own rest state); ``gcl_all`` and ``gpc_
 everything learn. Learning rates are ``[learning] alpha_*`` for both media: the
 continuum's update is per unit area, so a rate means the same on every mesh.
 
-Each unit records the error and the wall-clock seconds after every step, and the learned
+Each unit records the error and the wall-clock seconds after every step, the coupling of
+the trained medium (:mod:`~continuum_vs_network.learning.coupling`: the share of the
+target strain the sources cause, and its verdict), and the learned
 field: the continuum's eigenstrain per element and averaged onto the lattice triangles, the
 network's rest-length changes as the rest strain of each lattice triangle
 (:func:`~continuum_vs_network.continuum.learned_fields.network_rest_strain`).
@@ -163,8 +165,34 @@ def network_unit(scene: Scene, params: dict, ctx: UnitContext):
         targets=task.targets,
         springs=net.springs,
     )
-    meta.update(n_nodes=net.n_nodes, n_springs=net.n_springs, rule=rule.settings())
+    from ..learning.coupling import measure_coupling, outcome
+
+    coupling = measure_coupling(net, h.final[0], task)
+    meta.update(
+        n_nodes=net.n_nodes,
+        n_springs=net.n_springs,
+        rule=rule.settings(),
+        source_share=coupling.share,
+        coupling=coupling.verdict,
+        outcome=outcome(float(h.error_initial[0, -1] / h.error_initial[0, 0]), coupling.verdict),
+    )
     return arrays, meta
+
+
+def _continuum_coupling(initial, trained, mtask) -> float:
+    """Source share (:func:`~continuum_vs_network.learning.coupling.source_share`) of a
+    trained continuum: target strains with the sources on and off, against the initial
+    body with the sources off."""
+    import dataclasses
+
+    from ..learning.coupling import source_share
+
+    off = dataclasses.replace(mtask, source_strain=np.zeros(mtask.n_sources))
+    return source_share(
+        trained.free_state(mtask).target_strain,
+        trained.free_state(off).target_strain,
+        initial.free_state(off).target_strain,
+    )
 
 
 def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
@@ -208,7 +236,14 @@ def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
         points=body.body.mesh.p.T,
         triangles=body.body.mesh.t.T,
     )
+    from ..learning.coupling import coupling_verdict, outcome
+
+    share = _continuum_coupling(body, h.final[0], mtask)
+    ratio = float(h.error_initial[0, -1] / h.error_initial[0, 0])
     meta.update(
+        source_share=share,
+        coupling=coupling_verdict(share),
+        outcome=outcome(ratio, coupling_verdict(share)),
         refine=params["refine"],
         order=c.order,
         n_dofs=body.n_dofs,
