@@ -222,3 +222,85 @@ def test_bad_input_gives_one_clear_error():
         body.with_modulus(-1.0)
     with pytest.raises(cvn.LearningError, match="modulus"):
         cvn.ExactGradient(1e9, dof="modulus", **EVERYWHERE).update(body, mtask).apply(body)
+
+
+# -- the continuum_learning scene ------------------------------------------------------------
+_SCENE = """
+name = "tiny_continuum_learning"
+description = "test"
+seed = 1
+kind = "continuum_learning"
+
+[network]
+builder = "triangular"
+size = 8
+
+[task]
+kind = "stern"
+n_sources = 3
+n_targets = 2
+source_std = 0.01
+target_std = 0.01
+
+[learning]
+rules = {rules}
+steps = 40
+strain_reference = "initial"
+alpha_gcl = 0.5
+alpha_exact = 0.5
+
+[continuum]
+refine = 1
+order = 1
+
+[export]
+networks = true
+continuum = true
+"""
+
+
+def test_continuum_learning_scene_reports_both_media_with_findings(tmp_path):
+    import json
+
+    from continuum_vs_network.report import write_report
+    from continuum_vs_network.scenes import load_scene, run_scene
+    from continuum_vs_network.scenes.meshes import export_meshes
+
+    path = tmp_path / "tiny.toml"
+    path.write_text(_SCENE.format(rules='["gcl", "exact"]'))
+    result = run_scene(load_scene(path), tmp_path / "result", progress=False)
+    net = result.units["continuum_learning/network/gcl"]
+    h = result.units["continuum_learning/refine0/gcl"]
+    # same lattice, same task, one rule object: the two media start from nearly one error
+    assert h.arrays["error"][0] == pytest.approx(net.arrays["error"][0], rel=0.05)
+    assert h.arrays["coarse"].shape == net.arrays["coarse"].shape
+    meshes = export_meshes(result, tmp_path / "meshes")
+    assert {p.name for p in meshes} >= {"learned_network_gcl.vtu", "learned_refine1_exact.vtu"}
+    write_report(result, tmp_path / "report", meshes=meshes, render=False)
+    findings = json.loads((tmp_path / "report" / "report.json").read_text())["findings"]
+    claims = {f["claim"]: f for f in findings}
+    same = claims["coupled learning and the exact gradient learn the same continuum field"]
+    assert same["measured"]["relative difference"] < 1e-2
+    assert same["verdict"] == "reproduced"
+    assert any("1 -> 1" in c for c in claims)
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        (_SCENE.format(rules='["gcl_floor"]'), "not a continuum_learning rule"),
+        (_SCENE.format(rules='["gcl"]').replace("size = 8", ""), "size"),
+        (
+            _SCENE.format(rules='["gcl"]').replace('"initial"', '"current"'),
+            "strain_reference",
+        ),
+    ],
+)
+def test_continuum_learning_scene_rejects_bad_settings(tmp_path, text, match):
+    from continuum_vs_network.scenes import load_scene
+    from continuum_vs_network.scenes.schema import SceneError
+
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(SceneError, match=match):
+        load_scene(path)

@@ -98,17 +98,18 @@ class _System:
         self.Z = self.factor.solve(self.G.T.toarray())  # (n_free, n_s + n_t)
         self.S = self.G @ self.Z
         self.n_sources = task.n_sources
-        self._u0: tuple[str, NDArray] | None = None
+        self._u0: tuple[NDArray, tuple] | None = None
         if tracker is not None:
             tracker.stats.factorisations += 1
 
     def u0(self, medium) -> tuple[NDArray, NDArray, float]:
         """``K^-1 f``, the load ``f`` on the free DOFs and the energy constant
         ``sum_e s_e A_e m0 . C m0 / 2`` of the medium's eigenstrain (cached)."""
-        key = hashlib.sha1(np.ascontiguousarray(medium.eigenstrain).tobytes()).hexdigest()
-        if self._u0 is None or self._u0[0] != key:
+        key = medium.eigenstrain  # read-only; a new field is a new array
+        if self._u0 is None or self._u0[0] is not key:
             f = medium.load()[self.free]
-            self._u0 = (key, (self.factor.solve(f), f, medium.eigenstrain_energy()))
+            u0 = self.factor.solve(f) if np.any(f) else np.zeros_like(f)
+            self._u0 = (key, (u0, f, medium.eigenstrain_energy()))
         return self._u0[1]
 
 
