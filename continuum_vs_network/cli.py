@@ -198,9 +198,12 @@ def _process_locked(args: argparse.Namespace, scene, out: Path, *, report: bool)
 
 
 def _index(args: argparse.Namespace, note: str | None = None) -> None:
+    from .report.readme import update_readme
     from .report.writer import write_index
 
     write_index(Path(args.out) / "reports", note=note)
+    # the generated blocks of <out>/README.md (the repository's README), when it has them
+    update_readme(Path(args.out) / "README.md", Path(args.out) / "reports")
 
 
 def _run(args: argparse.Namespace) -> int:

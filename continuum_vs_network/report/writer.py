@@ -111,6 +111,7 @@ def write_report(
         "commit": result.provenance.commit,
         "figures": sorted(keep),
         "findings": [f.to_dict() for f in doc.findings],
+        "summaries": doc.summaries,
     }
     write_text_atomic(folder / _META, json.dumps(meta, indent=1, sort_keys=True))
     return report
