@@ -119,12 +119,13 @@ def side_by_side(doc: Document, result, prefix: str, what: str) -> None:
             window_size=(1100, 560),
             titles=(f"network n = {n}", "continuum"),
             network_bar_title="spring strain",
-            continuum_bar_title="principal strain",
+            continuum_bar_title="principal strain (largest |.|)",
         )
         doc.image(
             path,
-            f"n = {n}: spring strain of the network (left) and the largest "
-            f"principal strain of the continuum (right), same colour limits +-{clim:.3g} "
+            f"n = {n}: spring strain of the network (left) and the signed principal strain "
+            "of largest magnitude of the continuum (right), same colour limits "
+            f"+-{clim:.3g} "
             + (
                 "(0.3 of the largest spring strain, source excluded; the near field saturates)."
                 if len(sources)
