@@ -197,11 +197,22 @@ def _limit_bands(ax, y: NDArray, hlines: Sequence[float]) -> None:
     ax.set_ylim(max(cur_lo, lo / 10), min(cur_hi, hi * 10))
 
 
+def _tick_label(v: float, digits: int) -> str:
+    """``v`` to ``digits`` significant digits: positional between 1e-3 and 1e5 (1250, not
+    1.25e+03), scientific outside."""
+    if v == 0 or not np.isfinite(v):
+        return f"{v:g}"
+    rounded = float(f"{v:.{digits}g}")
+    if 1e-3 <= abs(rounded) < 1e5:
+        return np.format_float_positional(rounded, trim="-")
+    return f"{v:.{digits}g}"
+
+
 def _short_formatter_labels(values: Sequence[float]) -> list[str]:
     """Tick labels with the fewest significant digits (3 or more) that keep them distinct."""
     values = list(values)
     for digits in range(3, 11):
-        labels = [f"{v:.{digits}g}" for v in values]
+        labels = [_tick_label(v, digits) for v in values]
         if len(set(labels)) == len(labels):
             return labels
     return labels
@@ -214,7 +225,7 @@ def _ShortFormatter():
 
     class ShortFormatter(Formatter):
         def __call__(self, x, pos=None):
-            return f"{x:.3g}"
+            return _tick_label(x, 3)
 
         def format_ticks(self, values):
             return _short_formatter_labels(values)

@@ -113,7 +113,7 @@ def side_by_side(doc: Document, result, prefix: str, what: str) -> None:
             window_size=(1100, 560),
             titles=(f"network n = {n}", "continuum"),
             network_bar_title="spring strain",
-            continuum_bar_title="principal strain (largest |.|)",
+            continuum_bar_title="principal strain (largest magnitude)",
         )
         doc.image(
             path,
