@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from . import escape
 from .figures import Panel, plot_panels
 from .findings import Finding
 
@@ -118,7 +119,7 @@ class Document:
         self.lines.append("| " + " | ".join(headers) + " |")
         self.lines.append("|" + "---|" * len(headers))
         for row in rows:
-            self.lines.append("| " + " | ".join(str(c).replace("|", "\\|") for c in row) + " |")
+            self.lines.append("| " + " | ".join(escape.cell(c) for c in row) + " |")
         self.lines.append("")
 
     def figure(self, name: str, panels: Sequence[Panel], caption: str, **kw: Any) -> None:

@@ -56,7 +56,15 @@ __all__ = [
     "parse_scene",
 ]
 
-KINDS = ("learning", "transmission", "relaxation", "stability", "solvers", "accuracy")
+KINDS = (
+    "learning",
+    "transmission",
+    "relaxation",
+    "stability",
+    "solvers",
+    "accuracy",
+    "continuum_learning",
+)
 
 #: For each kind: (tables it needs, tables it also accepts).
 KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
@@ -75,6 +83,10 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     "stability": (frozenset({"network", "task", "solver"}), frozenset({"stability", "report"})),
     "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
     "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
+    "continuum_learning": (
+        frozenset({"network", "task", "learning", "continuum"}),
+        frozenset({"export", "report"}),
+    ),
 }
 
 #: Learning runs a scene can name. Paper task: the paper's experiments (see
@@ -86,6 +98,9 @@ RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact", "gcl_al
 #: Rules only the paper task knows, and only Stern-scale tasks know.
 PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
 STERN_RULES = ("gcl_all", "gpc_all")
+#: The rules a ``continuum_learning`` scene trains both media with (Stern-scale meaning:
+#: ``gcl``, ``gpc``, ``exact`` in the bulk, sources' and targets' material frozen).
+CONTINUUM_RULES = ("gcl", "gpc", "exact", "gcl_all", "gpc_all")
 #: Keys renamed: (table, old key) -> new key; an old key is an error naming the new one.
 RENAMED = {("learning", "reference"): "strain_reference"}
 #: Equilibrium methods of :func:`continuum_vs_network.relax`.
@@ -94,6 +109,7 @@ SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]*")
 _NAME_MAX = 100  # it names folders and files (file systems allow 255 bytes per name)
 _SEED_MAX = 2**63 - 1  # seeds are stored as int64
+_FILE_MAX = 1 << 20  # bytes; a scene is a few dozen lines
 _REQUIRED = object()
 
 
@@ -948,6 +964,9 @@ def _check_kind(scene: Scene, file: str) -> None:
 
     net, task = scene.network, scene.task
     kind = scene.kind
+    if kind == "continuum_learning":
+        _check_continuum_learning(scene, file, need_key)
+        return
     if kind == "accuracy":
         return
     if kind == "learning":
@@ -1042,6 +1061,32 @@ def _check_kind(scene: Scene, file: str) -> None:
             )
 
 
+def _check_continuum_learning(scene: Scene, file: str, need_key) -> None:
+    if scene.network.builder != "triangular":
+        raise SceneError(
+            file, "network", "builder", "continuum_learning runs on a triangular lattice"
+        )
+    need_key("network", "size", "for a continuum_learning scene (an n x n lattice)")
+    if scene.task.kind != "stern":
+        raise SceneError(file, "task", "kind", "continuum_learning takes kind = 'stern'")
+    bad = [r for r in scene.learning.rules if r not in CONTINUUM_RULES]
+    if bad:
+        raise SceneError(
+            file,
+            "learning",
+            "rules",
+            f"{bad[0]!r} is not a continuum_learning rule ({', '.join(CONTINUUM_RULES)})",
+        )
+    if scene.learning.strain_reference != "initial":
+        raise SceneError(
+            file,
+            "learning",
+            "strain_reference",
+            "a continuum's material springs measure strain against the undeformed body; "
+            "set strain_reference = 'initial'",
+        )
+
+
 # -- files ---------------------------------------------------------------------------------
 def builtin_names() -> list[str]:
     """Names of the built-in scenes (files ``scenes/builtin/<name>.toml``), sorted."""
@@ -1088,7 +1133,10 @@ def load_scene(scene: str | Path) -> Scene:
         path = builtin_path(str(scene))
     try:
         with open(path, "rb") as fh:
-            data = tomllib.loads(fh.read().decode("utf-8"))
+            raw = fh.read(_FILE_MAX + 1)
+        if len(raw) > _FILE_MAX:
+            raise SceneError(str(path), "", "", f"larger than {_FILE_MAX} bytes: not a scene file")
+        data = tomllib.loads(raw.decode("utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise SceneError(str(path), "(syntax)", "", f"not valid TOML: {err}") from err
     except UnicodeDecodeError as err:
