@@ -242,7 +242,9 @@ def _log_ticks(axis, limits: tuple[float, float]) -> None:
     lo, hi = sorted(limits)
     if lo > 0 and math.log10(hi / lo) < 2:
         axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-        axis.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False))
+        axis.set_major_formatter(
+            LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(3, 3))
+        )
     axis.set_minor_formatter(NullFormatter())
 
 
