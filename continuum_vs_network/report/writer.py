@@ -113,7 +113,8 @@ def write_report(
         "findings": [f.to_dict() for f in doc.findings],
         "summaries": doc.summaries,
     }
-    write_text_atomic(folder / _META, json.dumps(meta, indent=1, sort_keys=True))
+    # not sorted: a finding's measured values keep the order its section gave
+    write_text_atomic(folder / _META, json.dumps(meta, indent=1))
     return report
 
 
