@@ -23,8 +23,8 @@ from typing import Any
 import numpy as np
 
 from ..io.atomic import atomic_path
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
 __all__ = ["build_rules", "experiments", "frames_file", "group_key", "plan_learning"]
 

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 from .units_physics import centre_spring, lattice
 
 __all__ = ["cases", "plan_solvers"]
