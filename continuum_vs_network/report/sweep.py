@@ -6,7 +6,7 @@
 * the grid (every swept key and its values) and how it was run;
 * for every swept parameter (the seed aside) the final error relative to the initial one
   against the parameter: medians and quartiles over every trial and every value of the
-  parameters not on the axis, one line per value of the next swept parameter;
+  parameters not on the axis, one line per value of another swept parameter;
 * for two or more swept parameters a heat map of that median over the first two (one map
   per value of a third);
 * a table per grid cell and the best and worst cells, chosen by the stated rule (lowest and
