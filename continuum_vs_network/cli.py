@@ -67,15 +67,17 @@ def _scenes(args: argparse.Namespace) -> int:
         return EXIT["ok"]
     scenes = [load_scene(name) for name in builtin_names()]
     width = max(len(s.name) for s in scenes)
-    print(f"{'scene':{width}}  {'kind':12}  default  description")
+    print(f"{'scene':{width}}  {'kind':14}  default  description")
     for s in scenes:
         print(
-            f"{s.name:{width}}  {s.kind:12}  {'yes' if s.report.default else 'no':7}  "
+            f"{s.name:{width}}  {s.kind + (' sweep' if s.sweep else ''):14}  "
+            f"{'yes' if s.report.default else 'no':7}  "
             f"{s.description}"
         )
     print(
         "\n`cvn report` runs the default set; `cvn run NAME` or `cvn report NAME ...` any "
-        "scene; `cvn scenes --keys` lists every key a scene file may set."
+        "scene; `cvn sweep NAME` a sweep (also with --set KEY=V1,V2 on any learning scene); "
+        "`cvn scenes --keys` lists every key a scene file may set."
     )
     return EXIT["ok"]
 

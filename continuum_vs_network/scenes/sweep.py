@@ -109,15 +109,17 @@ class Cost:
     seconds_per_trial: float | None
 
     def text(self, workers: int) -> str:
-        """One line: grid size, work, and estimated compute and wall time."""
+        """One line: grid size, work, estimated compute and (``workers > 0``) wall time."""
         line = (
             f"{self.points} grid point(s), {self.todo} to compute: {self.trials} training "
             f"trial(s), {self.steps} learning steps"
         )
         if self.seconds_per_step is not None and self.todo:
             total = self.seconds_per_step * self.steps + self.seconds_per_trial * self.trials
-            wall = total / max(1, min(workers, self.todo))
-            line += f"; estimated {total:.0f} s of compute, ~{wall:.0f} s on {workers} worker(s)"
+            line += f"; estimated {total:.0f} s of compute"
+            if workers > 0:
+                wall = total / min(workers, self.todo)
+                line += f", ~{wall:.0f} s on {workers} worker(s)"
         return line
 
 
@@ -382,8 +384,11 @@ def run_sweep(
     shape = " x ".join(map(str, grid_shape(scene.sweep)))
     keys = ", ".join(k for k, _ in scene.sweep.axes)
     say(f"{scene.name}: grid {shape} over {keys}")
-    where = f"Dask scheduler {scheduler}" if scheduler else f"{workers} worker(s)"
-    say(f"{scene.name}: {estimate_cost(points, todo).text(workers)} ({where})")
+    cost = estimate_cost(points, todo)
+    if scheduler:
+        say(f"{scene.name}: {cost.text(0)} (on the Dask scheduler at {scheduler})")
+    else:
+        say(f"{scene.name}: {cost.text(workers)}")
     if dry_run:
         return None
     if len(todo) < len(points):
