@@ -813,11 +813,11 @@ def parse_sweep(data: Any, file: str) -> SweepSpec:
                 axes[f"{key}.{sub}"] = sweep_values(f"{key}.{sub}", v, file)
         else:
             axes[key] = sweep_values(key, value, file)
-    if not axes:
-        raise SceneError(file, "sweep", "", "names no key to vary")
     threshold = _convert(threshold, "float", (file, "sweep", "threshold"))
     if not 0 < threshold < 1:
         raise SceneError(file, "sweep", "threshold", "must lie strictly between 0 and 1")
+    if not axes:
+        raise SceneError(file, "sweep", "", "names no key to vary")
     groups = check_zip(zip_groups, axes, file)
     return SweepSpec(axes=tuple(axes.items()), zip=groups, threshold=threshold)
 
