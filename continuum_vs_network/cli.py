@@ -11,14 +11,23 @@
 
 Outputs go under ``--out`` (default: the current folder): ``results/<scene>/`` (computed
 units and checkpoints: an interrupted run resumes from them), ``reports/<scene>/``,
-``meshes/<scene>/``.
+``meshes/<scene>/``. A scene's result folder is locked while a run uses it: a second run on
+the same scene and ``--out`` stops at once with exit code 7 (it does not wait).
+
+Errors: a mistake in the command line, a scene file or the output folder is one line on
+stderr (``cvn: ...``) and an exit code from :data:`EXIT`, never a traceback. Anything else
+is a bug: its traceback is printed, with exit code 70. ``cvn --debug ...`` (or the
+environment variable ``CVN_DEBUG=1``) prints the traceback of every error.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import tempfile
 import time
+import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -32,18 +41,34 @@ EXIT = {
     "run": 3,  # a scene's computation failed
     "report": 4,  # writing a report failed
     "export": 5,  # writing meshes failed
+    "output": 6,  # the --out folder cannot be used (not a folder, not writable, a broken link)
+    "busy": 7,  # the scene's result folder is in use by another run
+    "internal": 70,  # a bug: the traceback is printed
     "interrupted": 130,
 }
 
 _EPILOG = (
     "exit codes: 0 ok; 1 demo: a method did not converge; 2 bad command line or scene file; "
     "3 a scene's computation failed; 4 writing a report failed; 5 writing meshes failed; "
-    "130 interrupted (rerun to resume)."
+    "6 the --out folder cannot be used; 7 the scene's result folder is in use by another "
+    "run; 70 internal error (a bug; traceback printed); 130 interrupted (rerun to resume). "
+    "Errors are one line on stderr; --debug (or CVN_DEBUG=1) prints their tracebacks."
 )
+_DEBUG_ENV = "CVN_DEBUG"
+
+
+class _OutputError(Exception):
+    """The --out folder cannot be used."""
+
+
+def _debug() -> bool:
+    return os.environ.get(_DEBUG_ENV, "") not in ("", "0")
 
 
 def _err(msg: str) -> None:
-    print(f"cvn: {msg}", file=sys.stderr)
+    if _debug() and sys.exc_info()[0] is not None:
+        traceback.print_exc()
+    print("cvn: " + " ".join(str(msg).split("\n")), file=sys.stderr)
 
 
 def _info(args: argparse.Namespace, msg: str) -> None:
@@ -54,9 +79,15 @@ def _info(args: argparse.Namespace, msg: str) -> None:
 def _demo(args: argparse.Namespace) -> int:
     from .demo import format_table, run_demo
 
-    rows, info = run_demo(args.seed, strain=args.strain, paper_seconds=args.paper_seconds)
+    rows, info = run_demo(
+        args.seed, strain=args.strain, paper_seconds=args.paper_seconds, methods=args.methods
+    )
     print(format_table(rows, info))
-    return EXIT["ok"] if all(r.converged for r in rows if r.method != "paper") else 1
+    failed = [r.method for r in rows if not r.converged]
+    if failed:
+        _err(f"demo: {', '.join(failed)} did not converge")
+        return EXIT["not_converged"]
+    return EXIT["ok"]
 
 
 def _scenes(args: argparse.Namespace) -> int:
@@ -98,12 +129,35 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
     """Run one scene, export its meshes and write its report; returns an exit code."""
     if scene.sweep is not None and not force_export:
         return _process_sweep(args, scene, report=report)
-    from .scenes.meshes import export_meshes
-    from .scenes.runner import SceneRunError, run_scene
-
     out = Path(args.out)
     if force_export and scene.export is None:
         scene = scene.with_export()
+    from .io.lock import FolderBusyError, folder_lock
+
+    try:
+        with folder_lock(out / "results" / scene.name):
+            return _process_locked(args, scene, out, report=report)
+    except FolderBusyError as err:
+        _err(str(err))
+        return EXIT["busy"]
+    except OSError as err:
+        _err(f"scene {scene.name!r}: {_os_message(err)}")
+        return EXIT["output"]
+
+
+def _os_message(err: OSError) -> str:
+    where = f"{err.filename}: " if err.filename else ""
+    return f"{where}{err.strerror or err}"
+
+
+def _process_locked(args: argparse.Namespace, scene, out: Path, *, report: bool) -> int:
+    """:func:`_process` while the scene's result folder is locked."""
+    from .io.atomic import remove_stale_temporaries
+    from .scenes.meshes import export_meshes
+    from .scenes.runner import SceneRunError, run_scene
+
+    for folder in (out / "reports" / scene.name, out / "meshes" / scene.name):
+        remove_stale_temporaries(folder, locked=True)
     t0 = time.perf_counter()
     try:
         result = run_scene(
@@ -116,6 +170,8 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
             log=lambda m: _info(args, m),
         )
     except SceneRunError as err:
+        if _debug():
+            traceback.print_exception(err.cause)
         _err(f"{err} (completed units are kept; rerun to resume)")
         return EXIT["run"]
     _info(args, f"{scene.name}: computed in {time.perf_counter() - t0:.1f} s")
@@ -146,6 +202,8 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
 
 def _process_sweep(args: argparse.Namespace, scene, *, report: bool) -> int:
     """Run a sweep (a scene with a [sweep] table), write its table and report."""
+    from .io.lock import FolderBusyError
+    from .scenes.executor import ExecutorUnavailable
     from .scenes.sweep import SweepRunError, run_sweep
 
     out = Path(args.out)
@@ -162,9 +220,14 @@ def _process_sweep(args: argparse.Namespace, scene, *, report: bool) -> int:
             log=lambda m: _info(args, m),
         )
     except SweepRunError as err:
+        if _debug():
+            traceback.print_exception(err.cause)
         _err(f"{err} (completed points are kept; rerun to resume)")
         return EXIT["run"]
-    except (ImportError, OSError) as err:  # no Dask / pandas, or an unreachable scheduler
+    except FolderBusyError as err:
+        _err(str(err))
+        return EXIT["busy"]
+    except (ImportError, ExecutorUnavailable) as err:  # no Dask/pandas; no scheduler there
         _err(str(err))
         return EXIT["usage"]
     if result is None:  # --dry-run
@@ -248,6 +311,27 @@ def _export(args: argparse.Namespace) -> int:
     return _process(args, scene, report=False, force_export=True)
 
 
+def _output_root(out: str) -> Path:
+    """The --out folder, created and checked writable; :class:`_OutputError` says why not."""
+    path = Path(out)
+    try:
+        if path.is_symlink():
+            try:
+                os.stat(path)
+            except OSError as err:
+                kind = "a symbolic link loop" if err.errno == 40 else "a broken symbolic link"
+                raise _OutputError(f"--out {out}: {kind} ({err.strerror})") from None
+        if path.exists() and not path.is_dir():
+            raise _OutputError(f"--out {out}: not a folder")
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=path, prefix=".cvn-write-test.", suffix=".probe")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        raise _OutputError(f"--out {out}: cannot write there ({_os_message(err)})") from None
+    return path
+
+
 def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
     p.add_argument(
         "--out",
@@ -274,19 +358,37 @@ def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .network.equilibrium import METHODS
+
     parser = argparse.ArgumentParser(
         prog="cvn",
         description="Mass-spring networks that learn, against an elastic continuum.",
         epilog=_EPILOG,
     )
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help=f"print the traceback of every error (also: {_DEBUG_ENV}=1)",
+    )
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser(
-        "demo", help="relax the paper's network with every method and print a table"
+        "demo",
+        help="relax the paper's network with every method and print a table",
+        epilog="exit codes: 0 every method converged; 1 a method did not (the paper's Adagrad "
+        "stalls by design: leave it out with --methods to check the others); 2 bad arguments.",
     )
     demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     demo.add_argument("--strain", type=float, default=None, help="source strain (default ~N(5,1))")
     demo.add_argument(
         "--paper-seconds", type=float, default=5.0, help="time budget of the paper's Adagrad"
+    )
+    demo.add_argument(
+        "--methods",
+        nargs="+",
+        choices=list(METHODS),
+        default=list(METHODS),
+        metavar="METHOD",
+        help=f"methods to run (default: all of {', '.join(METHODS)})",
     )
     demo.set_defaults(func=_demo)
 
@@ -374,23 +476,44 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``cvn``; returns the exit code."""
+    """Entry point of ``cvn``; returns the exit code (see :data:`EXIT`)."""
+    from ._validate import ArgumentError
     from .scenes.schema import SceneError
 
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
-    args.argv = argv
+    args.argv = [a for a in argv if a != "--debug"]
+    if args.debug:
+        os.environ[_DEBUG_ENV] = "1"
     if (getattr(args, "workers", 1) or 1) < 1:
         _err(f"--workers must be >= 1, got {args.workers}")
         return EXIT["usage"]
     try:
+        if hasattr(args, "out"):
+            _output_root(args.out)
         return int(args.func(args))
-    except SceneError as err:
+    except (SceneError, ArgumentError) as err:
         _err(str(err))
         return EXIT["usage"]
+    except _OutputError as err:
+        _err(str(err))
+        return EXIT["output"]
     except KeyboardInterrupt:
         _err("interrupted; rerun the same command to resume")
         return EXIT["interrupted"]
+    except OSError as err:  # the file system refused (disk full, permissions, ...)
+        _err(_os_message(err))
+        return EXIT["output"]
+    except MemoryError:
+        _err("out of memory; use a smaller scene (the estimate at load was too low)")
+        return EXIT["run"]
+    except Exception:  # a bug: show it
+        traceback.print_exc()
+        print(
+            "cvn: internal error (a bug; please report it with the traceback above)",
+            file=sys.stderr,
+        )
+        return EXIT["internal"]
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -111,10 +111,10 @@ kind = "stern"
 n_sources = 2
 n_targets = 1
 [learning]
-rules = ["gcl_frozen", "gpc"]
+rules = ["gcl", "gpc"]
 trials = 2
 steps = 4
-reference = "initial"
+strain_reference = "initial"
 """
 
 

@@ -10,7 +10,7 @@ from PIL import Image
 
 from continuum_vs_network.io.render import rendering_available
 from continuum_vs_network.report import write_index, write_report
-from continuum_vs_network.report.writer import _time_to
+from continuum_vs_network.report.sections.solvers import time_to as _time_to
 from continuum_vs_network.scenes import load_scene, run_scene
 
 PAPER = """
@@ -139,7 +139,7 @@ def test_report_numbers_come_from_the_histories(paper):
     from continuum_vs_network.learning.metrics import summary
 
     h = result.histories["newton/exact/noise0"]
-    s = summary(h.error, h.completed)
+    s = summary(h.error_initial, h.completed)
     assert f"| exact | {s['median']:.3g} [{s['q25']:.3g}, {s['q75']:.3g}]" in text
     cos = result.units["gradient/gcl_floor"].arrays["cosine"]
     assert np.all(np.abs(cos[np.isfinite(cos)]) <= 1 + 1e-12)

@@ -30,10 +30,10 @@ kind = "stern"
 n_sources = 2
 n_targets = 1
 [learning]
-rules = ["gcl_frozen"]
+rules = ["gcl"]
 trials = 2
 steps = 6
-reference = "initial"
+strain_reference = "initial"
 """
 SWEEP = """
 [sweep]
@@ -175,7 +175,7 @@ def test_table_rows_match_an_independent_training_call(serial, tmp_path):
     assert df.groupby("point").size().tolist() == [2, 2, 2, 2]
     # point 3 (eta 0.1, alpha 1) trained directly, outside the runner
     point = result.points[3]
-    rule = build_rules(point.scene)["gcl_frozen"]
+    rule = build_rules(point.scene)["gcl"]
     net, task = builders(point.scene)
     h = train(net, task, rule, 6, seeds=(3, 4), progress=False)
     rows = df[df.point == 3]
@@ -190,6 +190,17 @@ def test_table_rows_match_an_independent_training_call(serial, tmp_path):
         got = rows["steps_to_threshold"].iloc[k]
         assert pd.isna(got) if not below.size else got == below[0]
     assert df["steps_to_threshold"].notna().any()  # the threshold is reached somewhere
+    # the coupling verdict is the learning package's measurement of the trained network
+    from continuum_vs_network.learning.coupling import measure_coupling, outcome
+    from continuum_vs_network.learning.replication import exact_solver
+
+    for k in range(2):
+        c = measure_coupling(
+            h.initial[k], h.final[k], h.tasks[k], strain_reference="initial", solver=exact_solver()
+        )
+        assert rows["coupling"].iloc[k] == c.verdict
+        assert rows["source_share"].iloc[k] == c.share
+        assert rows["outcome"].iloc[k] == outcome(rows["relative_error"].iloc[k], c.verdict)
     # files: Parquet and CSV hold the same table
 
     _same_table(pd.read_parquet(result.directory / "table.parquet"), df)
@@ -260,8 +271,8 @@ def test_builtin_sweep_on_a_two_worker_local_cluster(tmp_path, capsys):
     df = pd.read_parquet(out / "results" / "eta_alpha" / "table.parquet")
     assert len(df) == 6 * 2
     assert sorted(set(df["learning.alpha_gcl"])) == [0.03, 0.1, 0.3]
-    assert (df["rule"] == "gcl_frozen").all() and df["final_error"].notna().all()
+    assert (df["rule"] == "gcl").all() and df["final_error"].notna().all()
     report = (out / "reports" / "eta_alpha" / "report.md").read_text()
-    assert "fig_phase.png" in report and "fig_heatmap_newton_gcl_frozen_0.png" in report
+    assert "fig_phase.png" in report and "fig_heatmap_newton_gcl_0.png" in report
     assert "lowest at learning.eta" in report
     assert "eta_alpha" in (out / "reports" / "README.md").read_text()

@@ -53,9 +53,12 @@ exponentially when the target should stretch (or runs to 0 when it should shrink
 Prospective configuration in the ``"current"`` convention has the same runaway on every
 clamped spring (``dL = alpha k S L``).
 
-Options every rule honours: ``dof``, ``learn_sources``, ``learn_targets``,
-``strain_reference`` (``"current"``: the paper's literal ``S = r / L - 1`` with the learning
-``L``; ``"initial"``: fixed clamp lengths from the task's recorded rest lengths),
+Options every rule honours: ``dof``, ``learn_sources`` and ``learn_targets`` (both False by
+default: bulk learning; a target that learns its own rest length meets the task trivially,
+without the bulk transmitting anything, see :mod:`.coupling`),
+``strain_reference`` (``"initial"``, the default: fixed clamp lengths from the task's
+recorded rest lengths, the convention in which the rules learn; ``"current"``: the paper's
+literal ``S = r / L - 1`` with the learning ``L``),
 floors ``min_rest_length`` / ``min_stiffness``, and the equilibrium ``solver``.
 """
 
@@ -68,11 +71,12 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import _validate as check
 from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
 from .sensitivity import Cost, cost_gradient
 from .states import Solver, Tracker
-from .tasks import AllosteryTask, Reference
+from .tasks import AllosteryTask, StrainReference, check_strain_reference
 
 __all__ = [
     "CoupledLearning",
@@ -165,8 +169,10 @@ class Step:
         LearningError
             A rest length would become ``<= 0`` or a stiffness ``< 0`` (set a floor).
         """
+        _check_finite_update(self.delta, self.dof)
         if self.dof == "rest_length":
             new = net.rest_length + self.delta
+            _check_finite_update(new, self.dof)
             bad = np.flatnonzero(new <= 0)
             if bad.size:
                 j = int(bad[0])
@@ -176,6 +182,7 @@ class Step:
                 )
             return net.with_rest_length(new)
         new = net.stiffness + self.delta
+        _check_finite_update(new, self.dof)
         bad = np.flatnonzero(new < 0)
         if bad.size:
             j = int(bad[0])
@@ -184,6 +191,17 @@ class Step:
                 f"({bad.size} springs); set min_stiffness to floor it"
             )
         return net.with_stiffness(new)
+
+
+def _check_finite_update(values: NDArray, dof: str) -> None:
+    """A non-finite update (an overflow: learning rate too large, a diverged state) stops."""
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        j = int(bad[0])
+        raise LearningError(
+            f"the {dof} update of spring {j} is not finite ({values[j]}; {bad.size} springs): "
+            f"the step overflowed (lower the learning rate)"
+        )
 
 
 def _plain(value: object) -> object:
@@ -202,24 +220,22 @@ class Rule:
     """Options shared by every rule (see the module docstring)."""
 
     dof: Dof = "rest_length"
-    learn_sources: bool = True
-    learn_targets: bool = True
-    strain_reference: Reference = "current"
+    learn_sources: bool = False
+    learn_targets: bool = False
+    strain_reference: StrainReference = "initial"
     min_rest_length: float | None = None
     min_stiffness: float | None = None
     solver: Solver = field(default_factory=Solver)
 
     def __post_init__(self) -> None:
-        if self.dof not in ("rest_length", "stiffness"):
-            raise ValueError(f"dof must be 'rest_length' or 'stiffness', got {self.dof!r}")
-        if self.strain_reference not in ("current", "initial"):
-            raise ValueError(
-                f"strain_reference must be 'current' or 'initial', got {self.strain_reference!r}"
-            )
+        check.choice("dof", self.dof, ("rest_length", "stiffness"))
+        check_strain_reference(self.strain_reference)
+        check.boolean("learn_sources", self.learn_sources)
+        check.boolean("learn_targets", self.learn_targets)
         for name in ("min_rest_length", "min_stiffness"):
             value = getattr(self, name)
-            if value is not None and not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be None or a finite value >= 0, got {value}")
+            if value is not None:
+                check.real(name, value, low=0, what="None or a finite number >= 0")
         if not isinstance(self.solver, Solver):
             raise ValueError(f"solver must be a Solver, got {type(self.solver).__name__}")
 
@@ -307,13 +323,13 @@ class Rule:
         Step
         """
         task.check(net)
-        if not (np.isfinite(noise) and noise >= 0):
-            raise ValueError(f"noise must be a finite value >= 0, got {noise}")
-        if noise > 0 and rng is None:
+        noise = check.real("noise", noise, low=0)
+        if noise > 0 and not isinstance(rng, np.random.Generator):
             raise ValueError("noise > 0 needs rng, a numpy.random.Generator")
         tracker = tracker or Tracker(self.solver)
         warm = warm or Warm()
         step = self._update(net, task, warm, tracker, float(noise), rng)
+        _check_finite_update(step.delta, self.dof)
         return dataclasses.replace(step, previous=warm)
 
     def _update(
@@ -329,8 +345,7 @@ class Rule:
 
 
 def _check_rate(name: str, value: float) -> None:
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be finite and > 0, got {value}")
+    check.real(name, value, low=0, low_open=True)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -462,8 +477,7 @@ class ExactGradient(Rule):
     def __post_init__(self) -> None:
         super().__post_init__()
         _check_rate("alpha", self.alpha)
-        if self.cost not in ("strain", "length"):
-            raise ValueError(f"cost must be 'strain' or 'length', got {self.cost!r}")
+        check.choice("cost", self.cost, ("strain", "length"))
 
     def _update(self, net, task, warm, tracker, noise, rng) -> Step:
         free = self._free(net, task, tracker, warm)
@@ -473,7 +487,7 @@ class ExactGradient(Rule):
                 net,
                 task,
                 free,
-                reference=self.strain_reference,
+                strain_reference=self.strain_reference,
                 dof=self.dof,
                 cost=self.cost,
                 target_lengths=r_free[task.targets],

@@ -107,6 +107,8 @@ class Trajectory:
     inertia : bool
     factorisations : int
         Sparse factorisations made (implicit schemes).
+    arm : (T, n_springs) float array or None
+        Maxwell-arm lengths (:func:`~.viscous.simulate_viscous` with arms), else None.
     """
 
     times: NDArray[np.float64]
@@ -122,6 +124,7 @@ class Trajectory:
     damping: float
     inertia: bool
     factorisations: int = 0
+    arm: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def relaxation_time(self, fraction: float = 1e-2, *, measure: str = "residual") -> float:
         """See :func:`relaxation_time`."""

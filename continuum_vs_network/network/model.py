@@ -9,21 +9,21 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
+
 __all__ = ["SpringNetwork"]
 
 
-def _frozen_copy(value: ArrayLike, dtype: type) -> NDArray:
-    """``value`` as a read-only array; an array that already is one is shared, not copied."""
-    if isinstance(value, np.ndarray) and value.dtype == dtype and not value.flags.writeable:
-        return value
-    return np.array(value, dtype=dtype, copy=True)
-
-
 def _as_float_array(name: str, value: ArrayLike, shape: tuple[int | None, ...]) -> NDArray:
-    arr = _frozen_copy(value, np.float64)
-    _check_shape(name, arr, shape)
-    bad = np.flatnonzero(~np.isfinite(arr).reshape(arr.shape[0], -1).all(axis=1))
-    if bad.size:
+    if isinstance(value, np.ndarray) and value.dtype == np.float64 and not value.flags.writeable:
+        arr = value  # a validated network's array, shared between copies
+        _check_shape(name, arr, shape)
+    else:
+        arr = check.float_array(name, value, shape, finite=False)
+    bad = (
+        np.flatnonzero(~np.isfinite(arr).reshape(arr.shape[0], -1).all(axis=1)) if arr.size else ()
+    )
+    if len(bad):
         raise ValueError(f"{name} must be finite; entry {bad[0]} is {arr[bad[0]]}")
     if arr.flags.writeable:
         arr.setflags(write=False)
@@ -89,13 +89,20 @@ class SpringNetwork:
 
     def __post_init__(self) -> None:
         positions = _as_float_array("positions", self.positions, (None, 2))
-        springs_raw = np.asarray(self.springs)
-        _check_shape("springs", springs_raw, (None, 2))
-        if springs_raw.size and not np.issubdtype(springs_raw.dtype, np.integer):
-            if not np.all(springs_raw == np.round(springs_raw)):
-                raise ValueError("springs must hold integer node indices")
-        springs = _frozen_copy(self.springs, np.int64)
-        n_nodes, n_springs = positions.shape[0], springs.shape[0]
+        n_nodes = positions.shape[0]
+        if n_nodes == 0:
+            raise check.ArgumentError("positions", self.positions, "an array of at least one node")
+        springs = self.springs
+        if not (
+            isinstance(springs, np.ndarray)
+            and springs.dtype == np.int64
+            and not springs.flags.writeable
+        ):
+            springs = check.index_array(
+                "springs", springs, n_nodes, what="node indices", shape=(None, 2)
+            )
+        _check_shape("springs", springs, (None, 2))
+        n_springs = springs.shape[0]
         if _VALIDATED.get(id(springs)) != n_nodes:
             _validate_topology(springs, n_nodes)
             if not springs.flags.writeable:  # a shared read-only topology is checked once

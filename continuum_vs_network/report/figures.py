@@ -77,6 +77,8 @@ class Panel:
     xscale, yscale : {"linear", "log", "symlog"}
     hlines : sequence of float
         Horizontal reference lines (dotted grey).
+    vlines : sequence of float
+        Vertical reference lines (dashed grey), e.g. a stability limit.
     diagonal : bool
         Draw ``y = x``.
     legend : bool
@@ -89,6 +91,7 @@ class Panel:
     xscale: str = "linear"
     yscale: str = "linear"
     hlines: Sequence[float] = field(default_factory=tuple)
+    vlines: Sequence[float] = field(default_factory=tuple)
     diagonal: bool = False
     legend: bool = True
 
@@ -142,16 +145,18 @@ def _draw(ax, panel: Panel) -> None:
             drawn = True
     for h in panel.hlines:
         ax.axhline(h, color="0.5", lw=0.8, ls=":")
+    for v in panel.vlines:
+        ax.axvline(v, color="0.4", lw=0.8, ls="--")
     if panel.diagonal:
         lims = np.array([ax.get_xlim(), ax.get_ylim()])
         lo, hi = lims.min(), lims.max()
         ax.plot([lo, hi], [lo, hi], color="0.4", lw=0.8, ls="--", label="y = x")
     ax.set_xscale(panel.xscale)
     ax.set_yscale(panel.yscale)
-    if xlog:  # minor tick labels of short log ranges overlap
-        from matplotlib.ticker import NullFormatter
-
-        ax.xaxis.set_minor_formatter(NullFormatter())
+    if xlog:
+        _log_ticks(ax.xaxis, ax.get_xlim())
+    if ylog:
+        _log_ticks(ax.yaxis, ax.get_ylim())
     ax.set_title(panel.title, fontsize=10)
     ax.set_xlabel(panel.xlabel, fontsize=9)
     ax.set_ylabel(panel.ylabel, fontsize=9)
@@ -169,6 +174,19 @@ def _draw(ax, panel: Panel) -> None:
         )
     if panel.legend and any(s.label for s in panel.series) and drawn:
         ax.legend(fontsize=7, frameon=False)
+
+
+def _log_ticks(axis, limits: tuple[float, float]) -> None:
+    """Labelled ticks on a log axis: decades, or 1-2-5 steps when the range spans less
+    than two decades (where decades alone would leave one label or none); minor tick
+    labels off (they overlap)."""
+    from matplotlib.ticker import LogFormatterSciNotation, LogLocator, NullFormatter
+
+    lo, hi = sorted(limits)
+    if lo > 0 and math.log10(hi / lo) < 2:
+        axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+        axis.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False))
+    axis.set_minor_formatter(NullFormatter())
 
 
 def plot_panels(

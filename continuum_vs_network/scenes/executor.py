@@ -28,11 +28,17 @@ from typing import Any
 __all__ = [
     "DaskExecutor",
     "Executor",
+    "ExecutorUnavailable",
     "SerialExecutor",
     "TaskError",
     "machine_workers",
     "open_executor",
 ]
+
+
+class ExecutorUnavailable(RuntimeError):
+    """The executor asked for cannot be opened: Dask is not installed, or the scheduler
+    cannot be reached. The message says which and what to do."""
 
 
 class TaskError(RuntimeError):
@@ -169,10 +175,9 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Executor
     ------
     ValueError
         ``workers`` is not an integer >= 1.
-    ImportError
-        Dask is needed and not installed (the message says how to install it).
-    OSError
-        The scheduler cannot be reached (the message names the address).
+    ExecutorUnavailable
+        Dask is needed and not installed (the message says how to install it), or the
+        scheduler cannot be reached (the message names the address).
     """
     if isinstance(workers, bool) or int(workers) != workers or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
@@ -181,15 +186,17 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Executor
     try:
         from distributed import Client, LocalCluster
     except ImportError as err:
-        raise ImportError(
+        raise ExecutorUnavailable(
             "parallel runs need dask.distributed: pip install 'continuum_vs_network[sweep]' "
             f"({err})"
         ) from err
     if scheduler is not None:
         try:
             client = Client(scheduler, timeout="20s")
-        except (OSError, TimeoutError) as err:
-            raise OSError(f"cannot reach the Dask scheduler at {scheduler!r}: {err}") from err
+        except (OSError, TimeoutError, ValueError) as err:
+            raise ExecutorUnavailable(
+                f"cannot reach the Dask scheduler at {scheduler!r}: {err}"
+            ) from err
         return DaskExecutor(client, description=f"Dask at {scheduler}")
     cluster = LocalCluster(
         n_workers=int(workers),

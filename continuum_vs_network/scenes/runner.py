@@ -26,10 +26,8 @@ import dataclasses
 import functools
 import json
 import os
-import platform
 import shutil
 import signal
-import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -39,8 +37,10 @@ from typing import Any
 
 import numpy as np
 
-from ..io.atomic import atomic_path, write_text_atomic
+from ..io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
+from ..io.lock import folder_lock
 from .executor import Executor, TaskError, open_executor
+from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
 from .units import Unit, UnitContext, UnitResult
 
@@ -65,51 +65,6 @@ class SceneRunError(RuntimeError):
     def __init__(self, scene: str, unit: str, cause: BaseException) -> None:
         self.scene, self.unit, self.cause = scene, unit, cause
         super().__init__(f"scene {scene!r}, unit {unit!r}: {type(cause).__name__}: {cause}")
-
-
-@dataclass(frozen=True)
-class Provenance:
-    """Where a result comes from.
-
-    Attributes
-    ----------
-    version : str
-        Package version.
-    commit : str
-        Git commit of the package source ("unknown" outside a git checkout), with
-        ``+dirty`` when tracked files were modified.
-    python, numpy, scipy, platform : str
-    command : str
-        The command line of the run that completed the result.
-    seeds : tuple of int
-        The seeds the scene used.
-    started : str
-        ISO time the completing run started.
-    wall_seconds : float
-        Wall-clock time of the completing run (units reused from earlier runs excluded).
-    compute_seconds : float
-        Sum of every unit's own wall-clock time (across resumed runs).
-    units : int
-    reused : int
-        Units taken from an earlier (interrupted or finished) run.
-    workers : int
-        Worker processes (or remote Dask worker threads) the parallel units could use.
-    """
-
-    version: str
-    commit: str
-    python: str
-    numpy: str
-    scipy: str
-    platform: str
-    command: str
-    seeds: tuple[int, ...]
-    started: str
-    wall_seconds: float
-    compute_seconds: float
-    units: int
-    reused: int
-    workers: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,6 +104,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_physics import plan_physics
 
         return plan_physics(scene)
+    if scene.kind == "accuracy":
+        from .units_accuracy import plan_accuracy
+
+        return plan_accuracy(scene)
     from .units_solvers import plan_solvers
 
     return plan_solvers(scene)
@@ -167,14 +126,35 @@ def _payload_path(directory: Path, key: str) -> Path:
     return _units_dir(directory) / (key.replace("/", "__") + ".npz")
 
 
-def _is_done(directory: Path, unit: Unit) -> bool:
+def _is_done(directory: Path, unit: Unit, *, verify: bool = False) -> bool:
+    """The unit's record matches its fingerprint (and, with ``verify``, its payload loads)."""
     rec = _record_path(directory, unit.key)
     if not (rec.exists() and _payload_path(directory, unit.key).exists()):
         return False
     try:
-        return json.loads(rec.read_text())["fingerprint"] == unit.fingerprint
-    except (OSError, ValueError, KeyError):
+        record = json.loads(rec.read_text())
+        if record["fingerprint"] != unit.fingerprint:
+            return False
+    except (OSError, ValueError, KeyError, TypeError):
         return False
+    return not verify or _payload_loads(directory, unit.key, bool(record.get("history")))
+
+
+def _payload_loads(directory: Path, key: str, history: bool) -> bool:
+    """True when the unit's payload reads back completely (every array, every CRC)."""
+    path = _payload_path(directory, key)
+    try:
+        if history:
+            from ..learning.history import History
+
+            History.load(path)
+        else:
+            with np.load(path, allow_pickle=False) as z:
+                for name in z.files:
+                    z[name]
+    except Exception:  # any failure to read back means: compute the unit again
+        return False
+    return True
 
 
 def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None:
@@ -294,7 +274,29 @@ def _worker(scene: Scene, unit: Unit, directory: str) -> tuple[str, float]:
     return unit.key, seconds
 
 
-def run_scene(
+def _log_unreadable(directory: Path, units: list[Unit], done: set[str], log) -> None:
+    """Say which units are recomputed because their payload does not read back."""
+    bad = [u.key for u in units if u.key not in done and _is_done(directory, u)]
+    if bad and log:
+        log(f"{len(bad)} unit(s) with an unreadable payload are computed again (first: {bad[0]})")
+
+
+def run_scene(scene: Scene, directory: str | os.PathLike[str], **options: Any) -> SceneResult:
+    """Compute every unit of ``scene`` not already in ``directory``; return the result.
+
+    The folder is locked for the run (:func:`~continuum_vs_network.io.lock.folder_lock`): a
+    second run on it raises :class:`~continuum_vs_network.io.lock.FolderBusyError` at once.
+    Temporaries that killed runs left in it are removed first, and a unit whose stored
+    payload does not read back is computed again. The keyword options (``workers``,
+    ``scheduler``, ``progress``, ``fresh``, ``command``, ``log``) are described at
+    :func:`_run_scene`.
+    """
+    with folder_lock(directory):
+        remove_stale_temporaries(directory, locked=True)
+        return _run_scene(scene, directory, **options)
+
+
+def _run_scene(
     scene: Scene,
     directory: str | os.PathLike[str],
     *,
@@ -339,6 +341,7 @@ def run_scene(
         for sub in ("units", "checkpoints", "frames"):
             shutil.rmtree(directory / sub, ignore_errors=True)
         (directory / "run.json").unlink(missing_ok=True)
+    env = environment()  # before this run writes anything (cached for the process)
     _units_dir(directory).mkdir(parents=True, exist_ok=True)
     write_text_atomic(
         directory / "scene.json", json.dumps(scene.to_dict(), indent=1, sort_keys=True)
@@ -349,7 +352,8 @@ def run_scene(
         raise AssertionError("duplicate unit keys")
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     t_start = time.perf_counter()
-    done = {u.key for u in units if _is_done(directory, u)}
+    done = {u.key for u in units if _is_done(directory, u, verify=True)}
+    _log_unreadable(directory, units, done, log)
     reused = len(done)
     if log and done:
         log(f"{scene.name}: resuming, {len(done)} of {len(units)} units already computed")
@@ -377,11 +381,11 @@ def run_scene(
     compute = sum(_read_record(directory, k)["seconds"] for k in keys)
     prov = Provenance(
         version=_version(),
-        commit=_git_commit(),
-        python=platform.python_version(),
-        numpy=np.__version__,
-        scipy=_scipy_version(),
-        platform=platform.platform(terse=True),
+        commit=env["commit"],
+        python=env["python"],
+        numpy=env["libraries"]["numpy"],
+        scipy=env["libraries"]["scipy"],
+        platform=env["platform"],
         command=command
         if command is not None
         else " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
@@ -392,6 +396,9 @@ def run_scene(
         units=len(units),
         reused=reused,
         workers=int(workers) if executor is None else executor.workers,
+        libraries=dict(env["libraries"]),
+        cpu=env["cpu"],
+        threads=blas_threads(),
     )
     write_text_atomic(
         directory / "run.json", json.dumps(dataclasses.asdict(prov), indent=1, sort_keys=True)
@@ -503,36 +510,6 @@ def _version() -> str:
         return metadata.version("continuum_vs_network")
     except metadata.PackageNotFoundError:  # pragma: no cover - not installed
         return "unknown"
-
-
-def _scipy_version() -> str:
-    import scipy
-
-    return scipy.__version__
-
-
-def _git_commit() -> str:
-    src = Path(__file__).resolve().parents[2]
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=src,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=src,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return head + ("+dirty" if dirty else "")
 
 
 def _seeds(scene: Scene) -> tuple[int, ...]:

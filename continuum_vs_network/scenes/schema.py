@@ -6,13 +6,14 @@ A scene is data only (no code is executed from it). Top-level keys::
     description = "one line"  # shown by ``cvn scenes`` and in the report
     seed = 0                  # first seed; trial i uses seed + i
     kind = "learning"         # learning | transmission | relaxation | stability | solvers
+                              # | accuracy
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
-``[continuum]``, ``[dynamics]``, ``[export]``, ``[report]``, and ``[sweep]`` (the scene as a
-grid of variants, :class:`SweepSpec`). Which tables a kind needs and
-which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an error (a scene
-never carries settings that are silently ignored). Every key of every table is listed, with
-its type, default and meaning, in the dataclasses below (``cvn scenes --keys`` prints them).
+``[continuum]``, ``[dynamics]``, ``[accuracy]``, ``[export]``, ``[report]``, and ``[sweep]``
+(the scene as a grid of variants, :class:`SweepSpec`). Which tables a kind needs and which it
+accepts is in :data:`KIND_TABLES`; a table a kind does not use is an error (a scene never
+carries settings that are silently ignored). Every key of every table is listed, with its
+type, default and meaning, in the dataclasses below (``cvn scenes --keys`` prints them).
 
 Unknown keys, wrong types and impossible values raise :class:`SceneError`, a ``ValueError``
 whose message and attributes name the file, the table and the key.
@@ -36,6 +37,7 @@ __all__ = [
     "KIND_TABLES",
     "RULES",
     "SOLVER_METHODS",
+    "AccuracySpec",
     "ContinuumSpec",
     "DynamicsSpec",
     "ExportSpec",
@@ -56,7 +58,7 @@ __all__ = [
     "sweep_values",
 ]
 
-KINDS = ("learning", "transmission", "relaxation", "stability", "solvers")
+KINDS = ("learning", "transmission", "relaxation", "stability", "solvers", "accuracy")
 
 #: For each kind: (tables it needs, tables it also accepts).
 KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
@@ -74,15 +76,26 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     ),
     "stability": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
     "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
+    "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
 }
 
-#: Learning runs a scene can name (the paper's experiments, see
-#: :func:`continuum_vs_network.learning.replication.paper_experiments`).
-RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact")
+#: Learning runs a scene can name. Paper task: the paper's experiments (see
+#: :func:`continuum_vs_network.learning.replication.paper_experiments`; ``gcl``, ``gpc`` and
+#: ``exact`` let every spring learn, as the paper does). Stern-scale tasks: ``gcl``, ``gpc``
+#: and ``exact`` learn in the bulk only (sources and targets frozen), ``gcl_all`` and
+#: ``gpc_all`` let every spring learn (a target can then meet the task alone).
+RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact", "gcl_all", "gpc_all")
+#: Rules only the paper task knows, and only Stern-scale tasks know.
+PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
+STERN_RULES = ("gcl_all", "gpc_all")
+#: Keys renamed: (table, old key) -> new key; an old key is an error naming the new one.
+RENAMED = {("learning", "reference"): "strain_reference"}
 #: Equilibrium methods of :func:`continuum_vs_network.relax`.
 SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.\-]*$")
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]*")
+_NAME_MAX = 100  # it names folders and files (file systems allow 255 bytes per name)
+_SEED_MAX = 2**63 - 1  # seeds are stored as int64
 _REQUIRED = object()
 
 
@@ -264,11 +277,21 @@ class LearningSpec:
         "int", 10, "independent trials (seeds seed, seed + 1, ...)", check=_at_least(1)
     )
     steps: int = _key("int", 300, "learning steps per trial", check=_at_least(1))
-    reference: str = _key(
-        "str", "current", "strain convention of clamps and error", choices=("current", "initial")
+    strain_reference: str = _key(
+        "str",
+        "initial",
+        "strain convention of clamps and error: 'initial' (fixed target geometries) or "
+        "'current' (the paper's literal S = r / L - 1 with the learning L)",
+        choices=("initial", "current"),
     )
     alpha_gcl: float = _key("float", 1e-3, "GCL learning rate", check=_positive)
     eta: float = _key("float", 0.1, "GCL nudge amplitude", check=_positive)
+    etas: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
+        check=_each(_positive),
+    )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
     alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
     floor: float = _key(
@@ -287,7 +310,8 @@ class LearningSpec:
         "bool",
         True,
         "solve the free state after every step to measure the "
-        "error even when the rule does not need it (GPC)",
+        "error even when the rule does not need it (GPC), and measure the coupling of "
+        "every trained network",
     )
     sweeps: bool = _key("bool", False, "source sweeps of the trained networks (Fig. 5)")
     sweep_span: float = _key("float", 5.0, "sweep source strains S +- span", check=_positive)
@@ -370,6 +394,54 @@ class DynamicsSpec:
 
 
 @dataclass(frozen=True)
+class AccuracySpec:
+    """``[accuracy]``: error against run time of the continuum and the time integrators.
+
+    Finite elements on Lamé's thick cylinder (closed form), network time integrators
+    against an independent DOP853 reference, continuum time integrators against the closed
+    form of a lowest-mode decay (see :mod:`~continuum_vs_network.scenes.units_accuracy`).
+    """
+
+    elements: tuple[str, ...] = _key(
+        "list[str]",
+        ("P1", "P2", "P2_curved"),
+        "finite elements (P2: straight-sided, P2_curved: isoparametric)",
+        choices=("P1", "P2", "P2_curved"),
+        check=_unique_nonempty,
+    )
+    mesh_sizes: tuple[float, ...] = _key(
+        "list[float]",
+        (0.4, 0.2, 0.1, 0.05),
+        "mesh sizes h of the cylinder (radii 1 and 2)",
+        check=_all(_unique_nonempty, _each(_between(0.01, 0.5))),
+    )
+    poisson: float = _key(
+        "float", 0.3, "Poisson's ratio of the cylinder (plane strain)", check=_between(0.0, 0.499)
+    )
+    schemes: tuple[str, ...] = _key(
+        "list[str]",
+        ("backward_euler", "newmark", "explicit"),
+        "time integrators (the continuum has no explicit scheme)",
+        choices=("backward_euler", "newmark", "explicit"),
+        check=_unique_nonempty,
+    )
+    problems: tuple[str, ...] = _key(
+        "list[str]",
+        ("overdamped", "inertial"),
+        "dynamics: overdamped (first order) or inertial (unit masses)",
+        choices=("overdamped", "inertial"),
+        check=_unique_nonempty,
+    )
+    steps: tuple[int, ...] = _key(
+        "list[int]",
+        (8, 16, 32, 64, 128, 256, 512, 1024),
+        "time steps over the run (one per entry)",
+        check=_all(_unique_nonempty, _each(_at_least(2)), _increasing),
+    )
+    size: int = _key("int", 6, "n x n lattice of the network integrators", check=_between(3, 30))
+
+
+@dataclass(frozen=True)
 class ExportSpec:
     """``[export]``: meshes written to ``meshes/<scene>/`` (VTU, PVD series)."""
 
@@ -401,6 +473,7 @@ _TABLES: dict[str, type] = {
     "solver": SolverSpec,
     "continuum": ContinuumSpec,
     "dynamics": DynamicsSpec,
+    "accuracy": AccuracySpec,
     "export": ExportSpec,
     "report": ReportSpec,
 }
@@ -416,7 +489,7 @@ class Scene:
     seed : int
     kind : str
         One of :data:`KINDS`.
-    network, task, learning, solver, continuum, dynamics, export : spec or None
+    network, task, learning, solver, continuum, dynamics, accuracy, export : spec or None
         The tables given (None when absent).
     report : ReportSpec
         Always present (defaults when the table is absent).
@@ -436,6 +509,7 @@ class Scene:
     solver: SolverSpec | None = None
     continuum: ContinuumSpec | None = None
     dynamics: DynamicsSpec | None = None
+    accuracy: AccuracySpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
     sweep: SweepSpec | None = None
@@ -539,6 +613,8 @@ def _parse_table(cls: type, data: Any, file: str, table: str) -> Any:
     fields = {f.name: f for f in dataclasses.fields(cls)}
     kwargs: dict[str, Any] = {}
     for key, value in data.items():
+        if (table, key) in RENAMED:
+            raise SceneError(file, table, key, f"renamed; use {RENAMED[table, key]} = ...")
         if key not in fields:
             raise SceneError(
                 file, table, key, f"unknown key; [{table}] accepts {', '.join(sorted(fields))}"
@@ -581,19 +657,22 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
             if default is _REQUIRED:
                 raise SceneError(file, "(top level)", key, "is required")
             top[key] = default
-    if not _NAME.match(top["name"]):
+    if not _NAME.fullmatch(top["name"]) or len(top["name"]) > _NAME_MAX:
         raise SceneError(
             file,
             "(top level)",
             "name",
-            f"must be a plain name (letters, digits, '_', '-', '.'), got {top['name']!r}",
+            f"must be a plain name of at most {_NAME_MAX} characters (letters, digits, '_', "
+            f"'-', '.'; starting with a letter or digit), got {_short(repr(top['name']))}",
         )
     desc = top["description"].strip()
     if not desc or "\n" in desc:
         raise SceneError(file, "(top level)", "description", "must be one non-empty line")
     top["description"] = desc
-    if top["seed"] < 0:
-        raise SceneError(file, "(top level)", "seed", f"must be >= 0, got {top['seed']}")
+    if not 0 <= top["seed"] <= _SEED_MAX:
+        raise SceneError(
+            file, "(top level)", "seed", f"must be in 0..2**63-1, got {_short(top['seed'])}"
+        )
     if top["kind"] not in KINDS:
         raise SceneError(
             file,
@@ -603,7 +682,24 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
         )
     scene = Scene(**top, **tables, source=str(file))
     _check_kind(scene, file)
+    if scene.learning is not None and scene.seed + scene.learning.trials - 1 > _SEED_MAX:
+        raise SceneError(
+            file,
+            "(top level)",
+            "seed",
+            f"trial i uses seed + i, so seed + trials - 1 must be <= 2**63-1; got seed = "
+            f"{scene.seed} with [learning] trials = {scene.learning.trials}",
+        )
+    from .limits import check_resources
+
+    check_resources(scene, str(file))
     return scene
+
+
+def _short(value: Any, width: int = 60) -> str:
+    """``repr(value)`` (strings: the text itself) cut to ``width`` characters."""
+    text = value if isinstance(value, str) else repr(value)
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def _check_kind(scene: Scene, file: str) -> None:
@@ -625,6 +721,8 @@ def _check_kind(scene: Scene, file: str) -> None:
 
     net, task = scene.network, scene.task
     kind = scene.kind
+    if kind == "accuracy":
+        return
     if kind == "learning":
         assert net is not None and task is not None and scene.learning is not None
         if net.builder == "paper" and task.kind != "paper":
@@ -637,18 +735,33 @@ def _check_kind(scene: Scene, file: str) -> None:
                     file, "task", "kind", f"a {net.builder!r} network takes kind = 'stern'"
                 )
             need_key("network", "n_nodes", "for a learning scene on a large network")
-            if scene.learning.reference != "initial":
+            if scene.learning.strain_reference != "initial":
                 raise SceneError(
                     file,
                     "learning",
-                    "reference",
+                    "strain_reference",
                     "Stern-scale runs measure strains against the initial rest "
-                    "lengths; set reference = 'initial'",
+                    "lengths; set strain_reference = 'initial'",
                 )
-            bad = [r for r in scene.learning.rules if r in ("gcl_floor",)]
+            bad = [r for r in scene.learning.rules if r in PAPER_RULES]
             if bad:
                 raise SceneError(
-                    file, "learning", "rules", f"{bad[0]!r} exists for the paper task only"
+                    file,
+                    "learning",
+                    "rules",
+                    f"{bad[0]!r} exists for the paper task only (Stern-scale 'gcl', 'gpc' "
+                    "and 'exact' already freeze sources and targets; 'gcl_all' and "
+                    "'gpc_all' let every spring learn)",
+                )
+        else:
+            bad = [r for r in scene.learning.rules if r in STERN_RULES]
+            if bad:
+                raise SceneError(
+                    file,
+                    "learning",
+                    "rules",
+                    f"{bad[0]!r} exists for Stern-scale tasks only (the paper's 'gcl' and "
+                    "'gpc' already let every spring learn)",
                 )
         if scene.solver is not None:
             bad = [m for m in scene.solver.methods if m not in ("newton", "paper")]
@@ -760,6 +873,9 @@ def sweep_values(key: str, raw: Any, file: str) -> tuple[Any, ...]:
             allowed = ", ".join(["seed", *(f"{t}.<key>" for t in _SWEEPABLE)])
             raise SceneError(file, "sweep", key, f"unknown sweep key; a sweep varies {allowed}")
         fields = {f.name: f for f in dataclasses.fields(_TABLES[table])}
+        if (table, name) in RENAMED:
+            new_key = f"{table}.{RENAMED[table, name]}"
+            raise SceneError(file, "sweep", key, f"renamed; use {new_key}")
         if name not in fields:
             raise SceneError(
                 file,
@@ -869,16 +985,40 @@ def builtin_path(name: str) -> Path:
 
 def load_scene(scene: str | Path) -> Scene:
     """Read a scene: a path to a ``.toml`` file or the name of a built-in scene."""
+    if not isinstance(scene, str | Path):
+        raise SceneError(repr(scene), "", "", "a scene is a path or a built-in name")
     path = Path(scene)
-    if not path.is_file():
-        if str(scene).endswith(".toml") or "/" in str(scene):
-            raise SceneError(str(scene), "", "", "no such scene file")
+    try:
+        is_file = path.is_file()
+    except OSError as err:  # a name too long, a symlink loop
+        raise SceneError(_short(str(scene)), "", "", f"cannot read: {err.strerror}") from None
+    if not is_file:
+        if path.is_dir():
+            raise SceneError(_short(str(scene)), "", "", "is a folder, not a scene file")
+        if str(scene).endswith(".toml") or "/" in str(scene) or path.exists():
+            raise SceneError(_short(str(scene)), "", "", "no such scene file")
+        if not _NAME.fullmatch(str(scene)) or len(str(scene)) > _NAME_MAX:
+            raise SceneError(
+                _short(str(scene)),
+                "",
+                "",
+                f"no such scene file or built-in scene; built-in scenes: "
+                f"{', '.join(builtin_names())}",
+            )
         path = builtin_path(str(scene))
     try:
         with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+            data = tomllib.loads(fh.read().decode("utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise SceneError(str(path), "(syntax)", "", f"not valid TOML: {err}") from err
+    except UnicodeDecodeError as err:
+        raise SceneError(
+            str(path), "(syntax)", "", f"not UTF-8 text (byte {err.start}): a scene is TOML"
+        ) from None
+    except RecursionError:
+        raise SceneError(str(path), "(syntax)", "", "nested too deeply to be a scene") from None
+    except OSError as err:
+        raise SceneError(str(path), "", "", f"cannot read: {err.strerror or err}") from None
     return parse_scene(data, str(path))
 
 

@@ -37,6 +37,7 @@ import numpy as np
 from ..io.atomic import atomic_path, write_text_atomic
 from .executor import TaskError, machine_workers, open_executor
 from .grid import GridPoint, expand, grid_shape
+from .provenance import environment
 from .schema import Scene, SceneError
 
 __all__ = [
@@ -69,6 +70,12 @@ COLUMNS = {
     "iterations": "solver iterations of the trial",
     "factorisations": "Hessian factorisations of the trial",
     "max_residual": "largest free-state residual over the trial's measurements",
+    "source_share": "fraction of the trained target strain the sources cause "
+    "(learning.coupling; empty: not measured)",
+    "coupling": "coupling verdict of the trained network: coupled, partially coupled, "
+    "decoupled or not measured (learning.coupling)",
+    "outcome": "relative_error and coupling together: learned (coupled), learned, partially "
+    "coupled, met trivially (decoupled), not met or not measured (learning.coupling.outcome)",
 }
 
 
@@ -241,10 +248,13 @@ def _finite(x: Any) -> float | None:
 
 def point_rows(result, threshold: float) -> list[dict[str, Any]]:
     """Table rows of a learning scene's result: one per learning run and trial."""
+    from ..learning.coupling import outcome
+
     scene = result.scene
     L = scene.learning
     rows = []
     for group, h in result.histories.items():
+        coupling = result.units.get(f"coupling/{group}")
         solver, rule, noise_key = group.split("/")
         noise = L.noise[int(noise_key[len("noise") :])]
         err = np.asarray(h.error, dtype=float)
@@ -257,6 +267,11 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
                 for name in ("solves", "iterations", "factorisations")
             }
             residual = h.data.get("residual")
+            share, verdict = None, "not measured"
+            if coupling is not None:
+                share = _finite(coupling.arrays["share"][k])
+                verdict = coupling.meta["verdicts"][k]
+            ratio = _finite(last / first) if first > 0 else None
             rows.append(
                 {
                     "solver": solver,
@@ -266,7 +281,7 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
                     "seed": int(h.seeds[k]),
                     "initial_error": _finite(first),
                     "final_error": _finite(last),
-                    "relative_error": _finite(last / first) if first > 0 else None,
+                    "relative_error": ratio,
                     "steps_to_threshold": int(below[0]) if below.size and first > 0 else None,
                     "completed": done,
                     "stop_reason": h.stop_reason[k],
@@ -277,6 +292,9 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
                         if residual is not None and np.isfinite(residual[k, : done + 1]).any()
                         else None
                     ),
+                    "source_share": share,
+                    "coupling": verdict,
+                    "outcome": outcome(ratio, None if verdict == "not measured" else verdict),
                 }
             )
     return rows
@@ -328,6 +346,25 @@ def _calibrate(scene: Scene) -> tuple[float, float] | None:
 
 # -- the sweep ------------------------------------------------------------------------------
 def run_sweep(
+    scene: Scene, directory: str | os.PathLike[str], **options: Any
+) -> SweepResult | None:
+    """Compute every grid point of ``scene`` not already in ``directory``; write the table.
+
+    The folder is locked for the run (a second run on it raises
+    :class:`~continuum_vs_network.io.lock.FolderBusyError` at once) and temporaries that
+    killed runs left in it are removed first. The keyword options are described at
+    :func:`_run_sweep`.
+    """
+    from ..io.atomic import remove_stale_temporaries
+    from ..io.lock import folder_lock
+
+    Path(directory).mkdir(parents=True, exist_ok=True)
+    with folder_lock(directory):
+        remove_stale_temporaries(directory, locked=True)
+        return _run_sweep(scene, directory, **options)
+
+
+def _run_sweep(
     scene: Scene,
     directory: str | os.PathLike[str],
     *,
@@ -365,9 +402,9 @@ def run_sweep(
         The scene cannot be swept or a variant is invalid (before anything runs).
     SweepRunError
         A point failed (the points completed before it are kept).
+    ExecutorUnavailable
+        Dask is not installed or the scheduler cannot be reached.
     """
-    from .runner import _git_commit, _version
-
     say = log or (lambda _m: None)
     _check_sweepable(scene)
     scene, dropped = training_only(scene)
@@ -395,6 +432,7 @@ def run_sweep(
         say(f"{scene.name}: resuming, {len(points) - len(todo)} of {len(points)} points stored")
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     t0 = time.perf_counter()
+    env = environment()
     (directory / "points").mkdir(parents=True, exist_ok=True)
     description, n_workers = "serial", 1
     if todo:
@@ -409,8 +447,8 @@ def run_sweep(
         "workers": n_workers,
         "started": started,
         "wall_seconds": time.perf_counter() - t0,
-        "commit": _git_commit(),
-        "version": _version(),
+        "commit": env["commit"],
+        "libraries": dict(env["libraries"]),
     }
     result = _collect(scene, directory, points, info)
     _write_table(result)

@@ -16,9 +16,10 @@ with the spring nearest the centre clamped:
 Each records converged, residual, clamp error, time and iterations, or the error raised.
 
 Solvers (``solvers/n<n>/<method>``): the centre spring of an ``n x n`` lattice clamped at
-``[task] strain``, solved to ``[solver] tol`` within ``max_seconds``; the residual after
-every iteration and the wall-clock time it was reached (``Equilibrium.residual_trace`` and
-``seconds_trace``), for error against iterations and against run time.
+``[task] strain``, solved to ``[solver] tol`` within ``max_seconds``; the residual at every
+recorded iteration, that iteration's number and the wall-clock time it was reached
+(``Equilibrium.residual_trace``, ``iteration_trace``, ``seconds_trace``), for error
+against iterations and against run time.
 """
 
 from __future__ import annotations
@@ -73,7 +74,7 @@ def plan_solvers(scene: Scene) -> list[Unit]:
                         key=f"solvers/n{n}/{method}",
                         func=solver_unit,
                         params={"n": int(n), "method": method},
-                        depends=depends,
+                        depends={**depends, "records": "iteration"},
                         parallel=False,
                     )
                 )
@@ -185,6 +186,7 @@ def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
     arrays = {
         "residual": np.asarray(eq.residual_trace) / F,
         "seconds": np.asarray(eq.seconds_trace),
+        "iteration": np.asarray(eq.iteration_trace),
     }
     meta = {
         "n": params["n"],
