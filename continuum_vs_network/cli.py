@@ -235,7 +235,7 @@ def _process_sweep(args: argparse.Namespace, scene, *, report: bool) -> int:
     _info(args, f"{scene.name}: {len(result.points)} points in {time.perf_counter() - t0:.1f} s")
     _info(args, f"{scene.name}: table {out / 'results' / scene.name / 'table.parquet'} (and .csv)")
     if report:
-        from .report.sweep import write_sweep_report
+        from .report.writer import write_sweep_report
 
         try:
             path = write_sweep_report(

@@ -137,7 +137,7 @@ def test_scene_workers_run_through_the_executor(tmp_path, monkeypatch, scheduler
     assert opened == [({"workers": 1, "scheduler": scheduler}, "DaskExecutor")]
     assert remote.provenance.workers == 2
     for key, h in serial.histories.items():
-        np.testing.assert_array_equal(h.error, remote.histories[key].error)
+        np.testing.assert_array_equal(h.error_initial, remote.histories[key].error_initial)
         np.testing.assert_array_equal(h.iterations, remote.histories[key].iterations)
 
 

@@ -59,7 +59,8 @@ COLUMNS = {
     "noise": "relative read-out noise of the learning run",
     "trial": "trial index within the point",
     "seed": "the trial's seed",
-    "initial_error": "task error of the initial network",
+    "strain_reference": "strain convention of the task error (initial or current rest lengths)",
+    "initial_error": "task error (Eq. 26, in strain_reference) of the initial network",
     "final_error": "task error after the last completed step",
     "relative_error": "final_error / initial_error",
     "steps_to_threshold": "first step with error <= threshold x initial error (empty: never)",
@@ -257,7 +258,7 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
         coupling = result.units.get(f"coupling/{group}")
         solver, rule, noise_key = group.split("/")
         noise = L.noise[int(noise_key[len("noise") :])]
-        err = np.asarray(h.error, dtype=float)
+        err = np.asarray(h.task_error(h.strain_reference), dtype=float)
         for k in range(h.trials):
             done = int(h.completed[k])
             first, last = err[k, 0], err[k, done]
@@ -279,6 +280,7 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
                     "noise": float(noise),
                     "trial": k,
                     "seed": int(h.seeds[k]),
+                    "strain_reference": h.strain_reference,
                     "initial_error": _finite(first),
                     "final_error": _finite(last),
                     "relative_error": ratio,
@@ -352,12 +354,14 @@ def run_sweep(
 
     The folder is locked for the run (a second run on it raises
     :class:`~continuum_vs_network.io.lock.FolderBusyError` at once) and temporaries that
-    killed runs left in it are removed first. The keyword options are described at
-    :func:`_run_sweep`.
+    killed runs left in it are removed first (a dry run writes nothing and takes no lock).
+    The keyword options are described at :func:`_run_sweep`.
     """
     from ..io.atomic import remove_stale_temporaries
     from ..io.lock import folder_lock
 
+    if options.get("dry_run"):  # writes nothing: no folder, no lock
+        return _run_sweep(scene, directory, **options)
     Path(directory).mkdir(parents=True, exist_ok=True)
     with folder_lock(directory):
         remove_stale_temporaries(directory, locked=True)

@@ -1,7 +1,8 @@
-"""The report of a sweep: phase diagrams of the final error over the swept parameters.
+"""The section of a sweep: phase diagrams of the final error over the swept parameters.
 
-:func:`write_sweep_report` reads a :class:`~continuum_vs_network.scenes.sweep.SweepResult`
-(it runs nothing) and writes ``<folder>/report.md`` with
+:func:`section` reads a :class:`~continuum_vs_network.scenes.sweep.SweepResult` (it runs
+nothing; :func:`~continuum_vs_network.report.writer.write_sweep_report` writes the report)
+and adds
 
 * the grid (every swept key and its values) and how it was run;
 * for every swept parameter (the seed aside) the final error relative to the initial one
@@ -10,43 +11,35 @@
 * for two or more swept parameters a heat map of that median over the first two (one map
   per value of a third);
 * a table per grid cell and the best and worst cells, chosen by the stated rule (lowest and
-  highest median relative final error), with trials that stopped early counted.
+  highest median relative final error), with trials that stopped early counted, and the
+  outcome of every trial (its error and the coupling verdict of
+  :mod:`~continuum_vs_network.learning.coupling` together);
+* when a GCL nudge amplitude ``learning.eta`` is swept: a finding on whether the final
+  error depends on it (noise-free rows), by a stated rule.
 
 Every number comes from the sweep's table; nothing is written by hand.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import time
-import warnings
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..io.atomic import write_text_atomic
-from .figures import Panel, Series, heatmap, plot_panels
+from ..document import Document, fmt, quiet
+from ..figures import Panel, Series, heatmap
+from ..findings import NOT_REPRODUCED, REPRODUCED, Finding
 
-__all__ = ["write_sweep_report"]
+__all__ = ["ETA_FACTOR", "section"]
+
+#: ``learning.eta`` "matters" when, at some other setting, the medians over its values
+#: differ by more than this factor
+ETA_FACTOR = 2.0
 
 _METRIC = "relative_error"
 _YLABEL = "final / initial error"
-
-
-def _quiet(fn, *args, **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return fn(*args, **kw)
-
-
-def _g(x: Any, digits: int = 3) -> str:
-    if x is None or not np.isfinite(x):
-        return "-"
-    return f"{x:.{digits}g}"
 
 
 def _label(v: Any) -> str:
@@ -143,6 +136,13 @@ def _line_panels(result, params: list[str]) -> list[Panel]:
     return panels
 
 
+def _counts(values) -> str:
+    counts: dict[str, int] = {}
+    for v in values:
+        counts[v] = counts.get(v, 0) + 1
+    return "; ".join(f"{n} {v}" for v, n in counts.items())
+
+
 def _cells(result, params: list[str]) -> list[dict]:
     """One summary per (run, combination of the parameters)."""
     cells = []
@@ -166,21 +166,21 @@ def _cells(result, params: list[str]) -> list[dict]:
                 "n": n,
                 "trials": len(sub),
                 "reached": int(np.sum(np.isfinite(reached))),
-                "steps": _quiet(np.nanmedian, reached) if np.isfinite(reached).any() else None,
+                "steps": quiet(np.nanmedian, reached) if np.isfinite(reached).any() else None,
                 "stopped": stopped,
                 "seconds": float(np.median(_column(sub, "wall_seconds"))),
+                "outcomes": _counts(r["outcome"] for r in sub),
             }
         )
     return cells
 
 
-def _heatmaps(doc: list[str], folder: Path, result, params: list[str], dpi: int) -> list[Path]:
+def _heatmaps(doc: Document, result, params: list[str]) -> None:
     a, b = params[0], params[1]
     third = None
     if len(params) > 2 and len(_axis_values(result.rows, params[2])) <= 4:
         third = params[2]
     rows_v, cols_v = _axis_values(result.rows, a), _axis_values(result.rows, b)
-    files = []
     for solver, rule in _runs(result.rows):
         levels = _axis_values(result.rows, third) if third else [None]
         for j, level in enumerate(levels):
@@ -191,68 +191,116 @@ def _heatmaps(doc: list[str], folder: Path, result, params: list[str], dpi: int)
             for i, x in enumerate(rows_v):
                 for k, y in enumerate(cols_v):
                     med[i, k] = _quartiles(_column(_select(base, **{a: x, b: y}), _METRIC))[0]
-            text = [[_g(v, 2) for v in row] for row in med]
+            text = [[fmt(v, 2) for v in row] for row in med]
             with np.errstate(divide="ignore", invalid="ignore"):
                 logmed = np.where(med > 0, np.log10(med), np.nan)
             extra = f", {third} = {_label(level)}" if level is not None else ""
-            name = f"fig_heatmap_{solver}_{rule}_{j}.png"
             path = heatmap(
                 logmed,
                 [f"{a} = {_label(x)}" for x in rows_v],
                 [_label(y) for y in cols_v],
-                folder / name,
+                doc.folder / f"fig_heatmap_{solver}_{rule}_{j}.png",
                 text=text,
                 title=f"{rule}: median final / initial error ({b} across){extra}",
                 colorbar="log10 median final / initial error",
-                dpi=dpi,
+                dpi=doc.dpi,
             )
-            files.append(path)
             pooled = [q for q in params if q not in (a, b, third)]
-            caption = (
+            doc.image(
+                path,
                 f"{rule} ({solver}{extra}): median over "
                 + ("trials" if not pooled else f"trials and {', '.join(pooled)}")
                 + f" of the final error relative to the initial one, {a} down, {b} across "
-                "(cell text: the median; colour: its log10)."
+                "(cell text: the median; colour: its log10).",
             )
-            doc.extend(["", f"![{caption}]({name})", "", f"*{caption}*", ""])
-    return files
 
 
-def _findings(doc: list[str], cells: list[dict], params: list[str], threshold: float) -> None:
-    doc.extend(["", "## Best and worst settings", ""])
-    doc.append(
+def _where(c: dict, params: list[str]) -> str:
+    return ", ".join(f"{p} = {_label(c[p])}" for p in params) or "the only cell"
+
+
+def _best_worst(doc: Document, cells: list[dict], params: list[str], threshold: float) -> None:
+    doc.heading("Best and worst settings")
+    doc.add(
         "Rule: per learning run, the grid cells (combinations of the swept parameters, seeds "
-        "pooled) with the lowest and the highest median final / initial error."
+        "pooled) with the lowest and the highest median final / initial error.",
+        "",
     )
-    doc.append("")
     for solver, rule in dict.fromkeys((c["solver"], c["rule"]) for c in cells):
         mine = [c for c in cells if c["solver"] == solver and c["rule"] == rule]
         ok = [c for c in mine if np.isfinite(c["median"])]
         if not ok:
-            doc.append(f"- {rule} ({solver}): no trial has a finite error.")
+            doc.add(f"- {rule} ({solver}): no trial has a finite error.")
             continue
         best = min(ok, key=lambda c: c["median"])
         worst = max(ok, key=lambda c: c["median"])
-
-        def where(c: dict) -> str:
-            return ", ".join(f"{p} = {_label(c[p])}" for p in params) or "the only cell"
-
-        doc.append(
-            f"- {rule} ({solver}): lowest at {where(best)}: median {_g(best['median'])} "
-            f"(quartiles {_g(best['q25'])}-{_g(best['q75'])}, {best['n']} trials; "
-            f"{best['reached']} of {best['trials']} reached {threshold:g} x the initial "
-            f"error); highest at {where(worst)}: median {_g(worst['median'])} "
-            f"(quartiles {_g(worst['q25'])}-{_g(worst['q75'])})."
+        doc.add(
+            f"- {rule} ({solver}): lowest at {_where(best, params)}: median "
+            f"{fmt(best['median'])} (quartiles {fmt(best['q25'])}-{fmt(best['q75'])}, "
+            f"{best['n']} trials; {best['reached']} of {best['trials']} reached {threshold:g} x "
+            f"the initial error; outcomes: {best['outcomes']}); highest at "
+            f"{_where(worst, params)}: median {fmt(worst['median'])} (quartiles "
+            f"{fmt(worst['q25'])}-{fmt(worst['q75'])}; outcomes: {worst['outcomes']})."
         )
     stopped = sum(c["stopped"] for c in cells)
     total = sum(c["trials"] for c in cells)
-    doc.append(
+    doc.add(
         f"- Trials that stopped early (a failed solve or a rule's stop; their error is the "
-        f"last one measured): {stopped} of {total}."
+        f"last one measured): {stopped} of {total}.",
+        "",
     )
 
 
-def _table(doc: list[str], cells: list[dict], params: list[str], threshold: float) -> None:
+def _eta_finding(doc: Document, result, params: list[str]) -> None:
+    """Does GCL's final error depend on the nudge amplitude (noise-free rows)?"""
+    key = "learning.eta"
+    if key not in params:
+        return
+    others = [p for p in params if p not in (key, "learning.noise")]
+    for solver, rule in _runs(result.rows):
+        if not rule.startswith("gcl"):
+            continue
+        rows = [
+            r
+            for r in _select(result.rows, solver=solver, rule=rule)
+            if r["noise"] == 0 and r.get("learning.noise", 0) in (0, 0.0)
+        ]
+        if not rows:
+            continue
+        etas = _axis_values(rows, key)
+        spread, at = 1.0, ""
+        combos = list(dict.fromkeys(tuple(r[p] for p in others) for r in rows))
+        for combo in combos:
+            sub = _select(rows, **dict(zip(others, combo)))
+            med = np.array(
+                [_quartiles(_column(_select(sub, **{key: e}), _METRIC))[0] for e in etas]
+            )
+            med = med[np.isfinite(med) & (med > 0)]
+            if med.size >= 2 and med.max() / med.min() > spread:
+                spread = float(med.max() / med.min())
+                at = ", ".join(f"{p} = {_label(v)}" for p, v in zip(others, combo))
+        verdict = REPRODUCED if spread <= ETA_FACTOR else NOT_REPRODUCED
+        doc.finding(
+            Finding(
+                claim=f"{rule}: without read-out noise the final error does not depend on the "
+                f"nudge amplitude eta over {_label(etas[0])}-{_label(etas[-1])} (the small-eta "
+                "limit of coupled learning)",
+                metric="largest ratio, over the other swept settings, of the highest to the "
+                "lowest median final / initial error across the eta values (noise 0)",
+                measured={"ratio": spread},
+                verdict=verdict,
+                rule=f"reproduced when the ratio <= {ETA_FACTOR:g}, not reproduced otherwise",
+            )
+        )
+        doc.add(
+            f"- {rule} ({solver}), noise 0: across eta = {', '.join(map(_label, etas))} the "
+            f"median final / initial error changes by at most a factor {fmt(spread)}"
+            + (f" (largest at {at})" if at else "")
+            + f": **{verdict}** (rule: at most a factor {ETA_FACTOR:g})."
+        )
+
+
+def _table(doc: Document, cells: list[dict], params: list[str], threshold: float) -> None:
     headers = [
         "run",
         *params,
@@ -260,111 +308,71 @@ def _table(doc: list[str], cells: list[dict], params: list[str], threshold: floa
         "quartiles",
         f"reached {threshold:g}x",
         "median steps to it",
+        "outcomes",
         "stopped",
         "median trial s",
     ]
-    doc.extend(["", "| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)])
-    for c in cells:
-        cells_text = [
+    rows = [
+        [
             f"{c['solver']}/{c['rule']}",
             *(_label(c[p]) for p in params),
-            _g(c["median"]),
-            f"{_g(c['q25'])}-{_g(c['q75'])}",
+            fmt(c["median"]),
+            f"{fmt(c['q25'])}-{fmt(c['q75'])}",
             f"{c['reached']}/{c['trials']}",
-            _g(c["steps"]),
+            fmt(c["steps"]),
+            c["outcomes"],
             str(c["stopped"]),
-            _g(c["seconds"], 2),
+            fmt(c["seconds"], 2),
         ]
-        doc.append("| " + " | ".join(cells_text) + " |")
-    doc.append("")
+        for c in cells
+    ]
+    doc.table(headers, rows)
 
 
-def write_sweep_report(result, folder: str | os.PathLike[str], *, command: str = "") -> Path:
-    """Write ``<folder>/report.md`` and its figures for a sweep; return the report's path.
-
-    Parameters
-    ----------
-    result : SweepResult
-        From :func:`~continuum_vs_network.scenes.sweep.run_sweep` or ``load_sweep``.
-    folder : path
-        Destination, e.g. ``reports/<scene>``; created. Figures of an earlier report that
-        this one does not use are removed.
-    command : str
-        The command that regenerates the sweep (shown in the report).
-    """
-    t0 = time.perf_counter()
+def section(doc: Document, result) -> None:
+    """The sweep's grid, phase diagrams, best and worst cells, findings and cell table."""
     scene, info = result.scene, result.info
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    dpi = scene.report.dpi
     threshold = scene.sweep.threshold
     params = _parameters(result)
-    doc = [f"# {scene.name}", "", scene.description, ""]
-    doc.append(
-        f"A sweep of a `{scene.kind}` scene: {info['points']} grid points "
-        f"({' x '.join(map(str, info['grid']))}), {len(result.rows)} trials in the table."
-        + (f" Regenerate with `{command}`." if command else "")
-    )
-    doc.extend(["", "## Grid", "", "| key | values |", "|---|---|"])
+    doc.heading("Grid")
     zipped = {k: g for g in scene.sweep.zip for k in g}
+    grid = []
     for key, values in scene.sweep.axes:
         note = ""
         if key in zipped:
             note = f" (zipped with {', '.join(k for k in zipped[key] if k != key)})"
-        doc.append(f"| `{key}` | {', '.join(_label(v) for v in values)}{note} |")
-    files: list[Path] = []
-    doc.extend(["", "## Final error against the swept parameters", ""])
+        grid.append([f"`{key}`", ", ".join(_label(v) for v in values) + note])
+    doc.table(["key", "values"], grid)
+    doc.add(
+        f"{info['points']} grid points ({' x '.join(map(str, info['grid']))}), "
+        f"{len(result.rows)} trials in the table `{result.directory / 'table.parquet'}` "
+        "(CSV beside it; one row per grid point, learning run and trial)."
+    )
+    doc.heading("Final error against the swept parameters")
     if params:
-        name = "fig_phase.png"
-        path = plot_panels(_line_panels(result, params), folder / name, dpi=dpi)
-        files.append(path)
-        caption = (
+        doc.figure(
+            "phase",
+            _line_panels(result, params),
             "Final error relative to the initial error against each swept parameter: median "
             "(line) and quartiles (band) over trials and over the values of the parameters "
-            "not on the axis; one line per value of another swept parameter (in the legend)."
+            "not on the axis; one line per value of another swept parameter (in the legend).",
         )
-        doc.extend(["", f"![{caption}]({name})", "", f"*{caption}*", ""])
         if len(params) >= 2:
-            files += _heatmaps(doc, folder, result, params, dpi)
+            _heatmaps(doc, result, params)
     else:
-        doc.append("Only the seed is swept: no parameter axis to draw.")
+        doc.add("Only the seed is swept: no parameter axis to draw.")
     cells = _cells(result, params)
-    _findings(doc, cells, params, threshold)
-    doc.extend(["", "## Every grid cell", ""])
-    _table(doc, cells, params, threshold)
-    doc.extend(
-        [
-            "",
-            "## Table and provenance",
-            "",
-            f"The tidy table (one row per grid point, learning run and trial) is "
-            f"`{result.directory / 'table.parquet'}` (CSV beside it). Computed by "
-            f"{info['executor']} in {info['wall_seconds']:.1f} s wall "
-            f"({info['reused']} of {info['points']} points reused from an earlier run); "
-            f"started {info['started']}.",
-            "",
-            "```json",
-            json.dumps(scene.to_dict(), indent=1, sort_keys=True),
-            "```",
-        ]
+    _best_worst(doc, cells, params, threshold)
+    _eta_finding(doc, result, params)
+    doc.heading("Every grid cell")
+    doc.add(
+        "Outcomes count the trials by :func:`~continuum_vs_network.learning.coupling.outcome` "
+        "(final / initial error and the coupling verdict of the trained network together)."
     )
-    report = write_text_atomic(folder / "report.md", "\n".join(doc).rstrip() + "\n")
-    keep = {p.name for p in files}
-    for old in folder.glob("*.png"):
-        if old.name not in keep:
-            old.unlink(missing_ok=True)
-    compute = float(np.nansum(_column(result.rows, "wall_seconds")))
-    meta = {
-        "name": scene.name,
-        "kind": f"{scene.kind} sweep",
-        "description": scene.description,
-        "default": scene.report.default,
-        "wall_seconds": info["wall_seconds"],
-        "compute_seconds": compute,
-        "report_seconds": time.perf_counter() - t0,
-        "started": info["started"],
-        "commit": info.get("commit", "unknown"),
-        "figures": sorted(keep),
-    }
-    write_text_atomic(folder / "report.json", json.dumps(meta, indent=1, sort_keys=True))
-    return report
+    _table(doc, cells, params, threshold)
+    doc.heading("How it was run")
+    doc.add(
+        f"Computed by {info['executor']} in {info['wall_seconds']:.1f} s wall "
+        f"({info['reused']} of {info['points']} points reused from an earlier run); started "
+        f"{info['started']}; commit `{info.get('commit', 'unknown')}`."
+    )
