@@ -27,7 +27,7 @@ import json
 import os
 import shutil
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,13 +39,12 @@ from .executor import TaskError, machine_workers, open_executor
 from .grid import GridPoint, expand, grid_shape
 from .provenance import environment
 from .schema import Scene, SceneError
+from .sweep_cost import estimate_cost
 
 __all__ = [
     "COLUMNS",
-    "Cost",
     "SweepResult",
     "SweepRunError",
-    "estimate_cost",
     "load_sweep",
     "run_sweep",
     "training_only",
@@ -89,46 +88,6 @@ class SweepRunError(RuntimeError):
         super().__init__(
             f"sweep {scene!r}, point {point.index} ({where}): {type(cause).__name__}: {cause}"
         )
-
-
-@dataclass(frozen=True)
-class Cost:
-    """What a sweep will compute (printed before it runs).
-
-    Attributes
-    ----------
-    points, todo : int
-        Grid points, and those not yet stored.
-    trials : int
-        Training trials of the points to do (every rule x solver x noise level x trial).
-    steps : int
-        Learning steps of those trials.
-    seconds_per_step, seconds_per_trial : float or None
-        Measured on the first point to do (its runs trained for 1 and 3 steps): the cost of
-        a learning step and of a trial besides its steps (building the network and task, the
-        first measurement). None when nothing is to do or the measurement failed.
-    """
-
-    points: int
-    todo: int
-    trials: int
-    steps: int
-    seconds_per_step: float | None
-    seconds_per_trial: float | None
-
-    def text(self, workers: int) -> str:
-        """One line: grid size, work, estimated compute and (``workers > 0``) wall time."""
-        line = (
-            f"{self.points} grid point(s), {self.todo} to compute: {self.trials} training "
-            f"trial(s), {self.steps} learning steps"
-        )
-        if self.seconds_per_step is not None and self.todo:
-            total = self.seconds_per_step * self.steps + self.seconds_per_trial * self.trials
-            line += f"; estimated {total:.0f} s of compute"
-            if workers > 0:
-                wall = total / min(workers, self.todo)
-                line += f", ~{wall:.0f} s on {workers} worker(s)"
-        return line
 
 
 @dataclass(frozen=True, eq=False)
@@ -300,50 +259,6 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
                 }
             )
     return rows
-
-
-# -- cost ---------------------------------------------------------------------------------
-def _runs(scene: Scene) -> int:
-    L = scene.learning
-    solvers = len(scene.solver.methods) if scene.solver is not None else 1
-    return solvers * len(L.rules) * len(L.noise) * L.trials
-
-
-def estimate_cost(points: Sequence[GridPoint], todo: Sequence[GridPoint]) -> Cost:
-    """Count the work of ``todo`` and time a few learning steps of its first point."""
-    trials = sum(_runs(p.scene) for p in todo)
-    steps = sum(_runs(p.scene) * p.scene.learning.steps for p in todo)
-    timing = _calibrate(todo[0].scene) if todo else None
-    if timing is None:
-        return Cost(len(points), len(todo), trials, steps, None, None)
-    return Cost(len(points), len(todo), trials, steps, *timing)
-
-
-def _calibrate(scene: Scene) -> tuple[float, float] | None:
-    """(seconds per learning step, seconds per trial besides its steps) of ``scene``'s runs:
-    trial 0 of every run trained for 1 and for 3 steps (after a warm-up), averaged over
-    the runs."""
-    from ..learning.train import train
-    from .units_learning import build_rules, builders
-
-    L = scene.learning
-    solvers = scene.solver.methods if scene.solver is not None else ("newton",)
-    per_step, per_trial = [], []
-    try:
-        for solver in solvers:
-            rules = build_rules(scene, solver)
-            for name in L.rules:
-                t = []
-                for steps in (1, 1, 3):  # the first call warms up (imports, caches)
-                    net, task = builders(scene)
-                    t0 = time.perf_counter()
-                    train(net, task, rules[name], steps, seeds=(scene.seed,), progress=False)
-                    t.append(time.perf_counter() - t0)
-                per_step.append(max(t[2] - t[1], 0.0) / 2)
-                per_trial.append(max(t[1] - per_step[-1], 0.0))
-    except Exception:  # an estimate only: the real run reports failures
-        return None
-    return float(np.mean(per_step)), float(np.mean(per_trial))
 
 
 # -- the sweep ------------------------------------------------------------------------------

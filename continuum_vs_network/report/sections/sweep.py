@@ -267,6 +267,8 @@ def _eta_finding(doc: Document, result, params: list[str]) -> None:
         ]
         if not rows:
             continue
+        if not doc.findings or doc.findings[-1].section != "Does the nudge amplitude matter?":
+            doc.heading("Does the nudge amplitude matter?")
         etas = _axis_values(rows, key)
         spread, at = 1.0, ""
         combos = list(dict.fromkeys(tuple(r[p] for p in others) for r in rows))
@@ -366,8 +368,9 @@ def section(doc: Document, result) -> None:
     _eta_finding(doc, result, params)
     doc.heading("Every grid cell")
     doc.add(
-        "Outcomes count the trials by :func:`~continuum_vs_network.learning.coupling.outcome` "
-        "(final / initial error and the coupling verdict of the trained network together)."
+        "Outcomes count the trials by `learning.coupling.outcome`: the final / initial error "
+        "and the coupling verdict of the trained network together (a task met by a "
+        "decoupled network is met trivially, not learned)."
     )
     _table(doc, cells, params, threshold)
     doc.heading("How it was run")
