@@ -307,7 +307,17 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
+    from .scenes.schema import SceneError
+
     (scene,) = _load([args.scene])
+    if scene.sweep is not None:
+        raise SceneError(
+            scene.source,
+            "sweep",
+            "",
+            "a sweep has no meshes of its own (its points compute training runs only); "
+            "export one variant: a scene file without [sweep] and with its values",
+        )
     return _process(args, scene, report=False, force_export=True)
 
 
