@@ -133,7 +133,10 @@ def test_invalid_variant_names_the_point_before_anything_runs(tmp_path):
         with_overrides(load_scene(_file(tmp_path, BASE, "plain.toml")), {})
 
 
-def test_cli_sweep_errors_exit_2_and_dry_run_computes_nothing(tmp_path, capsys):
+def test_cli_sweep_errors_exit_2_and_dry_run_computes_nothing(tmp_path, capsys, monkeypatch):
+    from continuum_vs_network.scenes import executor
+
+    monkeypatch.setattr(executor, "CONNECT_TIMEOUT", "1s")
     path = str(_file(tmp_path, BASE + SWEEP))
     out = str(tmp_path / "out")
     assert main(["sweep", path, "--set", "learning.alfa=1,2", "--out", out]) == EXIT["usage"]
@@ -143,6 +146,10 @@ def test_cli_sweep_errors_exit_2_and_dry_run_computes_nothing(tmp_path, capsys):
     assert "grid 2 x 2 x 5" in err and "20 grid point(s)" in err
     assert "40 training trial(s), 240 learning steps" in err and "estimated" in err
     assert not (tmp_path / "out" / "results").exists()
+    assert main(["export", path, "--out", out]) == EXIT["usage"]  # a sweep has no meshes
+    assert "[sweep]" in capsys.readouterr().err
+    assert main(["sweep", path, "--scheduler", "tcp://127.0.0.1:9", "--out", out]) == 2
+    assert "cannot reach the Dask scheduler at 'tcp://127.0.0.1:9'" in capsys.readouterr().err
 
 
 # -- running ----------------------------------------------------------------------------------

@@ -36,6 +36,10 @@ __all__ = [
 ]
 
 
+#: How long to try reaching a scheduler before giving up.
+CONNECT_TIMEOUT = "20s"
+
+
 class ExecutorUnavailable(RuntimeError):
     """The executor asked for cannot be opened: Dask is not installed, or the scheduler
     cannot be reached. The message says which and what to do."""
@@ -192,7 +196,7 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Executor
         ) from err
     if scheduler is not None:
         try:
-            client = Client(scheduler, timeout="20s")
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as err:
             raise ExecutorUnavailable(
                 f"cannot reach the Dask scheduler at {scheduler!r}: {err}"
