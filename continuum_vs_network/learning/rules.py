@@ -89,7 +89,8 @@ __all__ = [
     "Warm",
 ]
 
-Dof = Literal["rest_length", "stiffness"]
+Dof = Literal["rest_length", "stiffness", "eigenstrain", "modulus"]
+_NETWORK_DOFS = ("rest_length", "stiffness")
 
 
 class LearningError(RuntimeError):
@@ -169,6 +170,11 @@ class Step:
         LearningError
             A rest length would become ``<= 0`` or a stiffness ``< 0`` (set a floor).
         """
+        if not isinstance(net, SpringNetwork):  # another learning medium (.medium)
+            try:
+                return net.apply_update(self.dof, self.delta)
+            except ValueError as err:
+                raise LearningError(str(err)) from err
         _check_finite_update(self.delta, self.dof)
         if self.dof == "rest_length":
             new = net.rest_length + self.delta
@@ -228,7 +234,7 @@ class Rule:
     solver: Solver = field(default_factory=Solver)
 
     def __post_init__(self) -> None:
-        check.choice("dof", self.dof, ("rest_length", "stiffness"))
+        check.choice("dof", self.dof, ("rest_length", "stiffness", "eigenstrain", "modulus"))
         check_strain_reference(self.strain_reference)
         check.boolean("learn_sources", self.learn_sources)
         check.boolean("learn_targets", self.learn_targets)
@@ -261,7 +267,11 @@ class Rule:
         return out
 
     def learning_mask(self, net: SpringNetwork, task: AllosteryTask) -> NDArray[np.bool_]:
-        """Springs whose degree of freedom may change, (n_springs,) bool."""
+        """Springs (elements of a continuum) whose degree of freedom may change, bool."""
+        if not isinstance(net, SpringNetwork):
+            return net.learning_mask(
+                task, learn_sources=self.learn_sources, learn_targets=self.learn_targets
+            )
         mask = np.ones(net.n_springs, dtype=bool)
         if not self.learn_sources:
             mask[task.sources] = False
@@ -322,6 +332,12 @@ class Rule:
         -------
         Step
         """
+        if not isinstance(net, SpringNetwork):
+            return self._medium_update(net, task, tracker=tracker, noise=noise)
+        if self.dof not in _NETWORK_DOFS:
+            raise ValueError(
+                f"a SpringNetwork learns 'rest_length' or 'stiffness', not {self.dof!r}"
+            )
         task.check(net)
         noise = check.real("noise", noise, low=0)
         if noise > 0 and not isinstance(rng, np.random.Generator):
@@ -342,6 +358,43 @@ class Rule:
         rng: np.random.Generator | None,
     ) -> Step:  # pragma: no cover - abstract
         raise NotImplementedError
+
+    # -- any other learning medium (.medium): the rule asks it for states and gradients --
+    def _medium_update(self, medium, task, *, tracker, noise: float) -> Step:
+        from .medium import is_medium
+
+        if not is_medium(medium):
+            raise ValueError(
+                "net must be a SpringNetwork or a learning medium (LearnableBody), "
+                f"got {type(medium).__name__}"
+            )
+        if noise != 0.0:
+            raise ValueError("read-out noise is implemented for spring networks only")
+        if self.strain_reference != "initial":
+            raise ValueError(
+                "a continuum's material springs measure strain against the undeformed body: "
+                "use strain_reference='initial'"
+            )
+        medium.learning_dof(self.dof)
+        medium.check_task(task)
+        return self._medium_step(medium, task, tracker)
+
+    def _medium_step(self, medium, task, tracker) -> Step:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _medium_result(self, medium, task, raw, free, clamped, clamp_strain) -> Step:
+        mask = self.learning_mask(medium, task)
+        raw = np.where(mask if raw.ndim == 1 else mask[:, None], raw, 0.0)
+        floor = self.min_stiffness
+        lengths = None if clamp_strain is None else task.target_length * (1.0 + clamp_strain)
+        return Step(
+            delta=medium.floor(self.dof, raw, floor),
+            dof=self.dof,
+            free=free,
+            clamped=clamped,
+            clamp_lengths=lengths,
+            raw=raw,
+        )
 
 
 def _check_rate(name: str, value: float) -> None:
@@ -405,6 +458,13 @@ class CoupledLearning(Rule):
             raw=raw,
         )
 
+    def _medium_step(self, medium, task, tracker) -> Step:
+        free = medium.free_state(task, tracker=tracker)
+        nudge = free.target_strain + self.eta * (task.target_strain - free.target_strain)
+        nudged = medium.clamped_state(task, nudge, tracker=tracker)
+        raw = -(self.alpha / self.eta) * medium.local_gradient(nudged, self.dof, minus=free)
+        return self._medium_result(medium, task, raw, free, nudged, nudge)
+
 
 @dataclass(frozen=True, kw_only=True)
 class ProspectiveConfiguration(Rule):
@@ -452,6 +512,11 @@ class ProspectiveConfiguration(Rule):
             measured_clamped=r_c,
             raw=raw,
         )
+
+    def _medium_step(self, medium, task, tracker) -> Step:
+        clamped = medium.clamped_state(task, task.target_strain, tracker=tracker)
+        raw = -self.alpha * medium.local_gradient(clamped, self.dof)
+        return self._medium_result(medium, task, raw, None, clamped, task.target_strain)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -504,3 +569,8 @@ class ExactGradient(Rule):
             measured_free=r_free,
             raw=raw,
         )
+
+    def _medium_step(self, medium, task, tracker) -> Step:
+        free = medium.free_state(task, tracker=tracker)
+        grad = medium.task_gradient(task, free, self.dof, cost=self.cost, tracker=tracker)
+        return self._medium_result(medium, task, -self.alpha * grad, free, None, None)

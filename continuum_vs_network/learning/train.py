@@ -34,6 +34,7 @@ from .. import _validate as check
 from ..network.equilibrium import Equilibrium, EquilibriumError
 from ..network.model import SpringNetwork
 from .history import LEGACY, MEASUREMENTS, UPDATES, History
+from .medium import is_medium, learning_arrays, with_learning_arrays
 from .rules import LearningError, Rule, Step, Warm
 from .states import Tracker
 from .tasks import AllosteryTask
@@ -52,9 +53,8 @@ _PER_TARGET = {
     "clamp_length",
 }
 _COUNTERS = ("solves", "factorisations", "iterations")
-_CURRENT_STATE = frozenset(
-    {"rest_length", "stiffness", "warm_free", "warm_clamped", "warm_previous_free"}
-)
+_LEARNING = ("rest_length", "stiffness", "eigenstrain", "modulus")
+_CURRENT_STATE = frozenset({*_LEARNING, "warm_free", "warm_clamped", "warm_previous_free"})
 
 
 def train(
@@ -208,9 +208,15 @@ def _build(seed: int, net: NetworkSpec, task: TaskSpec):
     build_ss, noise_ss = np.random.SeedSequence(seed).spawn(2)
     build_rng = np.random.default_rng(build_ss)
     net0 = net(build_rng) if callable(net) else net
-    if not isinstance(net0, SpringNetwork):
-        raise ValueError(f"net must be a SpringNetwork or build one, got {type(net0).__name__}")
     task0 = task(net0, build_rng) if callable(task) else task
+    if is_medium(net0):  # a continuum (or another medium): it checks its own task
+        net0.check_task(task0)
+        return net0, task0, np.random.default_rng(noise_ss)
+    if not isinstance(net0, SpringNetwork):
+        raise ValueError(
+            "net must be a SpringNetwork or a learning medium (LearnableBody), or build one; "
+            f"got {type(net0).__name__}"
+        )
     if not isinstance(task0, AllosteryTask):
         raise ValueError(f"task must be an AllosteryTask or build one, got {type(task0).__name__}")
     task0.check(net0)
@@ -258,6 +264,10 @@ def _run_trial(
         if not measure:
             return None
         t0 = time.perf_counter()
+        if is_medium(cur):
+            eq = cur.free_state(task0, tracker=tracker)
+            measure_seconds += time.perf_counter() - t0
+            return eq
         clamps = task0.source_clamps(cur, rule.strain_reference)
         eq = tracker.solve(cur, task0.pinned, clamps, warm.free, key="free")
         measure_seconds += time.perf_counter() - t0
@@ -314,6 +324,11 @@ def _energy_gradient(net: SpringNetwork, x: NDArray, dof: str, mask: NDArray) ->
 
 
 def _record_measure(rec, t, net, task, rule, free, mask) -> None:
+    if is_medium(net):
+        if free is not None:
+            for name, value in net.measurements(task, free, rule.dof, mask).items():
+                rec[name][t] = value
+        return
     ref = rule.strain_reference
     rec["target_rest_length"][t] = net.rest_length[task.targets]
     rec["desired_length"][t] = task.desired_lengths(net, ref)
@@ -332,7 +347,11 @@ def _record_measure(rec, t, net, task, rule, free, mask) -> None:
 
 def _record_update(rec, t, step: Step, net, rule, mask) -> None:
     rec["update_norm"][t] = float(np.linalg.norm(step.delta))
-    if step.clamped is not None:
+    if step.clamped is not None and is_medium(net):
+        rec["energy_clamped"][t] = step.clamped.energy
+        g = net.local_gradient(step.clamped, rule.dof)
+        rec["energy_gradient_clamped"][t] = float(np.linalg.norm(g[mask]))
+    elif step.clamped is not None:
         rec["energy_clamped"][t] = step.clamped.energy
         rec["energy_gradient_clamped"][t] = _energy_gradient(
             net, step.clamped.positions, rule.dof, mask
@@ -369,7 +388,8 @@ def _progress_bar(progress: bool, total: int, done: int):
 
 def _digest(net: SpringNetwork) -> str:
     h = hashlib.sha1()
-    for a in (net.positions, net.springs, net.stiffness, net.rest_length):
+    arrays = net.to_arrays().values() if is_medium(net) else ()
+    for a in arrays or (net.positions, net.springs, net.stiffness, net.rest_length):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
 
@@ -437,9 +457,7 @@ class _Checkpoint:
     def current_network(self, net0: SpringNetwork) -> SpringNetwork:
         if self._resume is None:
             return net0
-        cur = net0.with_rest_length(self._resume["rest_length"]).with_stiffness(
-            self._resume["stiffness"]
-        )
+        cur = with_learning_arrays(net0, self._resume["learning"])
         self._resume = None
         return cur
 
@@ -447,8 +465,8 @@ class _Checkpoint:
         if self.path is None:
             return
         arrays = {f"cur/{k}": v for k, v in rec.items()}
-        arrays["cur/rest_length"] = cur.rest_length
-        arrays["cur/stiffness"] = cur.stiffness
+        for name, value in learning_arrays(cur).items():
+            arrays[f"cur/{name}"] = value
         if warm.free is not None:
             arrays["cur/warm_free"] = np.asarray(warm.free)
         if warm.clamped is not None:
@@ -559,8 +577,7 @@ class _Checkpoint:
                     for k, v in files.items()
                     if k.startswith("cur/") and k[4:] not in _CURRENT_STATE | LEGACY
                 },
-                "rest_length": files["cur/rest_length"],
-                "stiffness": files["cur/stiffness"],
+                "learning": {k: files[f"cur/{k}"] for k in _LEARNING if f"cur/{k}" in files},
                 "warm": Warm(
                     free=files.get("cur/warm_free"),
                     clamped=files.get("cur/warm_clamped"),

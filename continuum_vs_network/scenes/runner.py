@@ -100,10 +100,18 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_learning import plan_learning
 
         return plan_learning(scene)
+    if scene.kind == "continuum_learning":
+        from .units_continuum_learning import plan_continuum_learning
+
+        return plan_continuum_learning(scene)
     if scene.kind in ("transmission", "relaxation"):
         from .units_physics import plan_physics
 
         return plan_physics(scene)
+    if scene.kind == "stability":
+        from .units_stability import plan_stability
+
+        return plan_stability(scene)
     if scene.kind == "accuracy":
         from .units_accuracy import plan_accuracy
 
