@@ -35,9 +35,11 @@ def main() -> None:
             result = run_sweep(scene, f"{tmp}/w{n}", workers=n, progress=False)
             times[n] = time.perf_counter() - t0
             frames[n] = result.frame()
+            trial_seconds = sum(r["wall_seconds"] for r in result.rows)
             print(
                 f"workers {n}: {times[n]:6.1f} s wall, {len(result.points)} points, "
-                f"{len(result.rows)} trials ({result.info['executor']})"
+                f"{len(result.rows)} trials, sum of trial times {trial_seconds:.1f} s "
+                f"({result.info['executor']})"
             )
     first = args.workers[0]
     cols = [c for c in frames[first].columns if c != "wall_seconds"]
