@@ -169,3 +169,23 @@ def test_serial_runs_and_sweep_expansion_import_no_dask_or_pandas(tmp_path):
         "pandas": False,
         "pyarrow": False,
     }
+
+
+def test_units_modules_do_not_import_the_runner():
+    """No import circle: the units_* modules take their types from scenes/units.py."""
+    import ast
+    from pathlib import Path
+
+    import continuum_vs_network.scenes as scenes
+
+    folder = Path(scenes.__file__).parent
+    modules = sorted(folder.glob("units_*.py"))
+    assert len(modules) >= 4
+    for path in [*modules, folder / "units.py"]:
+        tree = ast.parse(path.read_text())
+        imported = {
+            node.module
+            for node in ast.walk(tree)
+            if isinstance(node, ast.ImportFrom) and node.module is not None
+        }
+        assert "runner" not in imported, f"{path.name} imports the runner"

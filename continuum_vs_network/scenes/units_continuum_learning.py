@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
+from .units import Unit, UnitContext
 from .schema import CONTINUUM_RULES, Scene
 
 __all__ = ["continuum_rule", "plan_continuum_learning"]
