@@ -23,6 +23,7 @@ environment variable ``CVN_DEBUG=1``) prints the traceback of every error.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import tempfile
@@ -253,7 +254,8 @@ def _sweep_command(args: argparse.Namespace, scene) -> str:
     """The command that regenerates a sweep (its scene, and any --set / --zip settings)."""
     from .scenes.schema import builtin_names
 
-    target = scene.name if scene.name in builtin_names() else scene.source
+    name = scene.name.removesuffix("_sweep")
+    target = name if name in builtin_names() else scene.source
     extra = [f"--set {s}" for s in getattr(args, "set", None) or []]
     extra += [f"--zip {z}" for z in getattr(args, "zip", None) or []]
     return " ".join(["cvn sweep", target, *extra])
@@ -263,6 +265,8 @@ def _sweep(args: argparse.Namespace) -> int:
     from .scenes.grid import parse_set, with_overrides
 
     (scene,) = _load([args.scene])
+    if scene.sweep is None:  # a sweep of a plain scene: its own folders, not the scene's
+        scene = dataclasses.replace(scene, name=f"{scene.name}_sweep")
     zips = [[k.strip() for k in z.split(",")] for z in args.zip or []]
     scene = with_overrides(
         scene, parse_set(args.set or []), zip_groups=zips, threshold=args.threshold
@@ -439,7 +443,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Expand a scene into a grid of variants (cartesian product of the swept "
         "keys), print its size and estimated cost, run every point not already stored "
         "(on a local Dask cluster, or on a running scheduler), and write the tidy table "
-        "results/<scene>/table.parquet (and .csv) and reports/<scene>/report.md.",
+        "results/<scene>/table.parquet (and .csv) and reports/<scene>/report.md (<scene>_sweep "
+        "for a scene without a [sweep] table of its own).",
         epilog=_EPILOG,
     )
     sweep.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
