@@ -285,3 +285,15 @@ def test_builtin_sweep_on_a_two_worker_local_cluster(tmp_path, capsys):
     assert "fig_phase.png" in report and "fig_heatmap_newton_gcl_0.png" in report
     assert "lowest at learning.eta" in report
     assert "eta_alpha" in (out / "reports" / "README.md").read_text()
+
+
+def test_sweep_of_a_plain_scene_keeps_out_of_the_scene_folders(tmp_path, capsys):
+    path = str(_file(tmp_path, BASE, "plain.toml"))
+    out = tmp_path / "out"
+    args = ["sweep", path, "--set", "learning.eta=0.1,0.2", "--set", "learning.steps=2"]
+    assert main([*args, "--workers", "1", "--out", str(out), "--quiet"]) == 0
+    assert sorted(p.name for p in (out / "results").iterdir()) == ["tiny_sweep"]
+    assert (out / "reports" / "tiny_sweep" / "report.md").exists()
+    assert not (out / "reports" / "tiny").exists()
+    report = (out / "reports" / "tiny_sweep" / "report.md").read_text()
+    assert f"cvn sweep {path} --set learning.eta=0.1,0.2 --set learning.steps=2" in report
