@@ -42,8 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 from .units_physics import centre_spring, lattice
 from .units_solvers import warm_up
 
