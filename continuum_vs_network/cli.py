@@ -54,6 +54,7 @@ _EPILOG = (
     "Errors are one line on stderr; --debug (or CVN_DEBUG=1) prints their tracebacks."
 )
 _DEBUG_ENV = "CVN_DEBUG"
+_MAX_WORKERS_PER_CPU = 4  # more processes than this only compete for the same cores
 
 
 class _OutputError(Exception):
@@ -197,9 +198,12 @@ def _process_locked(args: argparse.Namespace, scene, out: Path, *, report: bool)
 
 
 def _index(args: argparse.Namespace, note: str | None = None) -> None:
+    from .report.readme import update_readme
     from .report.writer import write_index
 
     write_index(Path(args.out) / "reports", note=note)
+    # the generated blocks of <out>/README.md (the repository's README), when it has them
+    update_readme(Path(args.out) / "README.md", Path(args.out) / "reports")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -359,8 +363,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = [a for a in argv if a != "--debug"]
     if args.debug:
         os.environ[_DEBUG_ENV] = "1"
-    if getattr(args, "workers", 1) < 1:
-        _err(f"--workers must be >= 1, got {args.workers}")
+    top = _MAX_WORKERS_PER_CPU * (os.cpu_count() or 1)
+    if not 1 <= getattr(args, "workers", 1) <= top:
+        _err(f"--workers must be in 1..{top} ({_MAX_WORKERS_PER_CPU} per CPU), got {args.workers}")
         return EXIT["usage"]
     try:
         if hasattr(args, "out"):

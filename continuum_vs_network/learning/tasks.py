@@ -368,12 +368,12 @@ def stern_task(
 
 
 def _candidates(net: SpringNetwork, candidates: ArrayLike | None) -> NDArray[np.int64]:
+    if not isinstance(net, SpringNetwork):
+        raise check.ArgumentError("net", net, "a SpringNetwork")
     if candidates is None:
         from ..network.builders import strain_tunable
 
         candidates = strain_tunable(net)
-    if not isinstance(net, SpringNetwork):
-        raise check.ArgumentError("net", net, "a SpringNetwork")
     arr = np.asarray(candidates)
     if arr.dtype == bool:
         if arr.shape != (net.n_springs,):

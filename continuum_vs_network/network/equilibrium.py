@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
-from .arguments import relax_arguments
+from .arguments import lone_nodes, relax_arguments
 from .constraints import ClampMode, Pins, Problem, default_pins
 from .energy import spring_energy
 from .model import SpringNetwork
@@ -250,6 +250,7 @@ def relax(
             f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
             f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
         )
+    lone_nodes(net, problem.free)
     stop = StopRule(
         force=tol * net.force_scale,
         length=tol * float(np.mean(net.rest_length)),

@@ -204,6 +204,10 @@ class Stepper:
         Each step is solved to a net force ``<= tol * net.force_scale``.
     max_newton : int
         Newton iterations allowed per step.
+    reuse : bool
+        Keep the last factorisation across iterations and steps while a correction with it
+        cuts the net force at least 4-fold (chord iterations; the converged state is the
+        same, only the cost changes); otherwise refactorise at the current state.
     """
 
     def __init__(
@@ -216,6 +220,7 @@ class Stepper:
         inertia: bool = False,
         tol: float = 1e-10,
         max_newton: int = 100,
+        reuse: bool = True,
     ) -> None:
         dt = float(dt)
         if not (math.isfinite(dt) and dt > 0):
@@ -231,6 +236,8 @@ class Stepper:
         )
         self.rows = getattr(self.pattern, "coords", np.flatnonzero(self.free.ravel()))
         self.ordered = bool(getattr(self.pattern, "ordered", False))
+        self.reuse = bool(reuse)
+        self._stored = None
         self.factorisations = 0
         self.newton_iterations = 0
 
@@ -291,11 +298,14 @@ class Stepper:
         y = x1
         g = grad(y)
         gnorm = float(np.max(np.abs(g))) if g.size else 0.0
+        fresh = False  # self._stored was factorised at the current y
         for _ in range(self.max_newton):
             if gnorm <= force_tol:
                 break
-            factor = self._factor(y, springs, kc, Lc, D)
-            d = -factor.solve(g)
+            if self._stored is None or (not self.reuse and not fresh):
+                self._stored = self._factor(y, springs, kc, Lc, D)
+                fresh = True
+            d = -self._stored.solve(g)
             s0 = y.ravel()[rows] - x0_rows
             slope = float(g @ d)
             alpha = 1.0
@@ -310,13 +320,22 @@ class Stepper:
                     + 0.5 * float(s @ (D @ (s + 2.0 * s0)))
                     - float(np.sum(b * s))
                 )
-                if np.isfinite(gnz) and (dphi <= 1e-4 * alpha * slope or gnz <= 0.5 * gnorm):
+                if not fresh:  # a reused factor: keep the step only if it cuts 4-fold
+                    ok = np.isfinite(gnz) and gnz <= 0.25 * gnorm
+                    break
+                ok = np.isfinite(gnz) and (dphi <= 1e-4 * alpha * slope or gnz <= 0.5 * gnorm)
+                if ok:
                     break
                 alpha *= 0.5
                 if alpha < 1e-12:
                     raise RuntimeError(f"viscous step: line search failed (residual {gnorm:.3e})")
+            if not ok:  # refactorise here and take a Newton step
+                self._stored = self._factor(y, springs, kc, Lc, D)
+                fresh = True
+                continue
             self.newton_iterations += 1
             y, g, gnorm = z, gz, gnz
+            fresh = False
             if alpha == 1.0 and float(np.max(np.abs(d))) <= length_tol:
                 break
         else:

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..io.atomic import write_text_atomic
+from . import escape
 from .document import Document
 from .findings import Finding
 from .sections import SECTIONS
@@ -74,7 +75,7 @@ def write_report(
     doc.add(
         f"# {scene.name}",
         "",
-        scene.description,
+        escape.text(scene.description),
         "",
         f"Kind: `{scene.kind}`. Regenerate with `cvn run {target}`"
         + (" (a built-in scene; `cvn scenes` lists them)." if builtin else "."),
@@ -110,6 +111,7 @@ def write_report(
         "commit": result.provenance.commit,
         "figures": sorted(keep),
         "findings": [f.to_dict() for f in doc.findings],
+        "summaries": doc.summaries,
     }
     write_text_atomic(folder / _META, json.dumps(meta, indent=1, sort_keys=True))
     return report
@@ -165,7 +167,7 @@ def write_index(root: str | os.PathLike[str], *, note: str | None = None) -> Pat
     for e in entries:
         lines.append(
             f"| [{e['name']}]({e['name']}/report.md) | {e['kind']} | "
-            f"{'yes' if e['default'] else 'no'} | {e['description']} | "
+            f"{'yes' if e['default'] else 'no'} | {escape.cell(e['description'])} | "
             f"{e['compute_seconds']:.1f} | {e['report_seconds']:.1f} |"
         )
     return write_text_atomic(root / "README.md", "\n".join(lines) + "\n")

@@ -207,6 +207,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_physics import plan_physics
 
         return plan_physics(scene)
+    if scene.kind == "stability":
+        from .units_stability import plan_stability
+
+        return plan_stability(scene)
     if scene.kind == "accuracy":
         from .units_accuracy import plan_accuracy
 

@@ -9,11 +9,11 @@ A scene is data only (no code is executed from it). Top-level keys::
                               # | accuracy
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
-``[continuum]``, ``[dynamics]``, ``[accuracy]``, ``[export]``, ``[report]``. Which tables a
-kind needs and which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an
-error (a scene never carries settings that are silently ignored). Every key of every table is
-listed, with its type, default and meaning, in the dataclasses below (``cvn scenes --keys``
-prints them).
+``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[export]``, ``[report]``.
+Which tables a kind needs and which it accepts is in :data:`KIND_TABLES`; a table a kind
+does not use is an error (a scene never carries settings that are silently ignored). Every key
+of every table is listed, with its type, default and meaning, in the dataclasses below
+(``cvn scenes --keys`` prints them).
 
 Unknown keys, wrong types and impossible values raise :class:`SceneError`, a ``ValueError``
 whose message and attributes name the file, the table and the key.
@@ -47,6 +47,7 @@ __all__ = [
     "Scene",
     "SceneError",
     "SolverSpec",
+    "StabilitySpec",
     "TaskSpec",
     "builtin_names",
     "builtin_path",
@@ -79,7 +80,7 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
         frozenset({"network", "dynamics"}),
         frozenset({"continuum", "export", "report"}),
     ),
-    "stability": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
+    "stability": (frozenset({"network", "task", "solver"}), frozenset({"stability", "report"})),
     "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
     "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
     "continuum_learning": (
@@ -108,6 +109,7 @@ SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.\-]*")
 _NAME_MAX = 100  # it names folders and files (file systems allow 255 bytes per name)
 _SEED_MAX = 2**63 - 1  # seeds are stored as int64
+_FILE_MAX = 1 << 20  # bytes; a scene is a few dozen lines
 _REQUIRED = object()
 
 
@@ -139,9 +141,16 @@ def _key(
     *,
     choices: tuple | None = None,
     check: Callable[[Any], str | None] | None = None,
+    used: tuple[Callable[[Scene], bool], str] | None = None,
 ) -> Any:
-    """A scene key: TOML type (``int``, ``float``, ``bool``, ``str``, ``list[...]``)."""
-    meta = {"type": type_, "doc": doc, "choices": choices, "check": check}
+    """A scene key: TOML type (``int``, ``float``, ``bool``, ``str``, ``list[...]``).
+
+    ``used``: ``(predicate, where)`` when the key matters only in some scenes: a key given
+    in a scene where ``predicate(scene)`` is false is an error naming ``where`` it is used,
+    and :meth:`Scene.to_dict` (the settings a report prints) leaves it out. None: used
+    wherever its table is.
+    """
+    meta = {"type": type_, "doc": doc, "choices": choices, "check": check, "used": used}
     if default is _REQUIRED:
         return field(metadata=meta)
     return field(default=default, metadata=meta)
@@ -207,6 +216,25 @@ def _increasing(values: tuple) -> str | None:
     return None
 
 
+# -- where a key is used ---------------------------------------------------------------------
+def _kinds(*kinds: str) -> tuple[Callable[[Scene], bool], str]:
+    names = kinds[0] if len(kinds) == 1 else ", ".join(kinds[:-1]) + " and " + kinds[-1]
+    return (lambda scene: scene.kind in kinds), f"used by {names} scenes"
+
+
+def _when(pred: Callable[[Scene], bool], where: str) -> tuple[Callable[[Scene], bool], str]:
+    return pred, f"used {where}"
+
+
+def _uses(scene: Scene, table: str, key: str) -> bool:
+    """Whether ``scene`` uses ``[table] key`` (see ``_key(used=...)``)."""
+    spec = getattr(scene, table)
+    if spec is None:
+        return False
+    used = {f.name: f for f in dataclasses.fields(spec)}[key].metadata["used"]
+    return used is None or bool(used[0](scene))
+
+
 # -- tables ----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class NetworkSpec:
@@ -225,15 +253,24 @@ class NetworkSpec:
         None,
         "about this many nodes (learning on lattices, diluted or jammed networks)",
         check=_at_least(4),
+        used=_when(
+            lambda s: s.kind == "learning" and s.network.builder != "paper",
+            "by learning scenes on triangular, diluted or jammed networks",
+        ),
     )
     size: int | None = _key(
-        "int", None, "one n x n triangular lattice (stability)", check=_at_least(3)
+        "int",
+        None,
+        "one n x n triangular lattice (stability)",
+        check=_at_least(3),
+        used=_kinds("stability"),
     )
     sizes: tuple[int, ...] | None = _key(
         "list[int]",
         None,
         "n x n triangular lattices, one per entry (transmission, relaxation, solvers)",
         check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
+        used=_kinds("transmission", "relaxation", "solvers"),
     )
     noise: float | None = _key(
         "float",
@@ -242,15 +279,26 @@ class NetworkSpec:
         "(default 0.1 for learning and stability, 0 otherwise)",
         check=_non_negative,
     )
-    fraction: float = _key("float", 0.2, "fraction of springs removed (diluted)", check=_open_unit)
+    fraction: float = _key(
+        "float",
+        0.2,
+        "fraction of springs removed (diluted)",
+        check=_open_unit,
+        used=_when(lambda s: s.network.builder == "diluted", "by diluted networks"),
+    )
     stiffness_ratios: tuple[float, ...] = _key(
         "list[float]",
         (),
         "stiffness ratios k_stiff / k_soft (stability)",
         check=_each(_at_least(1.0)),
+        used=_kinds("stability"),
     )
     stiff_fraction: float = _key(
-        "float", 0.2, "fraction of springs made stiff (stability)", check=_open_unit
+        "float",
+        0.2,
+        "fraction of springs made stiff (stability)",
+        check=_open_unit,
+        used=_kinds("stability"),
     )
 
 
@@ -264,17 +312,47 @@ class TaskSpec:
     """
 
     kind: str = _key("str", doc="task kind", choices=("paper", "stern", "source"))
-    n_sources: int = _key("int", 10, "source springs (stern)", check=_at_least(1))
-    n_targets: int = _key("int", 3, "target springs (stern)", check=_at_least(1))
-    source_std: float = _key("float", 0.1, "std of the source strains (stern)", check=_positive)
+    n_sources: int = _key(
+        "int",
+        10,
+        "source springs (stern)",
+        check=_at_least(1),
+        used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
+    )
+    n_targets: int = _key(
+        "int",
+        3,
+        "target springs (stern)",
+        check=_at_least(1),
+        used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
+    )
+    source_std: float = _key(
+        "float",
+        0.1,
+        "std of the source strains (stern)",
+        check=_positive,
+        used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
+    )
     target_std: float = _key(
-        "float", 0.1, "std of the desired target strains (stern)", check=_positive
+        "float",
+        0.1,
+        "std of the desired target strains (stern)",
+        check=_positive,
+        used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
     )
     strain: float = _key(
-        "float", 0.1, "strain of the clamped source spring (source)", check=_strain
+        "float",
+        0.1,
+        "strain of the clamped source spring (source)",
+        check=_strain,
+        used=_when(lambda s: s.task.kind == "source", "by source tasks"),
     )
     strains: tuple[float, ...] = _key(
-        "list[float]", (), "extreme source strains (stability)", check=_each(_strain)
+        "list[float]",
+        (),
+        "extreme source strains (stability)",
+        check=_each(_strain),
+        used=_kinds("stability"),
     )
 
 
@@ -326,8 +404,20 @@ class LearningSpec:
         "every trained network",
     )
     sweeps: bool = _key("bool", False, "source sweeps of the trained networks (Fig. 5)")
-    sweep_span: float = _key("float", 5.0, "sweep source strains S +- span", check=_positive)
-    sweep_points: int = _key("int", 11, "points per sweep", check=_at_least(2))
+    sweep_span: float = _key(
+        "float",
+        5.0,
+        "sweep source strains S +- span",
+        check=_positive,
+        used=_when(lambda s: s.learning.sweeps, "with sweeps = true"),
+    )
+    sweep_points: int = _key(
+        "int",
+        11,
+        "points per sweep",
+        check=_at_least(2),
+        used=_when(lambda s: s.learning.sweeps, "with sweeps = true"),
+    )
     compare_gradient: bool = _key(
         "bool",
         False,
@@ -351,18 +441,46 @@ class SolverSpec:
         "equilibrium methods",
         choices=SOLVER_METHODS,
         check=_unique_nonempty,
+        used=_kinds("learning", "stability", "solvers"),
     )
     tol: float = _key(
-        "float", 1e-10, "relative residual tolerance (forces / mean(k) mean(L))", check=_open_unit
+        "float",
+        1e-10,
+        "relative residual tolerance (forces / mean(k) mean(L))",
+        check=_open_unit,
+        used=_kinds("transmission", "stability", "solvers"),
     )
-    max_seconds: float = _key("float", 60.0, "time budget of one solve (s)", check=_positive)
+    max_seconds: float = _key(
+        "float",
+        60.0,
+        "time budget of one solve (s)",
+        check=_positive,
+        used=_kinds("stability", "solvers"),
+    )
     paper_iterations: int = _key(
-        "int", 300, "Adagrad iterations per state (learning with 'paper')", check=_at_least(1)
+        "int",
+        300,
+        "Adagrad iterations per state (learning with 'paper')",
+        check=_at_least(1),
+        used=_when(
+            lambda s: s.kind == "learning" and "paper" in s.solver.methods,
+            "by learning scenes with method 'paper'",
+        ),
     )
     rod_stiffnesses: tuple[float, ...] = _key(
-        "list[float]", (), "stiffness of the paper's clamp rods (stability)", check=_each(_positive)
+        "list[float]",
+        (),
+        "stiffness of the paper's clamp rods (stability)",
+        check=_each(_positive),
+        used=_kinds("stability"),
     )
-    ramp: int = _key("int", 4, "strain continuation steps (stability)", check=_at_least(1))
+    ramp: int = _key(
+        "int",
+        4,
+        "strain continuation steps (stability)",
+        check=_at_least(1),
+        used=_kinds("stability"),
+    )
 
 
 @dataclass(frozen=True)
@@ -372,7 +490,11 @@ class ContinuumSpec:
     refine: int = _key("int", 1, "uniform refinements of the network's faces", check=_between(0, 4))
     order: int = _key("int", 2, "polynomial order of the displacement", choices=(1, 2))
     patch_radius: float = _key(
-        "float", 0.3, "source patch radius / source spring length", check=_open_unit
+        "float",
+        0.3,
+        "source patch radius / source spring length",
+        check=_open_unit,
+        used=_kinds("transmission"),
     )
     material: str = _key(
         "str",
@@ -402,7 +524,80 @@ class DynamicsSpec:
     )
     steps_per_tau: int = _key("int", 20, "time steps per slowest-mode time", check=_at_least(2))
     duration: float = _key("float", 12.0, "run length in slowest-mode times", check=_positive)
-    frames: int = _key("int", 25, "frames of the exported series", check=_at_least(2))
+    frames: int = _key(
+        "int",
+        25,
+        "frames of the exported series",
+        check=_at_least(2),
+        used=_when(
+            lambda s: s.export is not None or s.report.images,
+            "when the scene exports meshes or draws images",
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class StabilitySpec:
+    """``[stability]``: degenerate, dynamic, continuum and learning cases of a stability scene.
+
+    See :mod:`~continuum_vs_network.scenes.units_stability` for what each case runs.
+    """
+
+    collinear_heights: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "apex heights of a nearly collinear triangle (base 2, sides 1.2)",
+        check=_each(_positive),
+    )
+    float32: bool = _key("bool", False, "the lattice given as float32 arrays")
+    floppy: bool = _key("bool", False, "the lattice with 12 springs removed (must raise)")
+    explicit_dt: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "explicit dynamics steps, in units of the stability limit",
+        check=_each(_positive),
+    )
+    implicit_dt: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "backward Euler and Newmark steps, in units of the explicit limit (stiff lattice)",
+        check=_each(_positive),
+    )
+    implicit_stiffness: float = _key(
+        "float",
+        1e6,
+        "stiffness ratio of the implicit-dynamics lattice",
+        check=_at_least(1.0),
+        used=_when(lambda s: bool(s.stability.implicit_dt), "with implicit_dt"),
+    )
+    poisson: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "Poisson's ratios of the locking study (Lamé's cylinder, P1 and curved P2)",
+        check=_each(_between(0.0, 0.4999)),
+    )
+    locking_h: float = _key(
+        "float",
+        0.1,
+        "mesh size of the locking study",
+        check=_between(0.01, 0.5),
+        used=_when(lambda s: bool(s.stability.poisson), "with poisson"),
+    )
+    learning_stiffness_ratios: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "stiffness ratios of coupled learning on a stiff lattice",
+        check=_each(_at_least(1.0)),
+    )
+    learning_steps: int = _key(
+        "int",
+        5,
+        "learning steps of those runs",
+        check=_at_least(1),
+        used=_when(
+            lambda s: bool(s.stability.learning_stiffness_ratios), "with learning_stiffness_ratios"
+        ),
+    )
 
 
 @dataclass(frozen=True)
@@ -458,14 +653,34 @@ class ExportSpec:
     """``[export]``: meshes written to ``meshes/<scene>/`` (VTU, PVD series)."""
 
     networks: bool = _key("bool", True, "networks (initial and final free states)")
-    continuum: bool = _key("bool", True, "continuum fields")
-    series: bool = _key("bool", False, "time series (learning trajectory, relaxation)")
-    every: int = _key("int", 10, "learning steps between series frames", check=_at_least(1))
+    continuum: bool = _key(
+        "bool",
+        True,
+        "continuum fields",
+        used=_when(lambda s: s.continuum is not None, "with a [continuum] table"),
+    )
+    series: bool = _key(
+        "bool",
+        False,
+        "time series (learning trajectory, relaxation)",
+        used=_kinds("learning", "relaxation"),
+    )
+    every: int = _key(
+        "int",
+        10,
+        "learning steps between series frames",
+        check=_at_least(1),
+        used=_when(
+            lambda s: s.kind == "learning" and s.export.series,
+            "by learning scenes with series = true",
+        ),
+    )
     trials: tuple[int, ...] = _key(
         "list[int]",
         (0,),
         "learning trials to export",
         check=_all(_unique_nonempty, _each(_non_negative)),
+        used=_kinds("learning"),
     )
 
 
@@ -474,7 +689,12 @@ class ReportSpec:
     """``[report]``: how the report is drawn."""
 
     default: bool = _key("bool", False, "part of the default set of ``cvn report``")
-    images: bool = _key("bool", False, "pyvista off-screen renders")
+    images: bool = _key(
+        "bool",
+        False,
+        "pyvista off-screen renders",
+        used=_kinds("learning", "transmission", "relaxation"),
+    )
     dpi: int = _key("int", 90, "resolution of the figures", check=_between(40, 300))
 
 
@@ -485,6 +705,7 @@ _TABLES: dict[str, type] = {
     "solver": SolverSpec,
     "continuum": ContinuumSpec,
     "dynamics": DynamicsSpec,
+    "stability": StabilitySpec,
     "accuracy": AccuracySpec,
     "export": ExportSpec,
     "report": ReportSpec,
@@ -501,7 +722,8 @@ class Scene:
     seed : int
     kind : str
         One of :data:`KINDS`.
-    network, task, learning, solver, continuum, dynamics, accuracy, export : spec or None
+    network, task, learning, solver, continuum, dynamics, stability, accuracy, export : spec
+        or None
         The tables given (None when absent).
     report : ReportSpec
         Always present (defaults when the table is absent).
@@ -519,13 +741,16 @@ class Scene:
     solver: SolverSpec | None = None
     continuum: ContinuumSpec | None = None
     dynamics: DynamicsSpec | None = None
+    stability: StabilitySpec | None = None
     accuracy: AccuracySpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
     source: str = field(default="", compare=False)
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain (TOML-like) dict of the scene: top-level keys and the tables given."""
+        """Plain (TOML-like) dict of the scene: top-level keys and the tables given, each
+        with the keys this scene uses (defaults included; unused and unset keys left out).
+        ``parse_scene(scene.to_dict())`` gives the scene back."""
         out: dict[str, Any] = {
             "name": self.name,
             "description": self.description,
@@ -538,6 +763,7 @@ class Scene:
                 out[table] = {
                     k: list(v) if isinstance(v, tuple) else v
                     for k, v in dataclasses.asdict(spec).items()
+                    if v is not None and _uses(self, table, k)
                 }
         return out
 
@@ -681,6 +907,7 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
         )
     scene = Scene(**top, **tables, source=str(file))
     _check_kind(scene, file)
+    _check_used(scene, data, file)
     if scene.learning is not None and scene.seed + scene.learning.trials - 1 > _SEED_MAX:
         raise SceneError(
             file,
@@ -699,6 +926,23 @@ def _short(value: Any, width: int = 60) -> str:
     """``repr(value)`` (strings: the text itself) cut to ``width`` characters."""
     text = value if isinstance(value, str) else repr(value)
     return text if len(text) <= width else text[: width - 3] + "..."
+
+
+def _check_used(scene: Scene, data: Mapping[str, Any], file: str) -> None:
+    """Every key given must be one the scene uses (tables: :func:`_check_kind`)."""
+    for table, values in data.items():
+        if table not in _TABLES:
+            continue
+        fields = {f.name: f for f in dataclasses.fields(_TABLES[table])}
+        for key in values:
+            used = fields[key].metadata["used"]
+            if used is not None and not used[0](scene):
+                raise SceneError(
+                    file,
+                    table,
+                    key,
+                    f"kind {scene.kind!r} does not use this key here ({used[1]}); remove it",
+                )
 
 
 def _check_kind(scene: Scene, file: str) -> None:
@@ -889,7 +1133,10 @@ def load_scene(scene: str | Path) -> Scene:
         path = builtin_path(str(scene))
     try:
         with open(path, "rb") as fh:
-            data = tomllib.loads(fh.read().decode("utf-8"))
+            raw = fh.read(_FILE_MAX + 1)
+        if len(raw) > _FILE_MAX:
+            raise SceneError(str(path), "", "", f"larger than {_FILE_MAX} bytes: not a scene file")
+        data = tomllib.loads(raw.decode("utf-8"))
     except tomllib.TOMLDecodeError as err:
         raise SceneError(str(path), "(syntax)", "", f"not valid TOML: {err}") from err
     except UnicodeDecodeError as err:
