@@ -261,9 +261,9 @@ class NetworkSpec:
     size: int | None = _key(
         "int",
         None,
-        "one n x n triangular lattice (stability)",
+        "one n x n triangular lattice (stability, continuum_learning)",
         check=_at_least(3),
-        used=_kinds("stability"),
+        used=_kinds("stability", "continuum_learning"),
     )
     sizes: tuple[int, ...] | None = _key(
         "list[int]",
@@ -364,7 +364,11 @@ class LearningSpec:
         "list[str]", doc="learning runs", choices=RULES, check=_unique_nonempty
     )
     trials: int = _key(
-        "int", 10, "independent trials (seeds seed, seed + 1, ...)", check=_at_least(1)
+        "int",
+        10,
+        "independent trials (seeds seed, seed + 1, ...)",
+        check=_at_least(1),
+        used=_kinds("learning"),
     )
     steps: int = _key("int", 300, "learning steps per trial", check=_at_least(1))
     strain_reference: str = _key(
@@ -381,6 +385,7 @@ class LearningSpec:
         (),
         "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
         check=_each(_positive),
+        used=_kinds("learning"),
     )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
     alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
@@ -389,12 +394,14 @@ class LearningSpec:
         0.1,
         "rest-length floor of the *_floor, *_frozen, gpc and exact runs",
         check=_positive,
+        used=_kinds("learning"),
     )
     noise: tuple[float, ...] = _key(
         "list[float]",
         (0.0,),
         "relative read-out noise levels (one run per level)",
         check=_all(_unique_nonempty, _each(_non_negative)),
+        used=_kinds("learning"),
     )
     measure: bool = _key(
         "bool",
@@ -402,8 +409,11 @@ class LearningSpec:
         "solve the free state after every step to measure the "
         "error even when the rule does not need it (GPC), and measure the coupling of "
         "every trained network",
+        used=_kinds("learning"),
     )
-    sweeps: bool = _key("bool", False, "source sweeps of the trained networks (Fig. 5)")
+    sweeps: bool = _key(
+        "bool", False, "source sweeps of the trained networks (Fig. 5)", used=_kinds("learning")
+    )
     sweep_span: float = _key(
         "float",
         5.0,
@@ -422,8 +432,11 @@ class LearningSpec:
         "bool",
         False,
         "cosine of each rule's step with the exact gradient, at the initial and final networks",
+        used=_kinds("learning"),
     )
-    checkpoint_every: int = _key("int", 25, "steps between checkpoints", check=_at_least(1))
+    checkpoint_every: int = _key(
+        "int", 25, "steps between checkpoints", check=_at_least(1), used=_kinds("learning")
+    )
 
 
 @dataclass(frozen=True)
@@ -501,6 +514,7 @@ class ContinuumSpec:
         "homogenised",
         "'homogenised' (relaxed moduli of the network) or 'lattice' (lam = mu = sqrt(3) k / 4)",
         choices=("homogenised", "lattice"),
+        used=_kinds("transmission", "relaxation"),
     )
 
 
@@ -693,7 +707,7 @@ class ReportSpec:
         "bool",
         False,
         "pyvista off-screen renders",
-        used=_kinds("learning", "transmission", "relaxation"),
+        used=_kinds("learning", "transmission", "relaxation", "continuum_learning"),
     )
     dpi: int = _key("int", 90, "resolution of the figures", check=_between(40, 300))
 
