@@ -265,7 +265,7 @@ class NetworkSpec:
     size: int | None = _key(
         "int",
         None,
-        "one n x n triangular lattice (stability)",
+        "one n x n triangular lattice (stability, continuum_learning)",
         check=_at_least(3),
         used=_kinds("stability", "continuum_learning"),
     )
