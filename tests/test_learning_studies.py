@@ -12,7 +12,9 @@ from continuum_vs_network.learning.stern import stern_rules, stern_study, stern_
 
 
 def test_replication_runs_and_tabulates_a_short_gpc_run():
-    exps = [e for e in R.paper_experiments(reference="initial") if e.name in ("gpc", "exact")]
+    exps = [
+        e for e in R.paper_experiments(strain_reference="initial") if e.name in ("gpc", "exact")
+    ]
     hs = R.replicate(exps, trials=2, steps=20)
     gpc = hs["gpc"]
     # GPC moves the target rest length towards its clamp length and descends E^C
@@ -30,7 +32,7 @@ def test_replication_runs_and_tabulates_a_short_gpc_run():
 
 def test_paper_relaxation_runs_with_a_fixed_budget():
     pytest.importorskip("torch")
-    exp = R.paper_experiments(reference="initial", solver=R.paper_solver(50))[3]  # gpc
+    exp = R.paper_experiments(strain_reference="initial", solver=R.paper_solver(50))[3]  # gpc
     h = R.run(exp, trials=1, steps=3)
     assert h.completed[0] == 3
     # Adagrad with rods stops far from equilibrium: the recorded residual says so
@@ -41,11 +43,13 @@ def test_noise_study_tabulates_every_rule_and_sigma():
     rules = {k: v for k, v in noise_rules("lattice", etas=(0.1,)).items()}
     hs = noise_study((0.0, 1e-2), rules=rules, steps=4, trials=1)
     rows = noise_table(hs)
-    assert [r["rule"] for r in rows] == ["GCL eta=0.1", "GPC"]
+    assert [r["rule"] for r in rows] == ["GCL eta=0.1", "GPC", "exact"]
     assert set(rows[0]) == {"rule", "sigma=0", "sigma=0.01"}
     clean, noisy = hs["GCL eta=0.1", 0.0], hs["GCL eta=0.1", 0.01]
-    np.testing.assert_allclose(clean.error[:, 0], noisy.error[:, 0])  # same start
-    assert not np.allclose(clean.error[:, -1], noisy.error[:, -1])  # noise changed learning
+    np.testing.assert_allclose(clean.error_initial[:, 0], noisy.error_initial[:, 0])  # same start
+    assert not np.allclose(
+        clean.error_initial[:, -1], noisy.error_initial[:, -1]
+    )  # noise changed learning
 
 
 def test_stern_study_small():
@@ -54,13 +58,13 @@ def test_stern_study_small():
     assert [r["rule"] for r in rows] == ["GCL", "GPC", "exact"]
     for (_, name), h in hs.items():
         assert h.tasks[0].n_sources == 10 and h.tasks[0].n_targets == 3
-        assert h.error[0, -1] < h.error[0, 0], name
+        assert h.error_initial[0, -1] < h.error_initial[0, 0], name
 
 
 # -- full runs (minutes): python -m pytest -m slow tests/test_learning_studies.py --------
 @pytest.mark.slow
 def test_paper_replication_initial_convention():
-    exps = R.paper_experiments(reference="initial")
+    exps = R.paper_experiments(strain_reference="initial")
     hs = R.replicate(exps, trials=10, steps=300)
     # GCL with fixed clamp lengths and a floor learns the task
     assert summary(hs["gcl_floor"].error_initial, hs["gcl_floor"].completed)["median"] < 0.1
@@ -74,7 +78,7 @@ def test_paper_replication_initial_convention():
 
 @pytest.mark.slow
 def test_paper_gcl_with_learning_reference_does_not_learn():
-    exp = R.paper_experiments(reference="current")[1]  # gcl_floor
+    exp = R.paper_experiments(strain_reference="current")[1]  # gcl_floor
     h = R.run(exp, trials=10, steps=300)
     assert summary(h.error_current, h.completed)["median"] > 0.5
 
@@ -84,4 +88,4 @@ def test_stern_scale_learning():
     hs = stern_study((512,), steps=100, trials=2)
     for name in ("GCL", "exact"):
         h = hs[512, name]
-        assert summary(h.error, h.completed)["median"] < 0.1, name
+        assert summary(h.error_initial, h.completed)["median"] < 0.1, name

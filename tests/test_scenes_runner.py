@@ -190,12 +190,14 @@ def test_prospective_configuration_solves_no_free_state_it_does_not_use(tmp_path
     assert free == 0
     assert total == 2 * 6  # one clamped state per step and trial, nothing else
     h = result.histories["newton/gpc/noise0"]
-    assert np.all(np.isnan(h.error)) and np.all(np.isfinite(h.energy_clamped))
+    assert np.all(np.isnan(h.error_initial)) and np.all(np.isfinite(h.energy_clamped))
     # with measurements the free state is solved after every step (the spy sees it)
     measured = scene.learning.__class__(**{**scene.learning.__dict__, "measure": True})
     scene2 = scene.__class__(**{**scene.__dict__, "learning": measured})
     free, total, _ = _count_free_solves(monkeypatch, scene2, tmp_path / "b")
-    assert free == 2 * (6 + 1) and total == 2 * 6 + free
+    # per trial: 6 + 1 measured free states, and the coupling measurement's sweep of the
+    # trained network (5 source scales) and the initial network with the sources off
+    assert free == 2 * (6 + 1) + 2 * (5 + 1) and total == 2 * 6 + free
 
 
 def test_no_export_table_writes_no_mesh(tmp_path):

@@ -76,7 +76,7 @@ def test_builtin_set_covers_the_issue():
 
 def test_tiny_scene_parses_with_defaults(tmp_path):
     scene = load_scene(_write(tmp_path, TINY))
-    assert scene.learning.trials == 2 and scene.learning.reference == "current"
+    assert scene.learning.trials == 2 and scene.learning.strain_reference == "initial"
     assert scene.solver is None and scene.export is None and scene.continuum is None
     assert scene.report.default is False and scene.report.images is False
 
@@ -85,6 +85,14 @@ def test_tiny_scene_parses_with_defaults(tmp_path):
     ("old", "new", "table", "key", "words"),
     [
         ("steps = 5", "steps = 5\nbogus = 1", "learning", "bogus", "unknown key"),
+        (
+            "steps = 5",
+            'steps = 5\nreference = "initial"',
+            "learning",
+            "reference",
+            "strain_reference",
+        ),
+        ('rules = ["gcl_floor"]', 'rules = ["gcl_all"]', "learning", "rules", "Stern-scale"),
         ("trials = 2", 'trials = "two"', "learning", "trials", "must be an integer"),
         ("trials = 2", "trials = true", "learning", "trials", "must be an integer"),
         ("trials = 2", "trials = 0", "learning", "trials", "must be >= 1"),
@@ -102,7 +110,7 @@ def test_tiny_scene_parses_with_defaults(tmp_path):
             "solvers",
             "unknown key or table",
         ),
-        ("seed = 1", "seed = -3", "(top level)", "seed", ">= 0"),
+        ("seed = 1", "seed = -3", "(top level)", "seed", "in 0..2**63-1"),
         ('name = "tiny"', 'name = "../etc"', "(top level)", "name", "plain name"),
         (
             'kind = "learning"\n',

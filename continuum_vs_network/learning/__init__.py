@@ -7,11 +7,13 @@ Light to import (numpy and scipy only). The main names:
   :class:`ExactGradient` (frozen dataclasses with ``update(net, task, ...) -> Step``);
 * equilibria for learning: :class:`Solver`, :class:`Tracker`;
 * exact gradients: :func:`cost_gradient`, :class:`Sensitivity`, :func:`gcl_limit`;
-* training: :func:`train` -> :class:`History` (``.save`` / ``History.load``).
+* training: :func:`train` -> :class:`History` (``.save`` / ``History.load``);
+* coupling of a trained network's targets to its sources: :func:`measure_coupling`.
 """
 
 from __future__ import annotations
 
+from .coupling import Coupling, measure_coupling
 from .history import History
 from .rules import (
     CoupledLearning,
@@ -30,6 +32,7 @@ from .train import train
 __all__ = [
     "AllosteryTask",
     "CoupledLearning",
+    "Coupling",
     "ExactGradient",
     "History",
     "LearningError",
@@ -42,6 +45,7 @@ __all__ = [
     "Warm",
     "cost_gradient",
     "gcl_limit",
+    "measure_coupling",
     "paper_task",
     "stern_task",
     "train",

@@ -10,6 +10,11 @@ step from network ``t`` to ``t + 1``). Arrays are ``(trials, steps + 1)`` or
 Entries that do not exist are NaN, and only those: the steps after a trial stopped early
 (``completed[i] < steps``, the reason in ``stop_reason[i]``) and quantities a rule does
 not produce (``energy_clamped`` of the exact gradient, which uses no clamped state).
+
+The task error is recorded in both strain conventions under explicit names,
+``error_initial`` and ``error_current``; there is no convention-dependent ``error``
+(``history.task_error(strain_reference)`` picks one by name, and ``history.strain_reference``
+is the convention the rule trained in).
 """
 
 from __future__ import annotations
@@ -25,17 +30,21 @@ from numpy.typing import NDArray
 from ..network.model import SpringNetwork
 from .tasks import AllosteryTask
 
-__all__ = ["MEASUREMENTS", "UPDATES", "History"]
+__all__ = ["LEGACY", "MEASUREMENTS", "UPDATES", "History"]
+
+#: arrays of older files that are no longer recorded (dropped on load): ``error``, the task
+#: error in the rule's convention, whose meaning changed with the rule
+LEGACY = frozenset({"error"})
 
 #: per-measurement arrays, shape (trials, steps + 1[, n_targets])
 MEASUREMENTS = {
-    "error": "task error Eq. 26 in the rule's strain convention",
     "error_current": "Eq. 26 with strains against the current (learning) rest lengths",
     "error_initial": "Eq. 26 with strains against the task's initial rest lengths",
-    "target_strain": "free-state target strains in the rule's convention (n_targets)",
+    "target_strain": "free-state target strains in the rule's strain_reference (n_targets)",
     "target_length": "free-state target lengths r_T (n_targets)",
     "target_rest_length": "target rest lengths L_T (n_targets)",
-    "desired_length": "lengths L_ref (S_T + 1) that give the desired strains (n_targets)",
+    "desired_length": "lengths L_ref (S_T + 1) giving the desired strains, L_ref in the "
+    "rule's strain_reference (n_targets)",
     "energy_free": "elastic energy of the free state",
     "energy_gradient_free": "|dE^F/dtheta| over the learning springs",
     "residual": "largest net force on a free coordinate in the free state",
@@ -70,7 +79,7 @@ class History:
         The rule's and the training call's parameters (plain values).
     data : dict of str -> array
         The arrays named in :data:`MEASUREMENTS` and :data:`UPDATES`; also reachable as
-        attributes (``history.error``).
+        attributes (``history.error_initial``).
     initial, final : tuple of SpringNetwork
         Each trial's network before and after training.
     tasks : tuple of AllosteryTask
@@ -107,6 +116,20 @@ class History:
     @property
     def trials(self) -> int:
         return len(self.seeds)
+
+    @property
+    def strain_reference(self) -> str:
+        """The strain convention the rule trained in (``"initial"`` or ``"current"``)."""
+        return str(self.settings.get("strain_reference", "initial"))
+
+    def task_error(self, strain_reference: str) -> NDArray:
+        """Eq. 26 with strains against the ``"initial"`` or the ``"current"`` rest lengths,
+        (trials, steps + 1): ``error_initial`` or ``error_current``."""
+        if strain_reference not in ("initial", "current"):
+            raise ValueError(
+                f"strain_reference must be 'initial' or 'current', got {strain_reference!r}"
+            )
+        return self.data[f"error_{strain_reference}"]
 
     def __repr__(self) -> str:
         return (
@@ -159,7 +182,9 @@ class History:
             completed=files["completed"],
             stop_reason=tuple(meta["stop_reason"]),
             settings=meta["settings"],
-            data={k[5:]: v for k, v in files.items() if k.startswith("data/")},
+            data={
+                k[5:]: v for k, v in files.items() if k.startswith("data/") and k[5:] not in LEGACY
+            },
             initial=tuple(_net_from(files, f"initial/{i}") for i in range(n)),
             final=tuple(_net_from(files, f"final/{i}") for i in range(n)),
             tasks=tuple(_task_from(files, f"task/{i}") for i in range(n)),
@@ -179,16 +204,32 @@ _TASK_FIELDS = (
 
 
 def _net_arrays(prefix: str, net: SpringNetwork) -> dict[str, NDArray]:
+    if not isinstance(net, SpringNetwork):  # another learning medium (.medium)
+        from .medium import medium_arrays
+
+        return medium_arrays(prefix, net)
     return {f"{prefix}/{f}": getattr(net, f) for f in _NET_FIELDS}
 
 
 def _net_from(files: dict, prefix: str) -> SpringNetwork:
+    if f"{prefix}/__kind__" in files:
+        from .medium import medium_from_arrays
+
+        return medium_from_arrays(files, prefix)
     return SpringNetwork(*(files[f"{prefix}/{f}"] for f in _NET_FIELDS))
 
 
 def _task_arrays(prefix: str, task: AllosteryTask) -> dict[str, NDArray]:
+    if not isinstance(task, AllosteryTask):
+        from .medium import medium_arrays
+
+        return medium_arrays(prefix, task)
     return {f"{prefix}/{f}": getattr(task, f) for f in _TASK_FIELDS}
 
 
 def _task_from(files: dict, prefix: str) -> AllosteryTask:
+    if f"{prefix}/__kind__" in files:
+        from .medium import medium_from_arrays
+
+        return medium_from_arrays(files, prefix)
     return AllosteryTask(**{f: files[f"{prefix}/{f}"] for f in _TASK_FIELDS})

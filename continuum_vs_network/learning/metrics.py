@@ -13,7 +13,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..network.model import SpringNetwork
 from .history import History
 from .states import Solver, Tracker
-from .tasks import AllosteryTask, Reference
+from .tasks import AllosteryTask, StrainReference
 
 __all__ = [
     "cosine",
@@ -107,7 +107,7 @@ def source_sweep(
     task: AllosteryTask,
     source_strains: ArrayLike,
     *,
-    reference: Reference = "current",
+    strain_reference: StrainReference = "initial",
     solver: Solver | None = None,
 ) -> NDArray:
     """Free-state target strains of ``net`` for other source strains (Fig. 5).
@@ -117,7 +117,7 @@ def source_sweep(
     net, task : a (trained) network and its task.
     source_strains : (n_points,) or (n_points, n_sources) float array
         Source strains to apply (one value applies to every source).
-    reference : strain convention of clamps and read-out.
+    strain_reference : strain convention of clamps and read-out.
     solver : Solver, optional
 
     Returns
@@ -133,7 +133,7 @@ def source_sweep(
         raise ValueError(f"source_strains must be (n_points,) or (n_points, {task.n_sources})")
     tracker = Tracker(solver or Solver())
     start = tracker.solve(
-        net, task.pinned, task.source_clamps(net, reference), None, key="free"
+        net, task.pinned, task.source_clamps(net, strain_reference), None, key="free"
     ).positions
     distance = np.linalg.norm(s - task.source_strain, axis=1)
     out = np.empty((s.shape[0], task.n_targets))
@@ -142,7 +142,9 @@ def source_sweep(
         x = start
         for i in np.flatnonzero(branch)[np.argsort(distance[branch])]:
             t = task.with_source_strain(s[i])
-            eq = tracker.solve(net, task.pinned, t.source_clamps(net, reference), x, key="free")
+            eq = tracker.solve(
+                net, task.pinned, t.source_clamps(net, strain_reference), x, key="free"
+            )
             x = eq.positions
-            out[i] = t.target_strains(net, net.lengths(x)[task.targets], reference)
+            out[i] = t.target_strains(net, net.lengths(x)[task.targets], strain_reference)
     return out

@@ -31,7 +31,7 @@ from ..network.constraints import Problem
 from ..network.equilibrium import Equilibrium
 from ..network.lagrangian import Frame, lagrangian_hessian
 from ..network.model import SpringNetwork
-from .tasks import AllosteryTask, Reference
+from .tasks import AllosteryTask, StrainReference
 
 __all__ = ["Cost", "Sensitivity", "cost_gradient", "gcl_limit", "length_jacobian_rows"]
 
@@ -148,7 +148,7 @@ def cost_gradient(
     task: AllosteryTask,
     eq: Equilibrium,
     *,
-    reference: Reference = "current",
+    strain_reference: StrainReference = "initial",
     dof: Dof = "rest_length",
     cost: Cost = "strain",
     through_reference: bool = True,
@@ -160,15 +160,15 @@ def cost_gradient(
     Parameters
     ----------
     net, task : the network and the task; ``eq`` is its free state (sources clamped at
-        ``task.source_lengths(net, reference)``, in source order).
-    reference : {"current", "initial"}
+        ``task.source_lengths(net, strain_reference)``, in source order).
+    strain_reference : {"initial", "current"}
         Strain convention (see :mod:`.tasks`).
     dof : {"rest_length", "stiffness"}
     cost : {"strain", "length"}
         ``"strain"``: Eq. 26, ``sum (r_T / L_T - 1 - S_T)^2 / 2``. ``"length"``:
         ``sum (r_T - l_T)^2 / 2`` with ``l_T = L_T (S_T + 1)``.
     through_reference : bool
-        With ``reference="current"`` the reference rest lengths are the learning ``L``:
+        With ``strain_reference="current"`` the reference rest lengths are the learning ``L``:
         the strain's denominator, the desired lengths and the source clamp lengths all
         move with ``L``. True differentiates through all of that (the gradient of the
         error as measured); False holds them fixed (what coupled learning sees).
@@ -185,7 +185,7 @@ def cost_gradient(
     x = np.asarray(eq.positions, float)
     t = task.targets
     r_t = net.lengths(x)[t] if target_lengths is None else np.asarray(target_lengths, float)
-    ref_t = task.target_rest(net, reference)
+    ref_t = task.target_rest(net, strain_reference)
     if cost == "strain":
         err = r_t / ref_t - 1.0 - task.target_strain
         dC_dr = err / ref_t
@@ -194,7 +194,9 @@ def cost_gradient(
         err = r_t - ref_t * (1.0 + task.target_strain)
         dC_dr = err
         dC_dref = -err * (1.0 + task.target_strain)
-    sens = sensitivity or Sensitivity(net, task.pinned, task.source_clamps(net, reference), eq)
+    sens = sensitivity or Sensitivity(
+        net, task.pinned, task.source_clamps(net, strain_reference), eq
+    )
     rows = sens.length_rows(t)
     b = rows.T @ dC_dr
     v, w = sens.solve(b)
@@ -203,7 +205,7 @@ def cost_gradient(
         grad = net.stiffness * dr
     else:
         grad = -(net.lengths(x) - net.rest_length) * dr
-    if dof == "rest_length" and reference == "current" and through_reference:
+    if dof == "rest_length" and strain_reference == "current" and through_reference:
         np.add.at(grad, t, dC_dref)
         # the source clamp lengths l_s = L_s (S_s + 1) move with L_s
         np.add.at(grad, task.sources, w * (task.source_strain + 1.0))
@@ -215,7 +217,7 @@ def gcl_limit(
     task: AllosteryTask,
     eq: Equilibrium,
     *,
-    reference: Reference = "current",
+    strain_reference: StrainReference = "initial",
     dof: Dof = "rest_length",
     sensitivity: Sensitivity | None = None,
 ) -> tuple[NDArray, NDArray]:
@@ -229,9 +231,11 @@ def gcl_limit(
     """
     _check_dof(dof)
     x = np.asarray(eq.positions, float)
-    sens = sensitivity or Sensitivity(net, task.pinned, task.source_clamps(net, reference), eq)
+    sens = sensitivity or Sensitivity(
+        net, task.pinned, task.source_clamps(net, strain_reference), eq
+    )
     K = np.linalg.inv(sens.compliance(task.targets))
-    err = net.lengths(x)[task.targets] - task.desired_lengths(net, reference)
+    err = net.lengths(x)[task.targets] - task.desired_lengths(net, strain_reference)
     rows = sens.length_rows(task.targets)
     v, _ = sens.solve(rows.T @ (K @ err))
     dr = length_jacobian_rows(net, x, v)

@@ -136,7 +136,8 @@ def stern_table(
     factorisations per step."""
     rows = []
     for (n, name), h in histories.items():
-        s = summary(h.error, h.completed)
+        error = h.task_error(h.strain_reference)
+        s = summary(error, h.completed)
         done = np.maximum(h.completed, 1)
         per_step = [h.seconds[i, min(h.completed[i], h.steps)] / done[i] for i in range(h.trials)]
         learn = [
@@ -152,7 +153,7 @@ def stern_table(
         ]
         reach_steps, reach_seconds = [], []
         for i in range(h.trials):
-            ratio = h.error[i] / h.error[i, 0]
+            ratio = error[i] / error[i, 0]
             t = _first_below(ratio, level)
             if t is not None:
                 reach_steps.append(t)

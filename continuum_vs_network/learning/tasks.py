@@ -5,14 +5,17 @@ the strains they should show in the free state (Sec. 6.4). The task error is Eq.
 ``C = sum_T (S_T^F - S_T)^2 / 2``.
 
 A strain ``S = r / L - 1`` (Eq. 24) needs a reference rest length. Two conventions are
-supported everywhere (``reference``):
+supported everywhere, under one parameter name, ``strain_reference``:
 
+``"initial"`` (the default everywhere)
+    ``L`` is the rest length the spring had when the task was made (stored on the task), so
+    clamp lengths are fixed and the strain error is a length error in disguise: the targets
+    are fixed geometries. Coupled learning descends the task error in this convention.
 ``"current"``
     The paper's literal convention: ``L`` is the spring's current, learning rest length, so
-    clamp lengths ``L (S + 1)`` (Eq. 25) and measured strains move as ``L`` learns.
-``"initial"``
-    ``L`` is the rest length the spring had when the task was made (stored on the task), so
-    clamp lengths are fixed and the strain error is a length error in disguise.
+    clamp lengths ``L (S + 1)`` (Eq. 25) and measured strains move as ``L`` learns (where
+    coupled learning does not descend Eq. 26 and prospective configuration runs away; see
+    :mod:`.rules`).
 """
 
 from __future__ import annotations
@@ -23,24 +26,35 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
 from ..network.constraints import default_pins
 from ..network.model import SpringNetwork
 
-__all__ = ["AllosteryTask", "Reference", "paper_task", "stern_task"]
+__all__ = [
+    "STRAIN_REFERENCES",
+    "AllosteryTask",
+    "StrainReference",
+    "check_strain_reference",
+    "paper_task",
+    "stern_task",
+]
 
-Reference = Literal["current", "initial"]
-_REFERENCES = ("current", "initial")
+StrainReference = Literal["initial", "current"]
+#: the strain conventions, the default first
+STRAIN_REFERENCES = ("initial", "current")
 
 
-def _check_reference(reference: str) -> None:
-    if reference not in _REFERENCES:
-        raise ValueError(f"reference must be 'current' or 'initial', got {reference!r}")
+def check_strain_reference(strain_reference: object) -> None:
+    """Raise ``ValueError`` unless ``strain_reference`` is ``"initial"`` or ``"current"``."""
+    check.choice("strain_reference", strain_reference, STRAIN_REFERENCES)
 
 
 def _frozen(value: ArrayLike, dtype: type, name: str) -> NDArray:
-    arr = np.array(value, dtype=dtype, copy=True).reshape(-1)
-    if dtype is np.float64 and not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got {arr}")
+    if dtype is np.float64:
+        arr = check.float_array(name, np.atleast_1d(value)).reshape(-1)
+    else:
+        arr = check.index_array(name, np.atleast_1d(value), check.INT64_MAX, what="spring indices")
+        arr = arr.reshape(-1)
     arr.setflags(write=False)
     return arr
 
@@ -91,9 +105,10 @@ class AllosteryTask:
                 self.target_rest_length, np.float64, "target_rest_length"
             ),
         }
-        pinned = np.array(self.pinned, dtype=bool, copy=True)
-        if pinned.ndim != 2 or pinned.shape[1] != 2:
-            raise ValueError(f"pinned must have shape (n_nodes, 2), got {pinned.shape}")
+        pinned = np.asarray(self.pinned)
+        if pinned.dtype != bool or pinned.ndim != 2 or pinned.shape[1] != 2:
+            raise check.ArgumentError("pinned", self.pinned, "a bool mask of shape (n_nodes, 2)")
+        pinned = pinned.copy()
         pinned.setflags(write=False)
         fields["pinned"] = pinned
         for name, value in fields.items():
@@ -140,12 +155,13 @@ class AllosteryTask:
         ``pinned`` defaults to :func:`~continuum_vs_network.network.default_pins` computed
         away from the sources and targets.
         """
-        sources = np.atleast_1d(np.asarray(sources, dtype=np.int64))
-        targets = np.atleast_1d(np.asarray(targets, dtype=np.int64))
-        for name, idx in (("sources", sources), ("targets", targets)):
-            bad = idx[(idx < 0) | (idx >= net.n_springs)]
-            if bad.size:
-                raise ValueError(f"{name} names spring {bad[0]} outside 0..{net.n_springs - 1}")
+        if not isinstance(net, SpringNetwork):
+            raise check.ArgumentError("net", net, "a SpringNetwork")
+        top = net.n_springs
+        sources = check.index_array("sources", np.atleast_1d(sources), top, what="spring indices")
+        targets = check.index_array("targets", np.atleast_1d(targets), top, what="spring indices")
+        source_strain = check.float_array("source_strain", source_strain)
+        target_strain = check.float_array("target_strain", target_strain)
         if pinned is None:
             pinned = default_pins(net, avoid=np.concatenate([sources, targets]))
         task = cls(
@@ -189,42 +205,60 @@ class AllosteryTask:
     def n_targets(self) -> int:
         return int(self.targets.size)
 
-    def _reference(self, net: SpringNetwork, reference: str, which: str) -> NDArray:
-        _check_reference(reference)
-        if reference == "initial":
+    def _reference(self, net: SpringNetwork, strain_reference: str, which: str) -> NDArray:
+        check_strain_reference(strain_reference)
+        if strain_reference == "initial":
             return self.source_rest_length if which == "source" else self.target_rest_length
         return net.rest_length[self.sources if which == "source" else self.targets]
 
-    def source_rest(self, net: SpringNetwork, reference: Reference) -> NDArray:
+    def source_rest(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
         """Reference rest lengths of the sources, (n_sources,)."""
-        return self._reference(net, reference, "source")
+        return self._reference(net, strain_reference, "source")
 
-    def target_rest(self, net: SpringNetwork, reference: Reference) -> NDArray:
+    def target_rest(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
         """Reference rest lengths of the targets, (n_targets,)."""
-        return self._reference(net, reference, "target")
+        return self._reference(net, strain_reference, "target")
 
-    def source_lengths(self, net: SpringNetwork, reference: Reference) -> NDArray:
+    def source_lengths(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
         """Clamp lengths ``L_s (S_s + 1)`` of the sources (Eq. 25), (n_sources,)."""
-        return self.source_rest(net, reference) * (self.source_strain + 1.0)
+        return self.source_rest(net, strain_reference) * (self.source_strain + 1.0)
 
-    def desired_lengths(self, net: SpringNetwork, reference: Reference) -> NDArray:
+    def desired_lengths(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
         """Target lengths ``L_T (S_T + 1)`` that realise the desired strains, (n_targets,)."""
-        return self.target_rest(net, reference) * (self.target_strain + 1.0)
+        return self.target_rest(net, strain_reference) * (self.target_strain + 1.0)
 
-    def source_clamps(self, net: SpringNetwork, reference: Reference) -> dict[int, float]:
+    def source_clamps(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> dict[int, float]:
         """``{source: clamp length}`` for :func:`~continuum_vs_network.relax`."""
-        return dict(zip(self.sources.tolist(), self.source_lengths(net, reference).tolist()))
+        return dict(zip(self.sources.tolist(), self.source_lengths(net, strain_reference).tolist()))
 
     def target_strains(
-        self, net: SpringNetwork, target_lengths: ArrayLike, reference: Reference
+        self,
+        net: SpringNetwork,
+        target_lengths: ArrayLike,
+        strain_reference: StrainReference = "initial",
     ) -> NDArray:
         """Strains ``r_T / L_T - 1`` of targets of lengths ``target_lengths`` (n_targets,)."""
-        return np.asarray(target_lengths, float) / self.target_rest(net, reference) - 1.0
+        return np.asarray(target_lengths, float) / self.target_rest(net, strain_reference) - 1.0
 
-    def error(self, net: SpringNetwork, positions: ArrayLike, reference: Reference) -> float:
+    def error(
+        self,
+        net: SpringNetwork,
+        positions: ArrayLike,
+        strain_reference: StrainReference = "initial",
+    ) -> float:
         """Task error ``C = sum_T (S_T^F - S_T)^2 / 2`` (Eq. 26) at free-state ``positions``."""
         r = net.lengths(positions)[self.targets]
-        err = self.target_strains(net, r, reference) - self.target_strain
+        err = self.target_strains(net, r, strain_reference) - self.target_strain
         return float(0.5 * np.sum(err**2))
 
 
@@ -277,6 +311,12 @@ def paper_task(
     -------
     AllosteryTask
     """
+    if not isinstance(rng, np.random.Generator):
+        raise check.ArgumentError("rng", rng, "a numpy.random.Generator")
+    source_mean = check.real("source_mean", source_mean)
+    source_std = check.real("source_std", source_std, low=0, low_open=True)
+    target_mean = check.real("target_mean", target_mean)
+    target_scale = check.real("target_scale", target_scale, low=0, low_open=True)
     pool = _candidates(net, candidates)
     if pool.size < 2:
         raise ValueError(f"need at least 2 candidate springs, got {pool.size}")
@@ -307,10 +347,12 @@ def stern_task(
     gives none). ``rng`` is required; it comes after the counts to follow the paper's
     ``stern_task(net, n_sources, n_targets, rng)`` order.
     """
-    if rng is None:
-        raise ValueError("stern_task needs rng, a numpy.random.Generator")
-    if n_sources < 1 or n_targets < 1:
-        raise ValueError(f"n_sources and n_targets must be >= 1, got {n_sources}, {n_targets}")
+    if not isinstance(rng, np.random.Generator):
+        raise check.ArgumentError("rng", rng, "a numpy.random.Generator")
+    n_sources = check.integer("n_sources", n_sources, low=1)
+    n_targets = check.integer("n_targets", n_targets, low=1)
+    source_std = check.real("source_std", source_std, low=0, low_open=True)
+    target_std = check.real("target_std", target_std, low=0, low_open=True)
     pool = _candidates(net, candidates)
     if pool.size < n_sources + n_targets:
         raise ValueError(
@@ -323,6 +365,8 @@ def stern_task(
 
 
 def _candidates(net: SpringNetwork, candidates: ArrayLike | None) -> NDArray[np.int64]:
+    if not isinstance(net, SpringNetwork):
+        raise check.ArgumentError("net", net, "a SpringNetwork")
     if candidates is None:
         from ..network.builders import strain_tunable
 
@@ -334,7 +378,7 @@ def _candidates(net: SpringNetwork, candidates: ArrayLike | None) -> NDArray[np.
                 f"candidates as a mask must have shape ({net.n_springs},), got {arr.shape}"
             )
         return np.flatnonzero(arr)
-    arr = np.unique(arr.astype(np.int64).ravel())
-    if arr.size and (arr[0] < 0 or arr[-1] >= net.n_springs):
-        raise ValueError(f"candidates must be spring indices in 0..{net.n_springs - 1}")
-    return arr
+    arr = check.index_array(
+        "candidates", np.atleast_1d(arr).ravel(), net.n_springs, what="spring indices"
+    )
+    return np.unique(arr)

@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
+from .arguments import lone_nodes, relax_arguments
 from .checks import collapsed_springs, escape_direction, floppy_modes, lowest_curvature
 from .constraints import ClampMode, Pins, Problem, default_pins
 from .energy import spring_energy
@@ -53,9 +55,12 @@ class Equilibrium:
         Wall-clock time of the solve.
     method : str
     residual_trace, seconds_trace : (n_records,) float arrays
-        Relative residual (as ``relative_residual``) after recorded iterations (every
-        iteration for Newton, every tenth for the first-order methods) and the wall-clock
-        time at which it was reached, for error-against-run-time plots.
+        Relative residual (as ``relative_residual``) at each recorded iteration and the
+        wall-clock time at which it was reached, for error-against-run-time plots.
+    iteration_trace : (n_records,) int array
+        The iteration (counted over every stage of the solve) of each record: Newton
+        records every iteration, FIRE, L-BFGS and Adagrad every tenth and the last.
+        Default: ``arange(n_records)`` (one record per iteration).
     """
 
     positions: NDArray[np.float64]
@@ -70,6 +75,13 @@ class Equilibrium:
     method: str
     residual_trace: NDArray[np.float64] = field(repr=False)
     seconds_trace: NDArray[np.float64] = field(repr=False)
+    iteration_trace: NDArray[np.int64] | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.iteration_trace is None:
+            object.__setattr__(
+                self, "iteration_trace", np.arange(np.asarray(self.residual_trace).size)
+            )
 
 
 class EquilibriumError(RuntimeError):
@@ -180,12 +192,13 @@ def relax(
     EquilibriumError
         The method did not reach ``tol``; ``err.state`` holds the last iterate.
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be finite and > 0, got {tol}")
-    if int(ramp) != ramp or ramp < 1:
-        raise ValueError(f"ramp must be an integer >= 1, got {ramp}")
+    args = relax_arguments(
+        net, methods=tuple(METHODS), method=method, tol=tol, clamp=clamp,
+        rod_stiffness=rod_stiffness, ramp=ramp, max_iter=max_iter, max_seconds=max_seconds,
+    )  # fmt: skip
+    method, tol, ramp, max_iter, max_seconds = (
+        args.method, args.tol, args.ramp, args.max_iter, args.max_seconds
+    )  # fmt: skip
     if method == "paper":
         clamp = "rod"
     problem = Problem.build(
@@ -198,6 +211,7 @@ def relax(
             f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
             f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
         )
+    lone_nodes(net, problem.free)
     _check_rank(problem)
     stop = problem.stop_rule(
         tol, max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]), max_seconds=max_seconds
@@ -212,6 +226,7 @@ def relax(
         frac = step / ramp
         lengths = start_lengths + frac * (problem.clamp_lengths - start_lengths)
         stage = problem.with_clamp_lengths(lengths)
+        trace.base = iterations
         outcome = solve(stage, stage.start(outcome.x), stop, trace)
         iterations += outcome.iterations
         if not outcome.converged:
@@ -226,9 +241,10 @@ def relax(
             break
         avoid = problem.clamp_springs
         problem = problem.with_free(~default_pins(net.with_positions(outcome.x), avoid))
+        trace.base = iterations
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
-    outcome, extra = _second_order(problem, outcome, solve, stop, trace)
+    outcome, extra = _second_order(problem, outcome, solve, stop, trace, iterations)
     return _finish(problem, outcome, iterations + extra, method, stop, trace)
 
 
@@ -259,7 +275,7 @@ _CURVATURE_TOL = 1e-8  # smallest scaled reduced-Hessian eigenvalue accepted as 
 
 
 def _second_order(
-    problem: Problem, outcome: Outcome, solve: Method, stop: StopRule, trace: Trace
+    problem: Problem, outcome: Outcome, solve: Method, stop: StopRule, trace: Trace, done: int
 ) -> tuple[Outcome, int]:
     """No saddle and no collapsed spring returned as an equilibrium: escape, or fail.
 
@@ -296,6 +312,7 @@ def _second_order(
                 ), extra
             trials = [problem.start(x + s * 1e-2 * direction) for s in (1.0, -1.0)]
             y = min(trials, key=problem.energy)
+        trace.base = done + extra
         outcome = solve(problem, problem.start(y), stop, trace)
         extra += outcome.iterations
     if outcome.converged:
@@ -318,12 +335,7 @@ def _pin_reaction(problem: Problem, x: NDArray) -> float:
 def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
     if x0 is None:
         return problem.net.positions.copy()
-    x = np.array(x0, dtype=np.float64, copy=True)
-    if x.shape != (problem.net.n_nodes, 2):
-        raise ValueError(f"x0 must have shape ({problem.net.n_nodes}, 2), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("x0 must be finite")
-    return x
+    return check.float_array("x0", x0, (problem.net.n_nodes, 2))
 
 
 def _finish(
@@ -357,6 +369,7 @@ def _finish(
         method=method,
         residual_trace=np.asarray(trace.residual),
         seconds_trace=np.asarray(trace.seconds),
+        iteration_trace=np.asarray(trace.iteration, dtype=np.int64),
     )
     if not converged:
         reason = outcome.message or "did not reach the requested residual"

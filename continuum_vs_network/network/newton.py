@@ -151,7 +151,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             clamp_error = stop.clamp_error(-lam_ls / problem.rod_stiffness)
         else:
             clamp_error = stop.clamp_error(viol)
-        trace.record(residual)
+        trace.record(residual, it)
         if stop.met(residual, clamp_error):
             return Outcome(x, it, True, certified=it > 0 and exact_ok and shift == 0.0)
         if it == stop.max_iter:

@@ -84,20 +84,25 @@ class StopRule:
 
 
 class Trace:
-    """Residuals against wall-clock time, recorded by a solver as it iterates.
+    """Residuals against wall-clock time and iteration, recorded by a solver as it iterates.
 
-    ``residual`` holds the largest relative imbalance (:meth:`StopRule.imbalance`) after
-    each recorded iteration and ``seconds`` when it was reached.
+    ``residual`` holds the largest relative imbalance (:meth:`StopRule.imbalance`). A
+    solver records ``record(residual, it)`` with its own iteration count ``it``; the caller
+    that chains solves (stages, inner loops, escapes) sets ``base`` to the iterations done
+    before, so the recorded iteration is the count over the whole solve.
     """
 
     def __init__(self) -> None:
         self.t0 = time.perf_counter()
+        self.base = 0
         self.residual: list[float] = []
         self.seconds: list[float] = []
+        self.iteration: list[int] = []
 
-    def record(self, residual: float) -> None:
+    def record(self, residual: float, it: int) -> None:
         self.residual.append(float(residual))
         self.seconds.append(time.perf_counter() - self.t0)
+        self.iteration.append(self.base + int(it))
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.t0

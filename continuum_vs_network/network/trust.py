@@ -209,7 +209,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             clamp_error = stop.clamp_error(-mu / problem.rod_stiffness)
         else:
             clamp_error = stop.clamp_error(problem.clamp_violation(x) if m else np.empty(0))
-        trace.record(residual)
+        trace.record(residual, it)
         if stop.met(residual, clamp_error):
             return Outcome(x, it, True, certified=lowest > 1e-8)
         if it == stop.max_iter:

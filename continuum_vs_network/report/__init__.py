@@ -1,12 +1,16 @@
-"""The report: matplotlib figures and the Markdown writer.
+"""The report: matplotlib figures, one section module per scene kind, the writer, findings.
 
 :func:`~.writer.write_report` turns a scene result into ``reports/<scene>/report.md`` with
-its figures; :func:`~.writer.write_index` writes ``reports/README.md``. matplotlib and
-pyvista are imported only while drawing.
+its figures by handing a :class:`~.document.Document` to ``SECTIONS[kind]`` (one module per
+kind in :mod:`.sections`); sections register :class:`~.findings.Finding` objects (claim,
+metric, measured values, verdict, rule), which land in ``report.json``;
+:func:`~.writer.write_index` writes ``reports/README.md``, opening with every scene's
+findings. matplotlib and pyvista are imported only while drawing.
 """
 
 from __future__ import annotations
 
+from .findings import Finding
 from .writer import write_index, write_report
 
-__all__ = ["write_index", "write_report"]
+__all__ = ["Finding", "write_index", "write_report"]

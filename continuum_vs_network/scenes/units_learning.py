@@ -6,13 +6,19 @@
 * ``sweeps/<solver>/<rule>`` (``[learning] sweeps``): source sweeps of the trained networks
   (Fig. 5 and the appendix), noise level 0 (the first listed).
 * ``gradient/<rule>`` (``[learning] compare_gradient``): cosine between each rule's step and
-  the exact gradient's, at every trial's initial and final network.
+  the exact gradient's, at every trial's initial and final network;
+* ``coupling/<solver>/<rule>/noise<i>`` (every run, unless ``measure = false`` asks for the
+  rules' own work only): target strains of every trained network
+  with the sources on, off and over a source sweep, and of the initial network with the
+  sources off (:mod:`~continuum_vs_network.learning.coupling`), so that every learning
+  result states whether the sources cause the target strains;
 * ``fields/<solver>/<rule>`` (only with ``[export]`` or ``[report] images``): free states of
   the exported trials' initial and final networks and, with ``[export] series``, of the
   trajectory frames.
 
-Nothing else is solved: a prospective-configuration run with ``measure = false`` and
-neither sweeps, gradient comparison, export nor images solves no free state at all.
+Nothing else is solved: a prospective-configuration run with ``measure = false`` (which
+also skips the coupling measurement) and neither sweeps, gradient comparison, export nor
+images solves no free state at all.
 """
 
 from __future__ import annotations
@@ -23,10 +29,17 @@ from typing import Any
 import numpy as np
 
 from ..io.atomic import atomic_path
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
-__all__ = ["build_rules", "experiments", "frames_file", "group_key", "plan_learning"]
+__all__ = [
+    "build_rules",
+    "experiments",
+    "frames_file",
+    "group_key",
+    "plan_learning",
+    "run_names",
+]
 
 _STERN_KIND = {"triangular": "lattice", "diluted": "diluted", "jammed": "jammed"}
 
@@ -34,6 +47,19 @@ _STERN_KIND = {"triangular": "lattice", "diluted": "diluted", "jammed": "jammed"
 def group_key(solver: str, rule: str, noise_index: int) -> str:
     """Key of a learning run: ``"<solver>/<rule>/noise<i>"``."""
     return f"{solver}/{rule}/noise{noise_index}"
+
+
+def run_names(scene: Scene) -> tuple[str, ...]:
+    """The scene's learning runs: its rules, a GCL rule once per nudge when ``etas`` lists
+    nudges (``<rule>_eta<value>``)."""
+    L = scene.learning
+    out = []
+    for rule in L.rules:
+        if rule.startswith("gcl") and L.etas:
+            out += [f"{rule}_eta{eta:g}" for eta in L.etas]
+        else:
+            out.append(rule)
+    return tuple(out)
 
 
 def _solvers(scene: Scene) -> tuple[str, ...]:
@@ -75,7 +101,7 @@ def plan_learning(scene: Scene) -> list[Unit]:
     series_trials = set(export.trials) if export is not None and export.series else set()
     units: list[Unit] = []
     for solver in _solvers(scene):
-        for rule in L.rules:
+        for rule in run_names(scene):
             for i, noise in enumerate(L.noise):
                 for k in range(L.trials):
                     series = export.every if (k in series_trials and i == 0) else 0
@@ -96,7 +122,17 @@ def plan_learning(scene: Scene) -> list[Unit]:
                     )
     first = {"sweep_span": L.sweep_span, "sweep_points": L.sweep_points}
     for solver in _solvers(scene):
-        for rule in L.rules:
+        for rule in run_names(scene):
+            for i, noise in enumerate(L.noise if L.measure else ()):
+                units.append(
+                    Unit(
+                        key=f"coupling/{group_key(solver, rule, i)}",
+                        func=coupling_unit,
+                        params={"group": group_key(solver, rule, i)},
+                        depends={**dep, "trials": L.trials, "noise": noise},
+                        phase=1,
+                    )
+                )
             deps = {**dep, "trials": L.trials, "noise": L.noise[0]}
             if L.sweeps:
                 units.append(
@@ -125,7 +161,7 @@ def plan_learning(scene: Scene) -> list[Unit]:
                 )
     if L.compare_gradient:
         solver = "newton" if "newton" in _solvers(scene) else _solvers(scene)[0]
-        for rule in L.rules:
+        for rule in run_names(scene):
             if rule == "exact":
                 continue
             units.append(
@@ -209,18 +245,22 @@ def _solver(scene: Scene, name: str):
 def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
     """The learning rules the scene names, with the equilibrium solver ``solver``.
 
-    The paper task uses :func:`~continuum_vs_network.learning.replication.paper_experiments`;
-    Stern-scale tasks :func:`~continuum_vs_network.learning.stern.stern_rules` (``*_frozen``
-    keeps the targets' rest lengths fixed; the exact gradient there uses ``alpha_gcl`` on the
-    length cost, as ``stern_rules`` matches the step sizes).
+    The paper task uses :func:`~continuum_vs_network.learning.replication.paper_experiments`
+    (every spring learns in ``gcl``, ``gpc`` and ``exact``, as in the paper); Stern-scale
+    tasks :func:`~continuum_vs_network.learning.stern.stern_rules`: ``gcl``, ``gpc`` and
+    ``exact`` learn in the bulk (sources and targets frozen; the exact gradient uses
+    ``alpha_gcl`` on the length cost, as ``stern_rules`` matches the step sizes),
+    ``gcl_all`` and ``gpc_all`` let every spring learn. Keys are :func:`run_names`.
     """
+    import dataclasses
+
     L = scene.learning
     eq_solver = _solver(scene, solver)
     if scene.task.kind == "paper":
         from ..learning.replication import paper_experiments
 
         exps = paper_experiments(
-            reference=L.reference,
+            strain_reference=L.strain_reference,
             solver=eq_solver,
             alpha_gcl=L.alpha_gcl,
             eta=L.eta,
@@ -228,20 +268,28 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
             alpha_exact=L.alpha_exact,
             floor=L.floor,
         )
-        return {e.name: e.rule for e in exps if e.name in L.rules}
-    from ..learning.stern import stern_rules
+        table = {e.name: e.rule for e in exps}
+    else:
+        from ..learning.stern import stern_rules
 
-    kw = {"alpha": L.alpha_gcl, "eta": L.eta, "alpha_gpc": L.alpha_gpc, "solver": eq_solver}
-    free = stern_rules(**kw, learn_targets=True)
-    frozen = stern_rules(**kw, learn_targets=False)
-    table = {
-        "gcl": free["GCL"],
-        "gpc": free["GPC"],
-        "exact": free["exact"],
-        "gcl_frozen": frozen["GCL"],
-        "gpc_frozen": frozen["GPC"],
-    }
-    return {name: table[name] for name in L.rules}
+        kw = {"alpha": L.alpha_gcl, "eta": L.eta, "alpha_gpc": L.alpha_gpc, "solver": eq_solver}
+        bulk = stern_rules(**kw)
+        every = stern_rules(**kw, learn_sources=True, learn_targets=True)
+        table = {
+            "gcl": bulk["GCL"],
+            "gpc": bulk["GPC"],
+            "exact": bulk["exact"],
+            "gcl_all": every["GCL"],
+            "gpc_all": every["GPC"],
+        }
+    out = {}
+    for rule in L.rules:
+        if rule.startswith("gcl") and L.etas:
+            for eta in L.etas:
+                out[f"{rule}_eta{eta:g}"] = dataclasses.replace(table[rule], eta=eta)
+        else:
+            out[rule] = table[rule]
+    return out
 
 
 def experiments(scene: Scene, solver: str = "newton"):
@@ -250,7 +298,7 @@ def experiments(scene: Scene, solver: str = "newton"):
 
     L = scene.learning
     exps = paper_experiments(
-        reference=L.reference,
+        strain_reference=L.strain_reference,
         solver=_solver(scene, solver),
         alpha_gcl=L.alpha_gcl,
         eta=L.eta,
@@ -323,6 +371,45 @@ def _save_frames(path, frames: dict[int, tuple]) -> None:
         )
 
 
+def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """Coupling of every trial's trained network (sources on / off, a source sweep)."""
+    from ..learning.coupling import SCALES, measure_coupling
+    from ..learning.replication import exact_solver
+    from ..network.equilibrium import EquilibriumError
+
+    history = ctx.history(params["group"])
+    n, nt = history.trials, history.tasks[0].n_targets
+    sweep = np.full((n, len(SCALES), nt), np.nan)
+    initial_off = np.full((n, nt), np.nan)
+    desired = np.full((n, nt), np.nan)
+    share = np.full(n, np.nan)
+    verdicts, failed = [], []
+    for i in range(n):
+        desired[i] = history.tasks[i].target_strain
+        try:
+            c = measure_coupling(
+                history.initial[i],
+                history.final[i],
+                history.tasks[i],
+                strain_reference=history.strain_reference,
+                solver=exact_solver(),
+            )
+        except EquilibriumError as err:
+            verdicts.append("not measured")
+            failed.append(f"trial {i}: {err.reason}")
+            continue
+        sweep[i], initial_off[i], share[i] = c.sweep, c.initial_off, c.share
+        verdicts.append(c.verdict)
+    arrays = {
+        "scales": np.array(SCALES),
+        "sweep": sweep,
+        "initial_off": initial_off,
+        "desired": desired,
+        "share": share,
+    }
+    return arrays, {"verdicts": verdicts, "failed": failed}
+
+
 def sweeps_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Source sweeps of every trial's final network (exact equilibria)."""
     from ..learning.replication import exact_solver, sweeps
@@ -373,13 +460,13 @@ def gradient_unit(scene: Scene, params: dict, ctx: UnitContext):
     return {"cosine": out}, {"rule": params["rule"], "cost": cost}
 
 
-def _free_state(net, task, reference: str, x0=None):
+def _free_state(net, task, strain_reference: str, x0=None):
     from ..network.equilibrium import relax
 
     return relax(
         net,
         pinned=task.pinned,
-        clamped=task.source_clamps(net, reference),
+        clamped=task.source_clamps(net, strain_reference),
         x0=x0,
         ramp=1 if x0 is not None else 4,
     )
@@ -390,7 +477,7 @@ def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
     from ..network.equilibrium import EquilibriumError
 
     history = ctx.history(params["group"])
-    ref = scene.learning.reference
+    ref = scene.learning.strain_reference
     arrays: dict[str, np.ndarray] = {}
     meta: dict[str, Any] = {"trials": [], "failed": []}
     for k in params["trials"]:

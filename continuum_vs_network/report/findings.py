@@ -1,0 +1,130 @@
+"""Findings: a claim, the metric it refers to, what was measured and the verdict of a rule.
+
+A report section judges a claim (the paper's, the README's, the package's own) against the
+numbers of the same run and registers the result with
+:meth:`~continuum_vs_network.report.document.Document.finding`. Every finding lands in the
+scene's ``report.json`` (key ``"findings"``) and in the findings table that opens
+``reports/README.md``. A verdict is never written by hand: ``rule`` states how it follows
+from ``measured``.
+
+>>> f = Finding(
+...     claim="GCL lowers the task error",
+...     metric="final C/C0, median over trials",
+...     measured={"C/C0": 3e-4},
+...     verdict=REPRODUCED,
+...     rule="reproduced when the median final C/C0 < 1e-2",
+... )
+>>> f.to_dict()["verdict"]
+'reproduced'
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = [
+    "CONTRADICTED",
+    "NOT_COMPARABLE",
+    "NOT_REPRODUCED",
+    "REPRODUCED",
+    "VERDICTS",
+    "Finding",
+]
+
+#: The claim holds by the stated rule.
+REPRODUCED = "reproduced"
+#: The data does not show the claim (e.g. too weak an effect), without showing its opposite.
+NOT_REPRODUCED = "not reproduced"
+#: The data shows the opposite of the claim.
+CONTRADICTED = "contradicted"
+#: The run does not measure what the claim is about (another metric, setting or scale).
+NOT_COMPARABLE = "not comparable"
+#: Every verdict a finding may carry.
+VERDICTS = (REPRODUCED, NOT_REPRODUCED, CONTRADICTED, NOT_COMPARABLE)
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One claim and its computed verdict.
+
+    Attributes
+    ----------
+    claim : str
+        What is claimed, in one sentence (whose claim, e.g. "paper, Fig. 4: ...").
+    metric : str
+        The quantity the claim refers to, e.g. "final C/C0 (Eq. 26, strains against the
+        initial rest lengths), median over trials".
+    measured : mapping of str to float
+        The measured value(s) the verdict follows from, by name; non-finite values are
+        stored as ``None`` in JSON.
+    verdict : str
+        One of :data:`VERDICTS`.
+    rule : str
+        The stated rule that turns ``measured`` into ``verdict``.
+    section : str
+        Where in the report the finding is shown (a heading); filled in by the document
+        when empty.
+    """
+
+    claim: str
+    metric: str
+    measured: Mapping[str, float]
+    verdict: str
+    rule: str
+    section: str = ""
+    _values: tuple[tuple[str, float], ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for name in ("claim", "metric", "rule"):
+            if not isinstance(getattr(self, name), str) or not getattr(self, name).strip():
+                raise ValueError(f"Finding.{name} must be a non-empty string")
+        if self.verdict not in VERDICTS:
+            raise ValueError(
+                f"Finding.verdict must be one of {', '.join(map(repr, VERDICTS))}, "
+                f"not {self.verdict!r}"
+            )
+        if not isinstance(self.measured, Mapping) or not self.measured:
+            raise ValueError("Finding.measured must be a non-empty mapping of name to number")
+        values = []
+        for k, v in self.measured.items():
+            try:
+                values.append((str(k), float(v)))
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"Finding.measured[{k!r}] must be a number, not {type(v).__name__}"
+                ) from None
+        object.__setattr__(self, "_values", tuple(values))
+        object.__setattr__(self, "measured", dict(values))
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict (non-finite measured values become ``None``)."""
+        return {
+            "claim": self.claim,
+            "metric": self.metric,
+            "measured": {k: (v if math.isfinite(v) else None) for k, v in self._values},
+            "verdict": self.verdict,
+            "rule": self.rule,
+            "section": self.section,
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> Finding:
+        """Inverse of :meth:`to_dict` (``None`` measured values become NaN)."""
+        measured = {k: (math.nan if v is None else v) for k, v in d["measured"].items()}
+        return cls(
+            claim=d["claim"],
+            metric=d["metric"],
+            measured=measured,
+            verdict=d["verdict"],
+            rule=d["rule"],
+            section=d.get("section", ""),
+        )
+
+    def measured_text(self, digits: int = 3) -> str:
+        """``name = value`` pairs, comma-separated."""
+        return ", ".join(
+            f"{k} = {v:.{digits}g}" if math.isfinite(v) else f"{k} = -" for k, v in self._values
+        )

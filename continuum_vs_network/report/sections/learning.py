@@ -1,0 +1,322 @@
+"""Learning scenes: the paper's claims (or the Stern-scale table), error against steps and
+seconds, the paper's figures from this package's runs, the studies and the renders.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..document import (
+    SHORT_NAMES,
+    SOLVER_NAMES,
+    Document,
+    normalised,
+    quiet,
+    stats,
+)
+from ..figures import COLORS, Panel, Series
+from .learning_checks import (
+    CONVENTION_TEXT,
+    claims,
+    coupling,
+    curve_caption,
+    error_label,
+    noise_floor,
+)
+from .learning_studies import gradient, noise, solver_comparison, sweeps
+from .renders import learning_renders
+
+
+def section(doc: Document, result) -> None:
+    """The learning section: claims or Stern table, error figures, studies, renders."""
+    from ...learning.metrics import length_error, rest_length_error
+    from ...scenes.units_learning import run_names
+
+    scene = result.scene
+    L = scene.learning
+    solvers = scene.solver.methods if scene.solver is not None else ("newton",)
+    H = result.histories
+    names = run_names(scene)
+    ref = L.strain_reference
+
+    def h(solver: str, rule: str, i: int = 0):
+        return H[f"{solver}/{rule}/noise{i}"]
+
+    first = solvers[0]
+    doc.add(
+        f"{L.trials} trials x {L.steps} learning steps for each of "
+        f"{', '.join(f'`{r}`' for r in names)}; equilibria by "
+        f"{' and '.join(SOLVER_NAMES[s] for s in solvers)}; strain convention "
+        f"{CONVENTION_TEXT[ref]}; C below is Eq. 26 in that convention unless a column "
+        "says otherwise."
+    )
+    stopped = [
+        (f"{s}/{r}/noise{i}", int(np.sum(h(s, r, i).completed < L.steps)))
+        for s in solvers
+        for r in names
+        for i in range(len(L.noise))
+    ]
+    if any(n for _, n in stopped):
+        doc.add(
+            "",
+            "Trials that stopped early (a rest length would reach 0 without a floor, or "
+            "an equilibrium was lost): "
+            + ", ".join(f"{k}: {n}" for k, n in stopped if n)
+            + ". Their curves end there.",
+        )
+
+    if scene.task.kind == "paper":
+        claims(doc, result, h, solvers)
+    else:
+        from ...learning.stern import stern_table
+
+        doc.heading("Stern-scale allostery")
+        for solver in solvers:
+            rows = stern_table({(scene.network.n_nodes, r): h(solver, r) for r in names})
+            if rows:
+                doc.table(list(rows[0]), [list(r.values()) for r in rows])
+        doc.add(
+            f"{scene.task.n_sources} sources, {scene.task.n_targets} targets; `C/C0` is "
+            f"the final over the initial task error, {error_label(ref)} (median "
+            "[quartiles]). Whether a low C/C0 is learned or trivial: next section."
+        )
+    coupling(doc, result, h, solvers, names)
+
+    doc.heading("Error against iterations and against wall-clock time")
+    panels = []
+    for solver in solvers:
+        step_series, time_series = [], []
+        for j, rule in enumerate(names):
+            hist = h(solver, rule)
+            st = stats(normalised(hist.task_error(ref)))
+            steps = np.arange(hist.steps + 1)
+            secs = quiet(np.nanmedian, hist.seconds, axis=0)
+            color = COLORS[j % len(COLORS)]
+            step_series.append(Series(steps, st["median"], rule, st["q25"], st["q75"], color=color))
+            time_series.append(Series(secs, st["median"], rule, st["q25"], st["q75"], color=color))
+        name = SHORT_NAMES[solver]
+        panels += [
+            Panel(
+                step_series,
+                f"{name}: error vs learning step",
+                "learning step",
+                "C / C0 (median, quartiles)",
+                yscale="log",
+                hlines=(1.0,),
+            ),
+            Panel(
+                time_series,
+                f"{name}: error vs wall-clock time",
+                "seconds (median trial)",
+                "C / C0",
+                xscale="log",
+                yscale="log",
+                hlines=(1.0,),
+            ),
+        ]
+    doc.figure(
+        "error",
+        panels,
+        f"Task error {error_label(ref)}, normalised by its initial value, against "
+        "learning steps and against wall-clock seconds; line: median over trials, band: "
+        "quartiles.",
+    )
+
+    if scene.task.kind == "paper":
+        _paper_figures(doc, scene, h, first, length_error, rest_length_error)
+    if L.sweeps:
+        sweeps(doc, result, first)
+    if L.compare_gradient:
+        gradient(doc, result, h)
+    if len(L.noise) > 1 and L.etas:
+        noise_floor(doc, result, h, first, names)
+    elif len(L.noise) > 1:
+        noise(doc, result, h, first)
+    if len(solvers) > 1:
+        solver_comparison(doc, result, h, solvers)
+    _trials_appendix(doc, scene, h, first)
+    if scene.report.images or scene.export is not None:
+        learning_renders(doc, result)
+
+
+def _common_steps(hist) -> int:
+    """Last measurement index every trial reached (curves over trials stop there)."""
+    return int(np.min(hist.completed)) if len(hist.completed) else 0
+
+
+def _ends_note(hist) -> str:
+    """Caption sentence when trials stopped early (else empty)."""
+    last = _common_steps(hist)
+    if last >= hist.steps:
+        return ""
+    return (
+        f" The curves end at step {last}, where the first trial stopped: a mean over the "
+        "trials still running would jump."
+    )
+
+
+def _mean_panel(hist, title: str, values: NDArray, ylabel: str) -> Panel:
+    st = stats(normalised(values))
+    steps = np.arange(values.shape[1])
+    beyond = steps > _common_steps(hist)  # fewer trials there: another population
+    for v in st.values():
+        v[beyond[: v.shape[0]]] = np.nan
+    return Panel(
+        [
+            Series(
+                steps,
+                st["mean"],
+                "mean (as the paper)",
+                st["mean"] - st["std"],
+                st["mean"] + st["std"],
+            ),
+            Series(steps, st["median"], "median", style="--"),
+        ],
+        title,
+        "learning step",
+        ylabel,
+        yscale="log",
+        hlines=(1.0,),
+    )
+
+
+def _paper_figures(doc: Document, scene, h, solver: str, length_error, rest_length_error) -> None:
+    rules = scene.learning.rules
+    doc.heading("The paper's figures from this package's runs")
+    doc.add(
+        "Means over trials with one standard deviation (the paper plots the mean) and "
+        "medians; on a log axis the band is drawn where mean - std > 0."
+    )
+    for rule, fig in (
+        ("gcl", "Fig. 4"),
+        ("gcl_floor", "Fig. 4 (with a floor)"),
+        ("gpc", "Fig. 6"),
+        ("gpc_frozen", "Fig. 10"),
+    ):
+        if rule in rules:
+            hist = h(solver, rule)
+            doc.figure(
+                f"{rule}_mean",
+                [
+                    _mean_panel(
+                        hist,
+                        f"{fig}: {rule}",
+                        hist.task_error(hist.strain_reference),
+                        "C / C0",
+                    )
+                ],
+                f"{fig}: normalised error of {rule}, {error_label(hist.strain_reference)} "
+                f"({hist.trials} trials).{_ends_note(hist)}",
+                ncols=1,
+            )
+    if "gpc" in rules:
+        hist = h(solver, "gpc")
+        steps = np.arange(hist.steps)
+        doc.figure(
+            "gpc_energy",
+            [
+                Panel(
+                    [Series(steps, hist.energy_clamped[0], "trial 0")],
+                    "Fig. 7a: clamped energy E^C",
+                    "learning step",
+                    "E^C",
+                    yscale="log",
+                ),
+                Panel(
+                    [Series(steps, hist.energy_gradient_clamped[0], "trial 0")],
+                    "Fig. 7b: |dE^C/dL|",
+                    "learning step",
+                    "|dE/dL|",
+                    yscale="log",
+                ),
+            ],
+            "Fig. 7 (trial 0): "
+            + curve_caption("the clamped energy E^C", hist.energy_clamped[0])
+            + "; "
+            + curve_caption("|dE^C/dL|", hist.energy_gradient_clamped[0])
+            + ".",
+        )
+        doc.figure(
+            "gpc_lengths",
+            [
+                _mean_panel(
+                    hist,
+                    "Fig. 8: target length error",
+                    length_error(hist),
+                    "sum |r_T - l_T| / initial",
+                ),
+                _mean_panel(
+                    hist,
+                    "Fig. 9: target rest-length error",
+                    rest_length_error(hist),
+                    "sum |L_T - l_T| / initial",
+                ),
+            ],
+            "Fig. 8-9: distance of the target's free length (8) and rest length (9) from the "
+            "length that gives the desired strain, normalised." + _ends_note(hist),
+        )
+        trials = [
+            Series(steps, hist.energy_clamped[i], f"trial {i}", width=1.0)
+            for i in range(hist.trials)
+        ]
+        le, rle = length_error(hist), rest_length_error(hist)
+        s1 = np.arange(hist.steps + 1)
+        doc.figure(
+            "gpc_appendix",
+            [
+                Panel(
+                    trials,
+                    "A.3 B: E^C of every trial",
+                    "learning step",
+                    "E^C",
+                    yscale="log",
+                    legend=False,
+                ),
+                Panel(
+                    [Series(s1, le[i], width=1.0) for i in range(hist.trials)],
+                    "A.3 C: length error, unscaled",
+                    "learning step",
+                    "sum |r_T - l_T|",
+                    yscale="log",
+                    legend=False,
+                ),
+                Panel(
+                    [Series(s1, rle[i], width=1.0) for i in range(hist.trials)],
+                    "A.3 D: rest-length error, unscaled",
+                    "learning step",
+                    "sum |L_T - l_T|",
+                    yscale="log",
+                    legend=False,
+                ),
+            ],
+            "Appendix A.3 B-D: every GPC trial.",
+            ncols=3,
+        )
+
+
+def _trials_appendix(doc: Document, scene, h, solver: str) -> None:
+    from ...scenes.units_learning import run_names
+
+    panels = []
+    for rule in run_names(scene):
+        hist = h(solver, rule)
+        steps = np.arange(hist.steps + 1)
+        err = hist.task_error(hist.strain_reference)
+        panels.append(
+            Panel(
+                [Series(steps, err[i], width=1.0) for i in range(hist.trials)],
+                f"{rule}: C of every trial",
+                "learning step",
+                error_label(hist.strain_reference),
+                yscale="log",
+                legend=False,
+            )
+        )
+    doc.heading("Appendix: the unscaled error of every trial")
+    doc.figure(
+        "trials",
+        panels,
+        "Unscaled task error of every trial (appendix A.2 A, A.3 A).",
+        ncols=min(3, len(panels)),
+    )

@@ -1,0 +1,124 @@
+"""Transmission scenes: how strain travels from a clamped spring, network and continuum."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..document import (
+    Document,
+    above,
+    fmt,
+)
+from ..figures import Panel, Series
+from .renders import side_by_side
+
+
+# -- transmission --------------------------------------------------------------------------
+def section(doc: Document, result) -> None:
+    """Strain against distance, network and continuum; decay exponents; renders."""
+    scene = result.scene
+    units = result.select("transmission/")
+    cont = scene.continuum is not None
+    doc.add(
+        f"The spring nearest the centre of an n x n triangular lattice (spacing 1, k = 1) "
+        f"is clamped at strain {scene.task.strain:g}; every other spring's strain is read "
+        "against its distance from the source"
+        + (
+            ", in the network and in the finite-element continuum of the same shape "
+            f"(P{scene.continuum.order}, {scene.continuum.refine} refinement(s), "
+            f"{scene.continuum.material} material, two rigid patches of radius "
+            f"{scene.continuum.patch_radius:g} L moved apart)."
+            if cont
+            else "."
+        )
+    )
+    rows = []
+    panels = []
+    for u in units.values():
+        m, a = u.meta, u.arrays
+        row = [m["n"], m["n_nodes"], fmt(m["network_exponent"]), fmt(m["network_seconds"])]
+        floor = 1e-9 * float(np.max(np.abs(a["network_strain"])))
+        series = [
+            Series(
+                a["distance"],
+                above(np.abs(a["network_strain"]), floor),
+                "network",
+                style="",
+                marker=".",
+                alpha=0.5,
+            )
+        ]
+        if cont:
+            row += [
+                fmt(m["continuum_exponent"]),
+                fmt(m["correlation"], 4),
+                fmt(m["continuum_seconds"]),
+            ]
+            series.append(
+                Series(
+                    a["distance"],
+                    above(np.abs(a["continuum_strain"]), floor),
+                    "continuum",
+                    style="",
+                    marker=".",
+                    alpha=0.5,
+                )
+            )
+        r = np.linspace(1.0, float(np.max(a["distance"])), 50)
+        ref = np.nanmedian(np.abs(a["network_strain"])[np.abs(a["distance"] - 2) < 0.6])
+        series.append(Series(r, ref * (r / 2.0) ** -2, "r^-2", style="--", color="0.3"))
+        panels.append(
+            Panel(
+                series,
+                f"n = {m['n']} (N = {m['n_nodes']})",
+                "distance from the source",
+                "|strain|",
+                xscale="log",
+                yscale="log",
+            )
+        )
+        rows.append(row)
+    headers = ["n", "N", "network decay exponent", "network s"]
+    if cont:
+        headers += ["continuum decay exponent", "correlation network/continuum", "continuum s"]
+    doc.table(headers, rows)
+    doc.add(
+        "Strains below 1e-9 of the largest (round-off; springs that only rotate) are not "
+        "drawn. Decay exponents are fitted to |strain| binned in distance between 2 "
+        "spacings and 0.3 n (a force dipole in an infinite 2D body decays as r^-2); '-' "
+        "where the lattice is too small for a fit.",
+        "",
+    )
+    doc.figure(
+        "transmission",
+        panels,
+        "Strain against distance from the source spring.",
+        ncols=min(3, len(panels)),
+    )
+    if cont:
+        last = list(units.values())[-1]
+        a = last.arrays
+        doc.figure(
+            "transmission_scatter",
+            [
+                Panel(
+                    [
+                        Series(
+                            a["network_strain"],
+                            a["continuum_strain"],
+                            "springs",
+                            style="",
+                            marker=".",
+                            alpha=0.5,
+                        )
+                    ],
+                    f"n = {last.meta['n']}: every spring",
+                    "network strain",
+                    "continuum chord strain",
+                    diagonal=True,
+                )
+            ],
+            "Network against continuum strain of every spring (largest lattice).",
+            ncols=1,
+        )
+    side_by_side(doc, result, "transmission/", "transmission")
