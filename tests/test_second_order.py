@@ -103,3 +103,15 @@ def test_rigid_networks_pass_the_rank_check_even_when_started_collinear():
     pins = np.array([[1, 1], [0, 1], [0, 0]], bool)
     eq = cvn.relax(net, pinned=pins)
     assert eq.converged and eq.energy < 1e-20
+
+
+def test_incompatible_clamps_fail_with_a_clear_reason():
+    """A triangle clamped to sides 1, 1, 3 cannot exist: a clear failure, not a creep."""
+    net = cvn.SpringNetwork(
+        [[0, 0], [1, 0], [0.5, 0.8], [1.5, 0.8]],
+        [[0, 1], [1, 2], [2, 0], [1, 3], [2, 3]],
+        [1.0] * 5,
+        [1.0] * 5,
+    )
+    with pytest.raises(cvn.EquilibriumError, match="clamp lengths cannot all be met"):
+        cvn.relax(net, pinned=(0,), clamped={0: 1.0, 1: 1.0, 2: 3.0})

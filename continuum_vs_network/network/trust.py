@@ -192,6 +192,15 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     stiff = StiffSprings.find(problem, coords)
     root_d = np.sqrt(_node_stiffness(problem)[coords])
     x = _onto_clamps(problem, np.array(x, dtype=np.float64), coords)
+    if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
+        return Outcome(
+            x,
+            0,
+            False,
+            "the clamp lengths cannot all be met (the projection onto them does not converge): "
+            f"clamps on springs {problem.clamp_springs.tolist()} are incompatible, e.g. a "
+            "triangle of clamped springs that violates the triangle inequality",
+        )
     radius = 0.25 * float(np.mean(net.rest_length)) * float(np.sqrt(np.median(root_d**2) * n))
     lowest = -np.inf  # smallest eigenvalue of the last reduced Hessian
     for it in range(stop.max_iter + 1):
