@@ -108,3 +108,47 @@ def test_coupled_learning_answers_junk_with_a_named_error(name, value):
         cvn.CoupledLearning(**kwargs)
     except Exception as err:
         assert isinstance(err, ArgumentError), f"{name}={value!r}: {type(err).__name__}: {err}"
+
+
+TOML_JUNK = st.one_of(
+    st.booleans(),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8),
+    st.lists(st.integers(min_value=-(2**64), max_value=2**64), max_size=3),
+    st.lists(st.text(max_size=3), max_size=3),
+    st.dictionaries(st.text(max_size=3), st.integers(), max_size=2),
+)
+
+
+def _scene_keys() -> list[tuple[str, str]]:
+    import tomllib
+
+    from continuum_vs_network.scenes.schema import builtin_path
+
+    keys = []
+    for name in ("paper", "transmission", "relaxation"):
+        data = tomllib.loads(builtin_path(name).read_text())
+        for top, value in data.items():
+            if isinstance(value, dict):
+                keys += [(name, f"{top}.{k}") for k in value]
+            else:
+                keys.append((name, top))
+    return keys
+
+
+@pytest.mark.parametrize(("scene", "key"), _scene_keys())
+@settings(max_examples=15, deadline=None)
+@given(value=TOML_JUNK)
+def test_scene_keys_answer_junk_with_a_scene_error(scene, key, value):
+    import tomllib
+
+    from continuum_vs_network.scenes.schema import SceneError, builtin_path, parse_scene
+
+    data = tomllib.loads(builtin_path(scene).read_text())
+    table, _, name = key.rpartition(".")
+    (data[table] if table else data)[name] = value
+    try:
+        parse_scene(data, "fuzz.toml")
+    except SceneError as err:
+        assert name in str(err) or "fuzz.toml" in str(err)
