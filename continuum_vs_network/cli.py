@@ -6,18 +6,29 @@
     cvn run SCENE [--out DIR]     run one scene (a .toml file or a built-in name), write its report
     cvn export SCENE              write the scene's meshes (VTU, PVD series) for ParaView
     cvn scenes [--keys]           list the built-in scenes (--keys: every scene key)
+    cvn sweep SCENE [--set K=V,V] run a grid of scene variants on Dask, write its table and report
     cvn demo                      relax the paper's network with every method
 
 Outputs go under ``--out`` (default: the current folder): ``results/<scene>/`` (computed
 units and checkpoints: an interrupted run resumes from them), ``reports/<scene>/``,
-``meshes/<scene>/``.
+``meshes/<scene>/``. A scene's result folder is locked while a run uses it: a second run on
+the same scene and ``--out`` stops at once with exit code 7 (it does not wait).
+
+Errors: a mistake in the command line, a scene file or the output folder is one line on
+stderr (``cvn: ...``) and an exit code from :data:`EXIT`, never a traceback. Anything else
+is a bug: its traceback is printed, with exit code 70. ``cvn --debug ...`` (or the
+environment variable ``CVN_DEBUG=1``) prints the traceback of every error.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import os
 import sys
+import tempfile
 import time
+import traceback
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -31,18 +42,35 @@ EXIT = {
     "run": 3,  # a scene's computation failed
     "report": 4,  # writing a report failed
     "export": 5,  # writing meshes failed
+    "output": 6,  # the --out folder cannot be used (not a folder, not writable, a broken link)
+    "busy": 7,  # the scene's result folder is in use by another run
+    "internal": 70,  # a bug: the traceback is printed
     "interrupted": 130,
 }
 
 _EPILOG = (
     "exit codes: 0 ok; 1 demo: a method did not converge; 2 bad command line or scene file; "
     "3 a scene's computation failed; 4 writing a report failed; 5 writing meshes failed; "
-    "130 interrupted (rerun to resume)."
+    "6 the --out folder cannot be used; 7 the scene's result folder is in use by another "
+    "run; 70 internal error (a bug; traceback printed); 130 interrupted (rerun to resume). "
+    "Errors are one line on stderr; --debug (or CVN_DEBUG=1) prints their tracebacks."
 )
+_DEBUG_ENV = "CVN_DEBUG"
+_MAX_WORKERS_PER_CPU = 4  # more processes than this only compete for the same cores
+
+
+class _OutputError(Exception):
+    """The --out folder cannot be used."""
+
+
+def _debug() -> bool:
+    return os.environ.get(_DEBUG_ENV, "") not in ("", "0")
 
 
 def _err(msg: str) -> None:
-    print(f"cvn: {msg}", file=sys.stderr)
+    if _debug() and sys.exc_info()[0] is not None:
+        traceback.print_exc()
+    print("cvn: " + " ".join(str(msg).split("\n")), file=sys.stderr)
 
 
 def _info(args: argparse.Namespace, msg: str) -> None:
@@ -53,9 +81,15 @@ def _info(args: argparse.Namespace, msg: str) -> None:
 def _demo(args: argparse.Namespace) -> int:
     from .demo import format_table, run_demo
 
-    rows, info = run_demo(args.seed, strain=args.strain, paper_seconds=args.paper_seconds)
+    rows, info = run_demo(
+        args.seed, strain=args.strain, paper_seconds=args.paper_seconds, methods=args.methods
+    )
     print(format_table(rows, info))
-    return EXIT["ok"] if all(r.converged for r in rows if r.method != "paper") else 1
+    failed = [r.method for r in rows if not r.converged]
+    if failed:
+        _err(f"demo: {', '.join(failed)} did not converge")
+        return EXIT["not_converged"]
+    return EXIT["ok"]
 
 
 def _scenes(args: argparse.Namespace) -> int:
@@ -66,15 +100,17 @@ def _scenes(args: argparse.Namespace) -> int:
         return EXIT["ok"]
     scenes = [load_scene(name) for name in builtin_names()]
     width = max(len(s.name) for s in scenes)
-    print(f"{'scene':{width}}  {'kind':12}  default  description")
+    print(f"{'scene':{width}}  {'kind':14}  default  description")
     for s in scenes:
         print(
-            f"{s.name:{width}}  {s.kind:12}  {'yes' if s.report.default else 'no':7}  "
+            f"{s.name:{width}}  {s.kind + (' sweep' if s.sweep else ''):14}  "
+            f"{'yes' if s.report.default else 'no':7}  "
             f"{s.description}"
         )
     print(
         "\n`cvn report` runs the default set; `cvn run NAME` or `cvn report NAME ...` any "
-        "scene; `cvn scenes --keys` lists every key a scene file may set."
+        "scene; `cvn sweep NAME` a sweep (also with --set KEY=V1,V2 on any learning scene); "
+        "`cvn scenes --keys` lists every key a scene file may set."
     )
     return EXIT["ok"]
 
@@ -93,12 +129,37 @@ def _default_scenes():
 
 def _process(args: argparse.Namespace, scene, *, report: bool, force_export: bool) -> int:
     """Run one scene, export its meshes and write its report; returns an exit code."""
-    from .scenes.meshes import export_meshes
-    from .scenes.runner import SceneRunError, run_scene
-
+    if scene.sweep is not None and not force_export:
+        return _process_sweep(args, scene, report=report)
     out = Path(args.out)
     if force_export and scene.export is None:
         scene = scene.with_export()
+    from .io.lock import FolderBusyError, folder_lock
+
+    try:
+        with folder_lock(out / "results" / scene.name):
+            return _process_locked(args, scene, out, report=report)
+    except FolderBusyError as err:
+        _err(str(err))
+        return EXIT["busy"]
+    except OSError as err:
+        _err(f"scene {scene.name!r}: {_os_message(err)}")
+        return EXIT["output"]
+
+
+def _os_message(err: OSError) -> str:
+    where = f"{err.filename}: " if err.filename else ""
+    return f"{where}{err.strerror or err}"
+
+
+def _process_locked(args: argparse.Namespace, scene, out: Path, *, report: bool) -> int:
+    """:func:`_process` while the scene's result folder is locked."""
+    from .io.atomic import remove_stale_temporaries
+    from .scenes.meshes import export_meshes
+    from .scenes.runner import SceneRunError, run_scene
+
+    for folder in (out / "reports" / scene.name, out / "meshes" / scene.name):
+        remove_stale_temporaries(folder, locked=True)
     t0 = time.perf_counter()
     try:
         result = run_scene(
@@ -111,6 +172,8 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
             log=lambda m: _info(args, m),
         )
     except SceneRunError as err:
+        if _debug():
+            traceback.print_exception(err.cause)
         _err(f"{err} (completed units are kept; rerun to resume)")
         return EXIT["run"]
     _info(args, f"{scene.name}: computed in {time.perf_counter() - t0:.1f} s")
@@ -139,10 +202,88 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
     return EXIT["ok"]
 
 
+def _process_sweep(args: argparse.Namespace, scene, *, report: bool) -> int:
+    """Run a sweep (a scene with a [sweep] table), write its table and report."""
+    from .io.lock import FolderBusyError
+    from .scenes.executor import ExecutorUnavailable
+    from .scenes.sweep import SweepRunError, run_sweep
+
+    out = Path(args.out)
+    t0 = time.perf_counter()
+    try:
+        result = run_sweep(
+            scene,
+            out / "results" / scene.name,
+            workers=args.workers,
+            scheduler=getattr(args, "scheduler", None),
+            progress=not args.quiet,
+            fresh=getattr(args, "fresh", False),
+            dry_run=getattr(args, "dry_run", False),
+            log=lambda m: _info(args, m),
+        )
+    except SweepRunError as err:
+        if _debug():
+            traceback.print_exception(err.cause)
+        _err(f"{err} (completed points are kept; rerun to resume)")
+        return EXIT["run"]
+    except FolderBusyError as err:
+        _err(str(err))
+        return EXIT["busy"]
+    except (ImportError, ExecutorUnavailable) as err:  # no Dask/pandas; no scheduler there
+        _err(str(err))
+        return EXIT["usage"]
+    if result is None:  # --dry-run
+        return EXIT["ok"]
+    _info(args, f"{scene.name}: {len(result.points)} points in {time.perf_counter() - t0:.1f} s")
+    _info(args, f"{scene.name}: table {out / 'results' / scene.name / 'table.parquet'} (and .csv)")
+    if report:
+        from .report.writer import write_sweep_report
+
+        try:
+            path = write_sweep_report(
+                result, out / "reports" / scene.name, command=_sweep_command(args, scene)
+            )
+        except Exception as err:  # the exit code says which stage failed
+            _err(f"sweep {scene.name!r}: writing the report failed: {type(err).__name__}: {err}")
+            return EXIT["report"]
+        _info(args, f"{scene.name}: report {path}")
+    return EXIT["ok"]
+
+
+def _sweep_command(args: argparse.Namespace, scene) -> str:
+    """The command that regenerates a sweep (its scene, and any --set / --zip settings)."""
+    from .scenes.schema import builtin_names
+
+    name = scene.name.removesuffix("_sweep")
+    target = name if name in builtin_names() else scene.source
+    extra = [f"--set {s}" for s in getattr(args, "set", None) or []]
+    extra += [f"--zip {z}" for z in getattr(args, "zip", None) or []]
+    return " ".join(["cvn sweep", target, *extra])
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from .scenes.grid import parse_set, with_overrides
+
+    (scene,) = _load([args.scene])
+    if scene.sweep is None:  # a sweep of a plain scene: its own folders, not the scene's
+        scene = dataclasses.replace(scene, name=f"{scene.name}_sweep")
+    zips = [[k.strip() for k in z.split(",")] for z in args.zip or []]
+    scene = with_overrides(
+        scene, parse_set(args.set or []), zip_groups=zips, threshold=args.threshold
+    )
+    code = _process_sweep(args, scene, report=not args.no_report)
+    if code == EXIT["ok"] and not args.no_report and not args.dry_run:
+        _index(args)
+    return code
+
+
 def _index(args: argparse.Namespace, note: str | None = None) -> None:
+    from .report.readme import update_readme
     from .report.writer import write_index
 
     write_index(Path(args.out) / "reports", note=note)
+    # the generated blocks of <out>/README.md (the repository's README), when it has them
+    update_readme(Path(args.out) / "README.md", Path(args.out) / "reports")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -174,8 +315,39 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
+    from .scenes.schema import SceneError
+
     (scene,) = _load([args.scene])
+    if scene.sweep is not None:
+        raise SceneError(
+            scene.source,
+            "sweep",
+            "",
+            "a sweep has no meshes of its own (its points compute training runs only); "
+            "export one variant: a scene file without [sweep] and with its values",
+        )
     return _process(args, scene, report=False, force_export=True)
+
+
+def _output_root(out: str) -> Path:
+    """The --out folder, created and checked writable; :class:`_OutputError` says why not."""
+    path = Path(out)
+    try:
+        if path.is_symlink():
+            try:
+                os.stat(path)
+            except OSError as err:
+                kind = "a symbolic link loop" if err.errno == 40 else "a broken symbolic link"
+                raise _OutputError(f"--out {out}: {kind} ({err.strerror})") from None
+        if path.exists() and not path.is_dir():
+            raise _OutputError(f"--out {out}: not a folder")
+        path.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(dir=path, prefix=".cvn-write-test.", suffix=".probe")
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as err:
+        raise _OutputError(f"--out {out}: cannot write there ({_os_message(err)})") from None
+    return path
 
 
 def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
@@ -204,19 +376,37 @@ def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .network.equilibrium import METHODS
+
     parser = argparse.ArgumentParser(
         prog="cvn",
         description="Mass-spring networks that learn, against an elastic continuum.",
         epilog=_EPILOG,
     )
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help=f"print the traceback of every error (also: {_DEBUG_ENV}=1)",
+    )
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser(
-        "demo", help="relax the paper's network with every method and print a table"
+        "demo",
+        help="relax the paper's network with every method and print a table",
+        epilog="exit codes: 0 every method converged; 1 a method did not (the paper's Adagrad "
+        "stalls by design: leave it out with --methods to check the others); 2 bad arguments.",
     )
     demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     demo.add_argument("--strain", type=float, default=None, help="source strain (default ~N(5,1))")
     demo.add_argument(
         "--paper-seconds", type=float, default=5.0, help="time budget of the paper's Adagrad"
+    )
+    demo.add_argument(
+        "--methods",
+        nargs="+",
+        choices=list(METHODS),
+        default=list(METHODS),
+        metavar="METHOD",
+        help=f"methods to run (default: all of {', '.join(METHODS)})",
     )
     demo.set_defaults(func=_demo)
 
@@ -247,6 +437,57 @@ def build_parser() -> argparse.ArgumentParser:
     _common(export, report=False)
     export.set_defaults(func=_export)
 
+    sweep = sub.add_parser(
+        "sweep",
+        help="run a grid of scene variants (a [sweep] table and/or --set) on Dask",
+        description="Expand a scene into a grid of variants (cartesian product of the swept "
+        "keys), print its size and estimated cost, run every point not already stored "
+        "(on a local Dask cluster, or on a running scheduler), and write the tidy table "
+        "results/<scene>/table.parquet (and .csv) and reports/<scene>/report.md (<scene>_sweep "
+        "for a scene without a [sweep] table of its own).",
+        epilog=_EPILOG,
+    )
+    sweep.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    sweep.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=V1,V2",
+        help="sweep KEY (table.key, or seed) over the values (a..b: the integers a to b); "
+        "replaces the scene's own axis of that key; repeat for more keys",
+    )
+    sweep.add_argument(
+        "--zip",
+        action="append",
+        metavar="KEY,KEY",
+        help="vary these swept keys together (equal numbers of values) instead of crossing them",
+    )
+    sweep.add_argument(
+        "--threshold",
+        type=float,
+        default=None,
+        metavar="X",
+        help="steps_to_threshold counts steps until error <= X x initial error (default 0.1)",
+    )
+    sweep.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on an existing Dask cluster (tcp://host:8786); its workers must import "
+        "this package and see --out",
+    )
+    sweep.add_argument(
+        "--dry-run", action="store_true", help="print the grid and the estimated cost only"
+    )
+    sweep.add_argument("--no-report", action="store_true", help="compute the table only")
+    _common(sweep, report=False)
+    sweep.set_defaults(func=_sweep, workers=None)
+    for action in sweep._actions:
+        if action.dest == "workers":
+            action.default = None
+            action.help = (
+                "local Dask worker processes (default: this machine's cores; 1: serial, no Dask)"
+            )
+
     scenes = sub.add_parser("scenes", help="list the built-in scenes")
     scenes.add_argument("--keys", action="store_true", help="list every key a scene may set")
     scenes.set_defaults(func=_scenes)
@@ -254,23 +495,46 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``cvn``; returns the exit code."""
+    """Entry point of ``cvn``; returns the exit code (see :data:`EXIT`)."""
+    from ._validate import ArgumentError
     from .scenes.schema import SceneError
 
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
-    args.argv = argv
-    if getattr(args, "workers", 1) < 1:
-        _err(f"--workers must be >= 1, got {args.workers}")
+    args.argv = [a for a in argv if a != "--debug"]
+    if args.debug:
+        os.environ[_DEBUG_ENV] = "1"
+    top = _MAX_WORKERS_PER_CPU * (os.cpu_count() or 1)
+    workers = getattr(args, "workers", 1)
+    if workers is not None and not 1 <= workers <= top:
+        _err(f"--workers must be in 1..{top} ({_MAX_WORKERS_PER_CPU} per CPU), got {args.workers}")
         return EXIT["usage"]
     try:
+        if hasattr(args, "out"):
+            _output_root(args.out)
         return int(args.func(args))
-    except SceneError as err:
+    except (SceneError, ArgumentError) as err:
         _err(str(err))
         return EXIT["usage"]
+    except _OutputError as err:
+        _err(str(err))
+        return EXIT["output"]
     except KeyboardInterrupt:
         _err("interrupted; rerun the same command to resume")
         return EXIT["interrupted"]
+    except OSError as err:  # the file system refused (disk full, permissions, ...)
+        _err(_os_message(err))
+        return EXIT["output"]
+    except MemoryError:
+        _err("out of memory; use a smaller scene (the estimate at load was too low)")
+        return EXIT["run"]
+    except Exception:  # a bug: show it
+        traceback.print_exc()
+        print(
+            "cvn: internal error (a bug; please report it with the traceback above)",
+            file=sys.stderr,
+        )
+        return EXIT["internal"]
 
 
 if __name__ == "__main__":  # pragma: no cover

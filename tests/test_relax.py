@@ -101,15 +101,15 @@ def test_non_convergence_raises_with_last_state_and_no_nan():
     ("kwargs", "message"),
     [
         ({"method": "magic"}, "method must be one of"),
-        ({"tol": 0.0}, "tol must be finite and > 0"),
+        ({"tol": 0.0}, "tol must be a finite number > 0, got 0.0"),
         ({"ramp": 0}, "ramp must be an integer >= 1"),
-        ({"clamp": "glue"}, "clamp must be 'exact' or 'rod'"),
-        ({"clamped": {7: 1.0}}, "clamped names spring 7"),
-        ({"clamped": {0: -1.0}}, "clamped length of spring 0 must be finite and > 0"),
-        ({"pinned": (5,)}, "pinned names node 5"),
-        ({"pinned": np.zeros((2, 2), bool)}, r"pinned as a mask must have shape \(3, 2\)"),
-        ({"x0": np.zeros((2, 2))}, r"x0 must have shape \(3, 2\)"),
-        ({"x0": np.full((3, 2), np.nan)}, "x0 must be finite"),
+        ({"clamp": "glue"}, "clamp must be one of 'exact', 'rod'"),
+        ({"clamped": {7: 1.0}}, r"clamped key must be a spring index in 0..2, got 7"),
+        ({"clamped": {0: -1.0}}, r"clamped\[0\] must be a finite number > 0, got -1.0"),
+        ({"pinned": (5,)}, r"pinned\[0\] must be node indices in 0..2, got 5"),
+        ({"pinned": np.zeros((2, 2), bool)}, r"pinned must be a bool mask of shape \(3, 2\)"),
+        ({"x0": np.zeros((2, 2))}, r"x0 must be an array of shape \(3, 2\)"),
+        ({"x0": np.full((3, 2), np.nan)}, r"x0\[0, 0\] must be finite"),
     ],
 )
 def test_bad_arguments_are_named(kwargs, message):

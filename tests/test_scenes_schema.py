@@ -110,7 +110,7 @@ def test_tiny_scene_parses_with_defaults(tmp_path):
             "solvers",
             "unknown key or table",
         ),
-        ("seed = 1", "seed = -3", "(top level)", "seed", ">= 0"),
+        ("seed = 1", "seed = -3", "(top level)", "seed", "in 0..2**63-1"),
         ('name = "tiny"', 'name = "../etc"', "(top level)", "name", "plain name"),
         (
             'kind = "learning"\n',

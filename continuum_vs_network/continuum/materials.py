@@ -7,6 +7,8 @@ One function per mapping between conventions:
 - a triangular lattice of springs ``k`` (spacing ``a``, pre-tension ``T``) to its Lamé
   parameters (:func:`lattice_lame`);
 - spring dashpots to viscous Lamé parameters (:func:`lattice_viscous_lame`);
+- Maxwell arms on the springs to the arm of a continuum standard linear solid
+  (:func:`lattice_maxwell_arm`);
 - node masses and node drag to a density and a substrate-drag coefficient
   (:func:`node_drag_to_continuum`);
 - any network (for example a trained one) to its homogenised elastic tensor, by affine or
@@ -33,6 +35,7 @@ __all__ = [
     "NetworkModuli",
     "lattice_area_per_node",
     "lattice_lame",
+    "lattice_maxwell_arm",
     "lattice_viscous_lame",
     "network_moduli",
     "node_drag_to_continuum",
@@ -163,6 +166,24 @@ def lattice_viscous_lame(dashpot: float) -> tuple[float, float]:
     if not (math.isfinite(g) and g >= 0):
         raise ValueError(f"dashpot must be finite and >= 0, got {g}")
     return SQRT3 / 4 * g, SQRT3 / 4 * g
+
+
+def lattice_maxwell_arm(arm_stiffness: float, arm_dashpot: float) -> tuple[float, ...]:
+    """Continuum Maxwell arm of a triangular lattice whose springs carry Maxwell arms.
+
+    An arm (spring ``k2`` in series with a dashpot ``gamma2``, one internal length per
+    spring) maps, by the affine argument of :func:`lattice_lame` applied to the arm's
+    elastic and viscous parts, to ``(arm_lam, arm_mu, arm_viscous_lam, arm_viscous_mu)
+    = sqrt(3)/4 (k2, k2, gamma2, gamma2)``: the three spring directions of a triangle fix
+    one internal strain tensor. The arm relaxation time ``gamma2 / k2`` is kept.
+    """
+    k2, g2 = float(arm_stiffness), float(arm_dashpot)
+    if not (math.isfinite(k2) and k2 > 0):
+        raise ValueError(f"arm_stiffness must be finite and > 0, got {arm_stiffness}")
+    if not (math.isfinite(g2) and g2 > 0):
+        raise ValueError(f"arm_dashpot must be finite and > 0, got {arm_dashpot}")
+    lam = lattice_lame(k2)
+    return (lam.lam, lam.mu, *lattice_viscous_lame(g2))
 
 
 def lattice_area_per_node(spacing: float) -> float:

@@ -10,7 +10,12 @@ The semi-discrete equations are ``M u'' + C u' + K u = f`` with
 - ``K``: stiffness.
 
 Fixed DOFs jump to their prescribed values at ``t = 0`` (a step, before the first
-recorded frame) and are held. Schemes (each factorises one matrix, once):
+recorded frame) and are held. The step is an impulse through the coupling ``C_fb`` (and
+``M_fb``) to the free DOFs, applied exactly (:func:`_step_impulse`): a Kelvin-Voigt body
+is at its elastic solution at every ``t > 0``. A Maxwell arm (:mod:`.maxwell`, a standard
+linear solid) adds internal strains to the unknowns, integrated by the same schemes.
+
+Schemes (each factorises one matrix, once):
 
 ``"backward_euler"``
     L-stable, first order. Overdamped limit (``rho = 0``): ``(C + dt K) v = f - K u``.
@@ -37,13 +42,22 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+if TYPE_CHECKING:
+    from ..network.viscous import Viscosity
+
 from .body import ElasticBody, mass_matrix, stiffness_matrix
+from .materials import (
+    lattice_area_per_node,
+    lattice_maxwell_arm,
+    lattice_viscous_lame,
+    node_drag_to_continuum,
+)
 from .probes import Probe
 from .static import Dirichlet, Ordering, factorise
 
@@ -52,12 +66,16 @@ __all__ = [
     "Damping",
     "damping_matrix",
     "explicit_limit",
+    "lattice_damping",
+    "linear_system",
     "relaxation_time",
     "simulate_body",
     "slowest_relaxation_time",
 ]
 
 Scheme = Literal["backward_euler", "newmark"]
+_RATES = ("drag", "rayleigh_mass", "rayleigh_stiffness", "viscous_lam", "viscous_mu")
+_ARM = ("arm_lam", "arm_mu", "arm_viscous_lam", "arm_viscous_mu")
 
 
 @dataclass(frozen=True)
@@ -73,6 +91,10 @@ class Damping:
     viscous_lam, viscous_mu : float
         Kelvin-Voigt viscous Lamé parameters (force time per length): the stiffness form
         with ``(lam_v, mu_v)`` is added to ``C``.
+    arm_lam, arm_mu, arm_viscous_lam, arm_viscous_mu : float
+        Maxwell arm of a standard linear solid (:mod:`.maxwell`): elastic Lamé parameters
+        of the arm's spring and viscous ones of its dashpot; all four > 0 or all 0.
+        Adds an internal strain per quadrature point.
     """
 
     drag: float = 0.0
@@ -80,15 +102,58 @@ class Damping:
     rayleigh_stiffness: float = 0.0
     viscous_lam: float = 0.0
     viscous_mu: float = 0.0
+    arm_lam: float = 0.0
+    arm_mu: float = 0.0
+    arm_viscous_lam: float = 0.0
+    arm_viscous_mu: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("drag", "rayleigh_mass", "rayleigh_stiffness", "viscous_lam", "viscous_mu"):
+        for name in (*_RATES, *_ARM):
             v = float(getattr(self, name))
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
             object.__setattr__(self, name, v)
         if self.viscous_lam > 0 and self.viscous_mu == 0:
             raise ValueError("viscous_lam > 0 needs viscous_mu > 0 (a shear viscosity)")
+        if self.arm_lam + self.arm_mu + self.arm_viscous_lam + self.arm_viscous_mu > 0 and not (
+            self.arm_mu > 0 and self.arm_viscous_mu > 0
+        ):
+            raise ValueError(
+                "a Maxwell arm needs arm_mu > 0 and arm_viscous_mu > 0 "
+                f"(got arm_mu={self.arm_mu}, arm_viscous_mu={self.arm_viscous_mu})"
+            )
+
+    @property
+    def has_arm(self) -> bool:
+        return self.arm_mu > 0
+
+
+def lattice_damping(viscosity: Viscosity, *, spacing: float = 1.0) -> Damping:
+    """The continuum :class:`Damping` of a triangular lattice with ``viscosity``.
+
+    Node drag ``c`` -> substrate drag ``c / A`` (:func:`~.materials.node_drag_to_continuum`,
+    ``A`` the area per node), spring dashpots -> Kelvin-Voigt viscosity
+    (:func:`~.materials.lattice_viscous_lame`), Maxwell arms -> the continuum arm
+    (:func:`~.materials.lattice_maxwell_arm`). Overdamped: no density.
+    """
+    from ..network.viscous import Viscosity
+
+    if not isinstance(viscosity, Viscosity):
+        raise ValueError(f"viscosity must be a Viscosity, got {type(viscosity).__name__}")
+    _, eta = node_drag_to_continuum(viscosity.drag, area_per_node=lattice_area_per_node(spacing))
+    lam_v, mu_v = lattice_viscous_lame(viscosity.dashpot)
+    arm = (0.0, 0.0, 0.0, 0.0)
+    if viscosity.has_arm:
+        arm = lattice_maxwell_arm(viscosity.arm_stiffness, viscosity.arm_dashpot)
+    return Damping(
+        drag=eta,
+        viscous_lam=lam_v,
+        viscous_mu=mu_v,
+        arm_lam=arm[0],
+        arm_mu=arm[1],
+        arm_viscous_lam=arm[2],
+        arm_viscous_mu=arm[3],
+    )
 
 
 def damping_matrix(
@@ -211,7 +276,9 @@ def simulate_body(
     load : (n_dofs,) float array, optional
         Constant load ``f`` switched on at ``t = 0``.
     u0, v0 : (n_dofs,) float arrays, optional
-        Initial displacement (free DOFs; default 0) and velocity (default 0, needs mass).
+        Initial displacement (default 0; the fixed DOFs step from ``u0``'s values to
+        ``fixed``'s) and velocity (default 0, needs mass). Maxwell arms start relaxed at
+        ``u0``.
     observe : Probe, optional
         Read-out recorded at every recorded step.
     record_every : int
@@ -242,30 +309,49 @@ def simulate_body(
     if f.shape != (n,):
         raise ValueError(f"load must have shape ({n},), got {f.shape}")
 
-    K = stiffness_matrix(body)
-    M = mass_matrix(body, density) if density > 0 else None
-    C = damping_matrix(body, damping, density=density, K=K, M=M)
-    if M is None and C.nnz == 0:
+    K, C, M, n_int = _system(body, damping, density)
+    f_aug = np.concatenate([f, np.zeros(n_int)])
+    Cu = C[:n, :n]
+    if M is None and Cu.nnz == 0:
         raise ValueError(
-            "no mass (density=0) and no damping: nothing to integrate; use solve_static"
+            "no mass (density=0) and no damping of the displacements: nothing to integrate; "
+            "use solve_static"
         )
+    if scheme == "newmark" and M is not None and n_int:
+        raise ValueError("scheme='newmark' with mass and a Maxwell arm: use 'backward_euler'")
 
     free = np.ones(n, dtype=bool)
     free[fixed.dofs] = False
-    fi = np.flatnonzero(free)
-    u_full = fixed.vector(n)
+    fu = np.flatnonzero(free)
+    fi = np.concatenate([fu, n + np.arange(n_int)])  # free DOFs, then internal strains
+    b = fixed.dofs
     for name, arr in (("u0", u0), ("v0", v0)):
         if arr is not None and np.shape(arr) != (n,):
             raise ValueError(f"{name} must have shape ({n},), got {np.shape(arr)}")
     if v0 is not None and M is None:
         raise ValueError("v0 needs mass (density > 0)")
-    u = np.zeros(fi.size) if u0 is None else np.asarray(u0, dtype=float)[fi].copy()
-    v = np.zeros(fi.size) if v0 is None else np.asarray(v0, dtype=float)[fi].copy()
+    before = np.zeros(n) if u0 is None else np.asarray(u0, dtype=float).copy()
+    u_full = np.concatenate([before, np.zeros(n_int)])
+    if n_int:  # arms relaxed at the starting state
+        u_full[n:] = _arm(body, damping).strain @ before
+    u_full[b] = fixed.values
+    u = u_full[fi].copy()
+    v = np.zeros(fi.size)
+    if v0 is not None:
+        v[: fu.size] = np.asarray(v0, dtype=float)[fu]
+    # the step of the fixed DOFs at t = 0 is an impulse on the coupled free DOFs
+    jump_u, jump_v = _step_impulse(
+        Cu, None if M is None else M[:n, :n], fu, b, fixed.values - before[b]
+    )
+    u[: fu.size] += jump_u
+    v[: fu.size] += jump_v
 
     Kf = K[fi][:, fi].tocsc()
     Cf = C[fi][:, fi].tocsc()
     Mf = None if M is None else M[fi][:, fi].tocsc()
-    g = f[fi] - K[fi][:, fixed.dofs] @ fixed.values  # held DOFs do not move for t > 0
+    g = f_aug[fi] - K[fi][:, b] @ fixed.values  # held DOFs do not move for t > 0
+    u_full = np.zeros(n + n_int)
+    u_full[b] = fixed.values
 
     if scheme == "backward_euler":
         A = Cf + dt * Kf if Mf is None else Mf / dt + Cf + dt * Kf
@@ -289,7 +375,7 @@ def simulate_body(
         u_full[fi] = u
         times.append(step * dt)
         if observe is not None:
-            observed.append(observe(u_full))
+            observed.append(observe(u_full[:n]))
         energy.append(0.5 * float(u_full @ (K @ u_full)))
         kinetic.append(0.0 if Mf is None else 0.5 * float(v @ (Mf @ v)))
 
@@ -331,12 +417,82 @@ def simulate_body(
         observed=obs,
         energy=np.array(energy),
         kinetic=np.array(kinetic),
-        u=u_full.copy(),
+        u=u_full[:n].copy(),
         seconds=time.perf_counter() - t_start,
         seconds_factorisation=lu.seconds,
         scheme=scheme,
         dt=dt,
     )
+
+
+def _arm(body: ElasticBody, damping: Damping):
+    from .maxwell import arm_operators
+
+    return arm_operators(
+        body,
+        arm_lam=damping.arm_lam,
+        arm_mu=damping.arm_mu,
+        viscous_lam=damping.arm_viscous_lam,
+        viscous_mu=damping.arm_viscous_mu,
+    )
+
+
+def _system(
+    body: ElasticBody, damping: Damping, density: float
+) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix | None, int]:
+    """``K, C, M`` over the displacement DOFs and the arm's internal strains, and their
+    number: ``K = [[K + B^T S B, -B^T S], [-S B, S]]``, ``C = diag(C, V)``, ``M = diag(M, 0)``
+    (:mod:`.maxwell`)."""
+    K = stiffness_matrix(body)
+    M = mass_matrix(body, density) if density > 0 else None
+    C = damping_matrix(body, damping, density=density, K=K, M=M)
+    if not damping.has_arm:
+        return K, C, M, 0
+    arm = _arm(body, damping)
+    B, S, V = arm.strain, arm.stiffness, arm.viscosity
+    K = sp.bmat([[K + B.T @ S @ B, -(B.T @ S)], [-(S @ B), S]], format="csr")
+    C = sp.bmat([[C, None], [None, V]], format="csr")
+    if M is not None:
+        M = sp.bmat([[M, None], [None, sp.csr_matrix(S.shape)]], format="csr")
+    return K, C, M, arm.n_internal
+
+
+def _step_impulse(
+    C: sp.spmatrix, M: sp.spmatrix | None, free: NDArray, held: NDArray, delta: NDArray
+) -> tuple[NDArray, NDArray]:
+    """Jumps of the free displacements and velocities when the held DOFs step by ``delta``.
+
+    Integrating ``M u'' + C u' + K u = f`` across the step: without mass ``C_ff du_f =
+    -C_fb delta``; with mass ``du_f = -M_ff^{-1} M_fb delta`` and ``M_ff dv_f =
+    -(C_ff du_f + C_fb delta)``. A Kelvin-Voigt body (``C`` proportional to ``K``) thus
+    starts at its elastic solution; dropping the coupling made it creep instead.
+    """
+    zero = np.zeros(free.size)
+    if held.size == 0 or not np.any(delta):
+        return zero, zero
+    C = sp.csr_matrix(C)
+    C_fb = C[free][:, held] @ delta
+    if M is None:
+        if not np.any(C_fb):
+            return zero, zero
+        return factorise(C[free][:, free].tocsc()).solve(-C_fb), zero
+    M = sp.csr_matrix(M)
+    lu = factorise(M[free][:, free].tocsc())
+    du = lu.solve(-(M[free][:, held] @ delta))
+    return du, lu.solve(-(C[free][:, free] @ du + C_fb))
+
+
+def linear_system(
+    body: ElasticBody, damping: Damping, fixed: Dirichlet
+) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """Stiffness and damping ``(K, C)`` of the overdamped body on its free unknowns (free
+    displacement DOFs, then the arm's internal strains): ``C z' + K z = 0``, for
+    :func:`slowest_relaxation_time`."""
+    K, C, _, n_int = _system(body, damping, 0.0)
+    free = np.ones(body.n_dofs, dtype=bool)
+    free[fixed.dofs] = False
+    fi = np.concatenate([np.flatnonzero(free), body.n_dofs + np.arange(n_int)])
+    return K[fi][:, fi].tocsr(), C[fi][:, fi].tocsr()
 
 
 def relaxation_time(

@@ -204,16 +204,32 @@ _TASK_FIELDS = (
 
 
 def _net_arrays(prefix: str, net: SpringNetwork) -> dict[str, NDArray]:
+    if not isinstance(net, SpringNetwork):  # another learning medium (.medium)
+        from .medium import medium_arrays
+
+        return medium_arrays(prefix, net)
     return {f"{prefix}/{f}": getattr(net, f) for f in _NET_FIELDS}
 
 
 def _net_from(files: dict, prefix: str) -> SpringNetwork:
+    if f"{prefix}/__kind__" in files:
+        from .medium import medium_from_arrays
+
+        return medium_from_arrays(files, prefix)
     return SpringNetwork(*(files[f"{prefix}/{f}"] for f in _NET_FIELDS))
 
 
 def _task_arrays(prefix: str, task: AllosteryTask) -> dict[str, NDArray]:
+    if not isinstance(task, AllosteryTask):
+        from .medium import medium_arrays
+
+        return medium_arrays(prefix, task)
     return {f"{prefix}/{f}": getattr(task, f) for f in _TASK_FIELDS}
 
 
 def _task_from(files: dict, prefix: str) -> AllosteryTask:
+    if f"{prefix}/__kind__" in files:
+        from .medium import medium_from_arrays
+
+        return medium_from_arrays(files, prefix)
     return AllosteryTask(**{f: files[f"{prefix}/{f}"] for f in _TASK_FIELDS})

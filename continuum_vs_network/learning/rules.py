@@ -71,6 +71,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import _validate as check
 from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
 from .sensitivity import Cost, cost_gradient
@@ -88,7 +89,8 @@ __all__ = [
     "Warm",
 ]
 
-Dof = Literal["rest_length", "stiffness"]
+Dof = Literal["rest_length", "stiffness", "eigenstrain", "modulus"]
+_NETWORK_DOFS = ("rest_length", "stiffness")
 
 
 class LearningError(RuntimeError):
@@ -168,8 +170,15 @@ class Step:
         LearningError
             A rest length would become ``<= 0`` or a stiffness ``< 0`` (set a floor).
         """
+        if not isinstance(net, SpringNetwork):  # another learning medium (.medium)
+            try:
+                return net.apply_update(self.dof, self.delta)
+            except ValueError as err:
+                raise LearningError(str(err)) from err
+        _check_finite_update(self.delta, self.dof)
         if self.dof == "rest_length":
             new = net.rest_length + self.delta
+            _check_finite_update(new, self.dof)
             bad = np.flatnonzero(new <= 0)
             if bad.size:
                 j = int(bad[0])
@@ -179,6 +188,7 @@ class Step:
                 )
             return net.with_rest_length(new)
         new = net.stiffness + self.delta
+        _check_finite_update(new, self.dof)
         bad = np.flatnonzero(new < 0)
         if bad.size:
             j = int(bad[0])
@@ -187,6 +197,17 @@ class Step:
                 f"({bad.size} springs); set min_stiffness to floor it"
             )
         return net.with_stiffness(new)
+
+
+def _check_finite_update(values: NDArray, dof: str) -> None:
+    """A non-finite update (an overflow: learning rate too large, a diverged state) stops."""
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        j = int(bad[0])
+        raise LearningError(
+            f"the {dof} update of spring {j} is not finite ({values[j]}; {bad.size} springs): "
+            f"the step overflowed (lower the learning rate)"
+        )
 
 
 def _plain(value: object) -> object:
@@ -213,13 +234,14 @@ class Rule:
     solver: Solver = field(default_factory=Solver)
 
     def __post_init__(self) -> None:
-        if self.dof not in ("rest_length", "stiffness"):
-            raise ValueError(f"dof must be 'rest_length' or 'stiffness', got {self.dof!r}")
+        check.choice("dof", self.dof, ("rest_length", "stiffness", "eigenstrain", "modulus"))
         check_strain_reference(self.strain_reference)
+        check.boolean("learn_sources", self.learn_sources)
+        check.boolean("learn_targets", self.learn_targets)
         for name in ("min_rest_length", "min_stiffness"):
             value = getattr(self, name)
-            if value is not None and not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be None or a finite value >= 0, got {value}")
+            if value is not None:
+                check.real(name, value, low=0, what="None or a finite number >= 0")
         if not isinstance(self.solver, Solver):
             raise ValueError(f"solver must be a Solver, got {type(self.solver).__name__}")
 
@@ -245,7 +267,11 @@ class Rule:
         return out
 
     def learning_mask(self, net: SpringNetwork, task: AllosteryTask) -> NDArray[np.bool_]:
-        """Springs whose degree of freedom may change, (n_springs,) bool."""
+        """Springs (elements of a continuum) whose degree of freedom may change, bool."""
+        if not isinstance(net, SpringNetwork):
+            return net.learning_mask(
+                task, learn_sources=self.learn_sources, learn_targets=self.learn_targets
+            )
         mask = np.ones(net.n_springs, dtype=bool)
         if not self.learn_sources:
             mask[task.sources] = False
@@ -306,14 +332,20 @@ class Rule:
         -------
         Step
         """
+        if not isinstance(net, SpringNetwork):
+            return self._medium_update(net, task, tracker=tracker, noise=noise)
+        if self.dof not in _NETWORK_DOFS:
+            raise ValueError(
+                f"a SpringNetwork learns 'rest_length' or 'stiffness', not {self.dof!r}"
+            )
         task.check(net)
-        if not (np.isfinite(noise) and noise >= 0):
-            raise ValueError(f"noise must be a finite value >= 0, got {noise}")
-        if noise > 0 and rng is None:
+        noise = check.real("noise", noise, low=0)
+        if noise > 0 and not isinstance(rng, np.random.Generator):
             raise ValueError("noise > 0 needs rng, a numpy.random.Generator")
         tracker = tracker or Tracker(self.solver)
         warm = warm or Warm()
         step = self._update(net, task, warm, tracker, float(noise), rng)
+        _check_finite_update(step.delta, self.dof)
         return dataclasses.replace(step, previous=warm)
 
     def _update(
@@ -327,10 +359,46 @@ class Rule:
     ) -> Step:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    # -- any other learning medium (.medium): the rule asks it for states and gradients --
+    def _medium_update(self, medium, task, *, tracker, noise: float) -> Step:
+        from .medium import is_medium
+
+        if not is_medium(medium):
+            raise ValueError(
+                "net must be a SpringNetwork or a learning medium (LearnableBody), "
+                f"got {type(medium).__name__}"
+            )
+        if noise != 0.0:
+            raise ValueError("read-out noise is implemented for spring networks only")
+        if self.strain_reference != "initial":
+            raise ValueError(
+                "a continuum's material springs measure strain against the undeformed body: "
+                "use strain_reference='initial'"
+            )
+        medium.learning_dof(self.dof)
+        medium.check_task(task)
+        return self._medium_step(medium, task, tracker)
+
+    def _medium_step(self, medium, task, tracker) -> Step:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _medium_result(self, medium, task, raw, free, clamped, clamp_strain) -> Step:
+        mask = self.learning_mask(medium, task)
+        raw = np.where(mask if raw.ndim == 1 else mask[:, None], raw, 0.0)
+        floor = self.min_stiffness
+        lengths = None if clamp_strain is None else task.target_length * (1.0 + clamp_strain)
+        return Step(
+            delta=medium.floor(self.dof, raw, floor),
+            dof=self.dof,
+            free=free,
+            clamped=clamped,
+            clamp_lengths=lengths,
+            raw=raw,
+        )
+
 
 def _check_rate(name: str, value: float) -> None:
-    if not (np.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be finite and > 0, got {value}")
+    check.real(name, value, low=0, low_open=True)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -390,6 +458,13 @@ class CoupledLearning(Rule):
             raw=raw,
         )
 
+    def _medium_step(self, medium, task, tracker) -> Step:
+        free = medium.free_state(task, tracker=tracker)
+        nudge = free.target_strain + self.eta * (task.target_strain - free.target_strain)
+        nudged = medium.clamped_state(task, nudge, tracker=tracker)
+        raw = -(self.alpha / self.eta) * medium.local_gradient(nudged, self.dof, minus=free)
+        return self._medium_result(medium, task, raw, free, nudged, nudge)
+
 
 @dataclass(frozen=True, kw_only=True)
 class ProspectiveConfiguration(Rule):
@@ -438,6 +513,11 @@ class ProspectiveConfiguration(Rule):
             raw=raw,
         )
 
+    def _medium_step(self, medium, task, tracker) -> Step:
+        clamped = medium.clamped_state(task, task.target_strain, tracker=tracker)
+        raw = -self.alpha * medium.local_gradient(clamped, self.dof)
+        return self._medium_result(medium, task, raw, None, clamped, task.target_strain)
+
 
 @dataclass(frozen=True, kw_only=True)
 class ExactGradient(Rule):
@@ -462,8 +542,7 @@ class ExactGradient(Rule):
     def __post_init__(self) -> None:
         super().__post_init__()
         _check_rate("alpha", self.alpha)
-        if self.cost not in ("strain", "length"):
-            raise ValueError(f"cost must be 'strain' or 'length', got {self.cost!r}")
+        check.choice("cost", self.cost, ("strain", "length"))
 
     def _update(self, net, task, warm, tracker, noise, rng) -> Step:
         free = self._free(net, task, tracker, warm)
@@ -490,3 +569,8 @@ class ExactGradient(Rule):
             measured_free=r_free,
             raw=raw,
         )
+
+    def _medium_step(self, medium, task, tracker) -> Step:
+        free = medium.free_state(task, tracker=tracker)
+        grad = medium.task_gradient(task, free, self.dof, cost=self.cost, tracker=tracker)
+        return self._medium_result(medium, task, -self.alpha * grad, free, None, None)

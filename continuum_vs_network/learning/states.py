@@ -44,6 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from ..network.arguments import solver_arguments
 from ..network.constraints import Problem
 from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
 from ..network.model import SpringNetwork
@@ -112,16 +113,7 @@ class Solver:
     trust_region_max_free: int = 600
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise ValueError(f"method must be one of {sorted(METHODS)}, got {self.method!r}")
-        if self.clamp not in ("exact", "rod"):
-            raise ValueError(f"clamp must be 'exact' or 'rod', got {self.clamp!r}")
-        if not (np.isfinite(self.tol) and self.tol > 0):
-            raise ValueError(f"tol must be finite and > 0, got {self.tol}")
-        if not 0 < self.refactor_ratio < 1:
-            raise ValueError(f"refactor_ratio must be in (0, 1), got {self.refactor_ratio}")
-        if self.max_iter is not None and self.max_iter < 1:
-            raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
+        object.__setattr__(self, "retry_ramps", solver_arguments(self, tuple(METHODS)))
 
     @property
     def fast(self) -> bool:

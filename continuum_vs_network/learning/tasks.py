@@ -26,6 +26,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
 from ..network.constraints import default_pins
 from ..network.model import SpringNetwork
 
@@ -45,16 +46,15 @@ STRAIN_REFERENCES = ("initial", "current")
 
 def check_strain_reference(strain_reference: object) -> None:
     """Raise ``ValueError`` unless ``strain_reference`` is ``"initial"`` or ``"current"``."""
-    if strain_reference not in STRAIN_REFERENCES:
-        raise ValueError(
-            f"strain_reference must be 'initial' or 'current', got {strain_reference!r}"
-        )
+    check.choice("strain_reference", strain_reference, STRAIN_REFERENCES)
 
 
 def _frozen(value: ArrayLike, dtype: type, name: str) -> NDArray:
-    arr = np.array(value, dtype=dtype, copy=True).reshape(-1)
-    if dtype is np.float64 and not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got {arr}")
+    if dtype is np.float64:
+        arr = check.float_array(name, np.atleast_1d(value)).reshape(-1)
+    else:
+        arr = check.index_array(name, np.atleast_1d(value), check.INT64_MAX, what="spring indices")
+        arr = arr.reshape(-1)
     arr.setflags(write=False)
     return arr
 
@@ -105,9 +105,10 @@ class AllosteryTask:
                 self.target_rest_length, np.float64, "target_rest_length"
             ),
         }
-        pinned = np.array(self.pinned, dtype=bool, copy=True)
-        if pinned.ndim != 2 or pinned.shape[1] != 2:
-            raise ValueError(f"pinned must have shape (n_nodes, 2), got {pinned.shape}")
+        pinned = np.asarray(self.pinned)
+        if pinned.dtype != bool or pinned.ndim != 2 or pinned.shape[1] != 2:
+            raise check.ArgumentError("pinned", self.pinned, "a bool mask of shape (n_nodes, 2)")
+        pinned = pinned.copy()
         pinned.setflags(write=False)
         fields["pinned"] = pinned
         for name, value in fields.items():
@@ -154,12 +155,13 @@ class AllosteryTask:
         ``pinned`` defaults to :func:`~continuum_vs_network.network.default_pins` computed
         away from the sources and targets.
         """
-        sources = np.atleast_1d(np.asarray(sources, dtype=np.int64))
-        targets = np.atleast_1d(np.asarray(targets, dtype=np.int64))
-        for name, idx in (("sources", sources), ("targets", targets)):
-            bad = idx[(idx < 0) | (idx >= net.n_springs)]
-            if bad.size:
-                raise ValueError(f"{name} names spring {bad[0]} outside 0..{net.n_springs - 1}")
+        if not isinstance(net, SpringNetwork):
+            raise check.ArgumentError("net", net, "a SpringNetwork")
+        top = net.n_springs
+        sources = check.index_array("sources", np.atleast_1d(sources), top, what="spring indices")
+        targets = check.index_array("targets", np.atleast_1d(targets), top, what="spring indices")
+        source_strain = check.float_array("source_strain", source_strain)
+        target_strain = check.float_array("target_strain", target_strain)
         if pinned is None:
             pinned = default_pins(net, avoid=np.concatenate([sources, targets]))
         task = cls(
@@ -309,6 +311,12 @@ def paper_task(
     -------
     AllosteryTask
     """
+    if not isinstance(rng, np.random.Generator):
+        raise check.ArgumentError("rng", rng, "a numpy.random.Generator")
+    source_mean = check.real("source_mean", source_mean)
+    source_std = check.real("source_std", source_std, low=0, low_open=True)
+    target_mean = check.real("target_mean", target_mean)
+    target_scale = check.real("target_scale", target_scale, low=0, low_open=True)
     pool = _candidates(net, candidates)
     if pool.size < 2:
         raise ValueError(f"need at least 2 candidate springs, got {pool.size}")
@@ -339,10 +347,12 @@ def stern_task(
     gives none). ``rng`` is required; it comes after the counts to follow the paper's
     ``stern_task(net, n_sources, n_targets, rng)`` order.
     """
-    if rng is None:
-        raise ValueError("stern_task needs rng, a numpy.random.Generator")
-    if n_sources < 1 or n_targets < 1:
-        raise ValueError(f"n_sources and n_targets must be >= 1, got {n_sources}, {n_targets}")
+    if not isinstance(rng, np.random.Generator):
+        raise check.ArgumentError("rng", rng, "a numpy.random.Generator")
+    n_sources = check.integer("n_sources", n_sources, low=1)
+    n_targets = check.integer("n_targets", n_targets, low=1)
+    source_std = check.real("source_std", source_std, low=0, low_open=True)
+    target_std = check.real("target_std", target_std, low=0, low_open=True)
     pool = _candidates(net, candidates)
     if pool.size < n_sources + n_targets:
         raise ValueError(
@@ -355,6 +365,8 @@ def stern_task(
 
 
 def _candidates(net: SpringNetwork, candidates: ArrayLike | None) -> NDArray[np.int64]:
+    if not isinstance(net, SpringNetwork):
+        raise check.ArgumentError("net", net, "a SpringNetwork")
     if candidates is None:
         from ..network.builders import strain_tunable
 
@@ -366,7 +378,7 @@ def _candidates(net: SpringNetwork, candidates: ArrayLike | None) -> NDArray[np.
                 f"candidates as a mask must have shape ({net.n_springs},), got {arr.shape}"
             )
         return np.flatnonzero(arr)
-    arr = np.unique(arr.astype(np.int64).ravel())
-    if arr.size and (arr[0] < 0 or arr[-1] >= net.n_springs):
-        raise ValueError(f"candidates must be spring indices in 0..{net.n_springs - 1}")
-    return arr
+    arr = check.index_array(
+        "candidates", np.atleast_1d(arr).ravel(), net.n_springs, what="spring indices"
+    )
+    return np.unique(arr)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -29,9 +30,11 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from .. import _validate as check
 from ..network.equilibrium import Equilibrium, EquilibriumError
 from ..network.model import SpringNetwork
 from .history import LEGACY, MEASUREMENTS, UPDATES, History
+from .medium import is_medium, learning_arrays, with_learning_arrays
 from .rules import LearningError, Rule, Step, Warm
 from .states import Tracker
 from .tasks import AllosteryTask
@@ -50,9 +53,8 @@ _PER_TARGET = {
     "clamp_length",
 }
 _COUNTERS = ("solves", "factorisations", "iterations")
-_CURRENT_STATE = frozenset(
-    {"rest_length", "stiffness", "warm_free", "warm_clamped", "warm_previous_free"}
-)
+_LEARNING = ("rest_length", "stiffness", "eigenstrain", "modulus")
+_CURRENT_STATE = frozenset({*_LEARNING, "warm_free", "warm_clamped", "warm_previous_free"})
 
 
 def train(
@@ -111,17 +113,20 @@ def train(
     ``stop_reason`` say so and its remaining entries are NaN.
     """
     if not isinstance(rule, Rule):
-        raise ValueError(f"rule must be a learning Rule, got {type(rule).__name__}")
-    if int(steps) != steps or steps < 0:
-        raise ValueError(f"steps must be an integer >= 0, got {steps}")
-    steps = int(steps)
-    seeds = np.array([int(s) for s in seeds], dtype=np.int64)
-    if seeds.size == 0:
-        raise ValueError("seeds must name at least one trial")
-    if not (np.isfinite(noise) and noise >= 0):
-        raise ValueError(f"noise must be finite and >= 0, got {noise}")
-    if int(checkpoint_every) != checkpoint_every or checkpoint_every < 1:
-        raise ValueError(f"checkpoint_every must be an integer >= 1, got {checkpoint_every}")
+        raise check.ArgumentError("rule", rule, "a learning Rule (CoupledLearning, ...)")
+    steps = check.integer("steps", steps, low=0)
+    seeds = _check_seeds(seeds)
+    check.memory(
+        "steps", steps, 2 * seeds.size * record_bytes(steps, 1), f"the history of {seeds.size} "
+        f"trial(s) of {steps} steps"
+    )  # fmt: skip
+    noise = check.real("noise", noise, low=0)
+    measure = check.boolean("measure", measure)
+    checkpoint_every = check.integer("checkpoint_every", checkpoint_every, low=1)
+    if callback is not None and not callable(callback):
+        raise check.ArgumentError("callback", callback, "None or a callable f(trial, step, net)")
+    if checkpoint is not None:
+        checkpoint = _check_checkpoint(checkpoint)
 
     settings = dict(rule.settings())
     settings.update(steps=steps, noise=float(noise), measure=bool(measure))
@@ -159,14 +164,59 @@ def train(
     return state.history(settings, steps, seeds)
 
 
+def _check_seeds(seeds: Sequence[int]) -> NDArray[np.int64]:
+    if isinstance(seeds, str | bytes) or not isinstance(seeds, Sequence | np.ndarray):
+        raise check.ArgumentError("seeds", seeds, "a sequence of integers in 0..2**63-1")
+    out = np.array([check.seed(f"seeds[{i}]", s) for i, s in enumerate(seeds)], dtype=np.int64)
+    if out.size == 0:
+        raise check.ArgumentError("seeds", seeds, "a sequence naming at least one trial")
+    return out
+
+
+def _check_checkpoint(checkpoint: str | Path) -> Path:
+    """The checkpoint file: its folder must exist and take a new file, now (not at step 50)."""
+    if not isinstance(checkpoint, str | os.PathLike):
+        raise check.ArgumentError("checkpoint", checkpoint, "None or a path")
+    path = Path(checkpoint)
+    allowed = "None or a file path in an existing, writable folder"
+    if path.is_dir():
+        raise check.ArgumentError("checkpoint", str(checkpoint), allowed, detail="it is a folder")
+    if not path.parent.is_dir():
+        raise check.ArgumentError(
+            "checkpoint", str(checkpoint), allowed, detail=f"no folder {str(path.parent)!r}"
+        )
+    try:
+        fd, probe = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as err:
+        raise check.ArgumentError(
+            "checkpoint", str(checkpoint), allowed, detail=f"cannot write there: {err.strerror}"
+        ) from None
+    os.close(fd)
+    os.unlink(probe)
+    return path
+
+
+def record_bytes(steps: int, n_targets: int) -> int:
+    """Bytes of one trial's history arrays (:func:`_new_record`), a Python int (no overflow)."""
+    per_target = len(_PER_TARGET)
+    scalars = len(MEASUREMENTS) + len(UPDATES) - per_target
+    return 8 * (steps + 1) * (scalars + per_target * max(int(n_targets), 1))
+
+
 # -- one trial --------------------------------------------------------------------------
 def _build(seed: int, net: NetworkSpec, task: TaskSpec):
     build_ss, noise_ss = np.random.SeedSequence(seed).spawn(2)
     build_rng = np.random.default_rng(build_ss)
     net0 = net(build_rng) if callable(net) else net
-    if not isinstance(net0, SpringNetwork):
-        raise ValueError(f"net must be a SpringNetwork or build one, got {type(net0).__name__}")
     task0 = task(net0, build_rng) if callable(task) else task
+    if is_medium(net0):  # a continuum (or another medium): it checks its own task
+        net0.check_task(task0)
+        return net0, task0, np.random.default_rng(noise_ss)
+    if not isinstance(net0, SpringNetwork):
+        raise ValueError(
+            "net must be a SpringNetwork or a learning medium (LearnableBody), or build one; "
+            f"got {type(net0).__name__}"
+        )
     if not isinstance(task0, AllosteryTask):
         raise ValueError(f"task must be an AllosteryTask or build one, got {type(task0).__name__}")
     task0.check(net0)
@@ -188,6 +238,10 @@ def _run_trial(
     bar,
 ) -> None:
     net0, task0, noise_rng = _build(seed, net, task)
+    check.memory(
+        "steps", steps, 2 * (i + 1) * record_bytes(steps, task0.n_targets),
+        f"the history of {i + 1} trial(s) of {steps} steps and {task0.n_targets} targets",
+    )  # fmt: skip
     rec = state.start_trial(i, net0, task0, noise_rng, steps)
     cur = state.current_network(net0)
     warm = state.warm
@@ -210,6 +264,10 @@ def _run_trial(
         if not measure:
             return None
         t0 = time.perf_counter()
+        if is_medium(cur):
+            eq = cur.free_state(task0, tracker=tracker)
+            measure_seconds += time.perf_counter() - t0
+            return eq
         clamps = task0.source_clamps(cur, rule.strain_reference)
         eq = tracker.solve(cur, task0.pinned, clamps, warm.free, key="free")
         measure_seconds += time.perf_counter() - t0
@@ -266,6 +324,11 @@ def _energy_gradient(net: SpringNetwork, x: NDArray, dof: str, mask: NDArray) ->
 
 
 def _record_measure(rec, t, net, task, rule, free, mask) -> None:
+    if is_medium(net):
+        if free is not None:
+            for name, value in net.measurements(task, free, rule.dof, mask).items():
+                rec[name][t] = value
+        return
     ref = rule.strain_reference
     rec["target_rest_length"][t] = net.rest_length[task.targets]
     rec["desired_length"][t] = task.desired_lengths(net, ref)
@@ -284,7 +347,11 @@ def _record_measure(rec, t, net, task, rule, free, mask) -> None:
 
 def _record_update(rec, t, step: Step, net, rule, mask) -> None:
     rec["update_norm"][t] = float(np.linalg.norm(step.delta))
-    if step.clamped is not None:
+    if step.clamped is not None and is_medium(net):
+        rec["energy_clamped"][t] = step.clamped.energy
+        g = net.local_gradient(step.clamped, rule.dof)
+        rec["energy_gradient_clamped"][t] = float(np.linalg.norm(g[mask]))
+    elif step.clamped is not None:
         rec["energy_clamped"][t] = step.clamped.energy
         rec["energy_gradient_clamped"][t] = _energy_gradient(
             net, step.clamped.positions, rule.dof, mask
@@ -321,7 +388,8 @@ def _progress_bar(progress: bool, total: int, done: int):
 
 def _digest(net: SpringNetwork) -> str:
     h = hashlib.sha1()
-    for a in (net.positions, net.springs, net.stiffness, net.rest_length):
+    arrays = net.to_arrays().values() if is_medium(net) else ()
+    for a in arrays or (net.positions, net.springs, net.stiffness, net.rest_length):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
 
@@ -389,9 +457,7 @@ class _Checkpoint:
     def current_network(self, net0: SpringNetwork) -> SpringNetwork:
         if self._resume is None:
             return net0
-        cur = net0.with_rest_length(self._resume["rest_length"]).with_stiffness(
-            self._resume["stiffness"]
-        )
+        cur = with_learning_arrays(net0, self._resume["learning"])
         self._resume = None
         return cur
 
@@ -399,8 +465,8 @@ class _Checkpoint:
         if self.path is None:
             return
         arrays = {f"cur/{k}": v for k, v in rec.items()}
-        arrays["cur/rest_length"] = cur.rest_length
-        arrays["cur/stiffness"] = cur.stiffness
+        for name, value in learning_arrays(cur).items():
+            arrays[f"cur/{name}"] = value
         if warm.free is not None:
             arrays["cur/warm_free"] = np.asarray(warm.free)
         if warm.clamped is not None:
@@ -464,10 +530,10 @@ class _Checkpoint:
             "progress": progress,
         }
         arrays["meta"] = np.array(json.dumps(meta))
-        tmp = self.path.with_name(self.path.name + ".tmp")
-        with open(tmp, "wb") as fh:
+        from ..io.atomic import atomic_path
+
+        with atomic_path(self.path) as tmp, open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
-        os.replace(tmp, self.path)
 
     def _load(self) -> None:
         from .history import _net_from, _task_from
@@ -511,8 +577,7 @@ class _Checkpoint:
                     for k, v in files.items()
                     if k.startswith("cur/") and k[4:] not in _CURRENT_STATE | LEGACY
                 },
-                "rest_length": files["cur/rest_length"],
-                "stiffness": files["cur/stiffness"],
+                "learning": {k: files[f"cur/{k}"] for k in _LEARNING if f"cur/{k}" in files},
                 "warm": Warm(
                     free=files.get("cur/warm_free"),
                     clamped=files.get("cur/warm_clamped"),

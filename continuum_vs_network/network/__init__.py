@@ -13,6 +13,7 @@ from .energy import HessianPattern, energy, forces, gradient, hessian
 from .equilibrium import Equilibrium, EquilibriumError, relax
 from .model import SpringNetwork
 from .rigidity import is_rigid, rigidity_matrix, self_stress_support, self_stresses, zero_modes
+from .viscous import Viscosity, simulate_viscous
 
 __all__ = [
     "Equilibrium",
@@ -21,6 +22,7 @@ __all__ = [
     "Problem",
     "SpringNetwork",
     "Trajectory",
+    "Viscosity",
     "default_pins",
     "diluted_lattice",
     "energy",
@@ -37,6 +39,7 @@ __all__ = [
     "self_stress_support",
     "self_stresses",
     "simulate",
+    "simulate_viscous",
     "stability_limit",
     "strain_tunable",
     "triangular_lattice",

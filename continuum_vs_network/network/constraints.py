@@ -19,6 +19,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from .._validate import index_array
+from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .model import SpringNetwork
 
@@ -39,7 +41,7 @@ def default_pins(net: SpringNetwork, avoid: ArrayLike = ()) -> NDArray[np.bool_]
     Returns a (n_nodes, 2) bool mask.
     """
     x = net.positions
-    avoid = np.asarray(avoid, dtype=np.int64).ravel()
+    avoid = index_array("avoid", np.ravel(avoid), net.n_springs, what="spring indices")
     if avoid.size:
         avoid_nodes = np.unique(net.springs[avoid].ravel())
         dist = np.min(np.linalg.norm(x[:, None, :] - x[None, avoid_nodes, :], axis=2), axis=1)
@@ -64,42 +66,18 @@ def pin_mask(net: SpringNetwork, pinned: Pins, avoid: ArrayLike = ()) -> NDArray
     """Normalise ``pinned`` (None, node indices, or a (n_nodes, 2) bool mask) to a mask."""
     if pinned is None:
         return default_pins(net, avoid)
-    arr = np.asarray(pinned)
+    arr = pin_mask_or_indices(net, pinned)
     if arr.dtype == bool:
-        if arr.shape != (net.n_nodes, 2):
-            raise ValueError(
-                f"pinned as a mask must have shape ({net.n_nodes}, 2), got {arr.shape}"
-            )
-        return arr.copy()
-    arr = arr.ravel()
-    if arr.size and not np.issubdtype(arr.dtype, np.integer):
-        raise ValueError(f"pinned must hold node indices or a bool mask, got dtype {arr.dtype}")
-    bad = arr[(arr < 0) | (arr >= net.n_nodes)]
-    if bad.size:
-        raise ValueError(f"pinned names node {bad[0]} outside 0..{net.n_nodes - 1}")
+        return arr
     mask = np.zeros((net.n_nodes, 2), dtype=bool)
-    mask[arr.astype(np.int64)] = True
+    mask[arr] = True
     return mask
 
 
 def _clamp_arrays(
     net: SpringNetwork, clamped: Mapping[int, float] | None
 ) -> tuple[NDArray, NDArray]:
-    if not clamped:
-        return np.empty(0, np.int64), np.empty(0)
-    if not isinstance(clamped, Mapping):
-        raise ValueError("clamped must be a mapping {spring_index: length}")
-    idx = np.array([int(k) for k in clamped], dtype=np.int64)
-    length = np.array([float(v) for v in clamped.values()], dtype=np.float64)
-    bad = np.flatnonzero((idx < 0) | (idx >= net.n_springs))
-    if bad.size:
-        raise ValueError(f"clamped names spring {idx[bad[0]]} outside 0..{net.n_springs - 1}")
-    bad = np.flatnonzero(~np.isfinite(length) | (length <= 0))
-    if bad.size:
-        raise ValueError(
-            f"clamped length of spring {idx[bad[0]]} must be finite and > 0, got {length[bad[0]]}"
-        )
-    return idx, length
+    return clamp_arrays(net, clamped)
 
 
 @dataclass(frozen=True, eq=False)

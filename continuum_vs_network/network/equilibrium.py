@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
+from .arguments import lone_nodes, relax_arguments
 from .constraints import ClampMode, Pins, Problem, default_pins
 from .energy import spring_energy
 from .model import SpringNetwork
@@ -45,9 +47,13 @@ class Equilibrium:
     seconds : float
         Wall-clock time of the solve.
     method : str
-    residual_trace, seconds_trace : (iterations + 1,) float arrays
-        Residual after each iteration and the wall-clock time at which it was reached,
-        for error-against-run-time plots.
+    residual_trace, seconds_trace : (n_records,) float arrays
+        Residual at each recorded iteration and the wall-clock time at which it was
+        reached, for error-against-run-time plots.
+    iteration_trace : (n_records,) int array
+        The iteration (counted over every stage of the solve) of each record: Newton
+        records every iteration, FIRE, L-BFGS and Adagrad every tenth and the last.
+        Default: ``arange(n_records)`` (one record per iteration).
     """
 
     positions: NDArray[np.float64]
@@ -61,6 +67,13 @@ class Equilibrium:
     method: str
     residual_trace: NDArray[np.float64] = field(repr=False)
     seconds_trace: NDArray[np.float64] = field(repr=False)
+    iteration_trace: NDArray[np.int64] | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        if self.iteration_trace is None:
+            object.__setattr__(
+                self, "iteration_trace", np.arange(np.asarray(self.residual_trace).size)
+            )
 
 
 class EquilibriumError(RuntimeError):
@@ -87,16 +100,24 @@ class EquilibriumError(RuntimeError):
 
 
 class Trace:
-    """Residual against wall-clock time, recorded by a solver as it iterates."""
+    """Residual against wall-clock time and iteration, recorded by a solver as it iterates.
+
+    A solver records ``record(residual, it)`` with its own iteration count ``it``; the
+    caller that chains solves (stages, inner loops) sets ``base`` to the iterations done
+    before, so the recorded iteration is the count over the whole solve.
+    """
 
     def __init__(self) -> None:
         self.t0 = time.perf_counter()
+        self.base = 0
         self.residual: list[float] = []
         self.seconds: list[float] = []
+        self.iteration: list[int] = []
 
-    def record(self, residual: float) -> None:
+    def record(self, residual: float, it: int) -> None:
         self.residual.append(float(residual))
         self.seconds.append(time.perf_counter() - self.t0)
+        self.iteration.append(self.base + int(it))
 
     def elapsed(self) -> float:
         return time.perf_counter() - self.t0
@@ -210,12 +231,13 @@ def relax(
     EquilibriumError
         The method did not reach ``tol``; ``err.state`` holds the last iterate.
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol must be finite and > 0, got {tol}")
-    if int(ramp) != ramp or ramp < 1:
-        raise ValueError(f"ramp must be an integer >= 1, got {ramp}")
+    args = relax_arguments(
+        net, methods=tuple(METHODS), method=method, tol=tol, clamp=clamp,
+        rod_stiffness=rod_stiffness, ramp=ramp, max_iter=max_iter, max_seconds=max_seconds,
+    )  # fmt: skip
+    method, tol, ramp, max_iter, max_seconds = (
+        args.method, args.tol, args.ramp, args.max_iter, args.max_seconds
+    )  # fmt: skip
     if method == "paper":
         clamp = "rod"
     problem = Problem.build(
@@ -228,10 +250,11 @@ def relax(
             f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
             f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
         )
+    lone_nodes(net, problem.free)
     stop = StopRule(
         force=tol * net.force_scale,
         length=tol * float(np.mean(net.rest_length)),
-        max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]),
+        max_iter=max_iter or _DEFAULT_MAX_ITER[method],
         max_seconds=float(max_seconds),
     )
     x = _start(problem, x0)
@@ -246,6 +269,7 @@ def relax(
         stage = Problem(
             net, problem.free, problem.clamp_springs, lengths, problem.clamp, problem.rod_stiffness
         )
+        trace.base = iterations
         outcome = solve(stage, stage.start(outcome.x), stop, trace)
         iterations += outcome.iterations
         if not outcome.converged:
@@ -268,6 +292,7 @@ def relax(
             problem.clamp,
             problem.rod_stiffness,
         )
+        trace.base = iterations
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
     return _finish(problem, outcome, iterations, method, stop, trace)
@@ -286,12 +311,7 @@ def _pin_reaction(problem: Problem, x: NDArray) -> float:
 def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
     if x0 is None:
         return problem.net.positions.copy()
-    x = np.array(x0, dtype=np.float64, copy=True)
-    if x.shape != (problem.net.n_nodes, 2):
-        raise ValueError(f"x0 must have shape ({problem.net.n_nodes}, 2), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("x0 must be finite")
-    return x
+    return check.float_array("x0", x0, (problem.net.n_nodes, 2))
 
 
 def _finish(
@@ -327,6 +347,7 @@ def _finish(
         method=method,
         residual_trace=np.asarray(trace.residual),
         seconds_trace=np.asarray(trace.seconds),
+        iteration_trace=np.asarray(trace.iteration, dtype=np.int64),
     )
     if not converged:
         reason = outcome.message or "did not reach the requested residual"

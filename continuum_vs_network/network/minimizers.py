@@ -234,8 +234,10 @@ def _minimise(problem: Problem, x: NDArray, stop: StopRule, trace: Trace, inner:
     force_scale = problem.net.force_scale
     inner_tol = max(0.5 * stop.force, 1e-3 * force_scale)
     iterations = 0
+    base = trace.base
     c_prev = np.inf
     for _ in range(_MAX_OUTER):
+        trace.base = base + iterations
         res = inner(obj, x, inner_tol, stop, trace, stop.max_iter - iterations)
         x, iterations = res.x, iterations + res.iterations
         if res.status == "stop":
@@ -312,20 +314,20 @@ def _fire_inner(
         g = G.ravel()[free]
         residual, clamp_error = obj.check(x, G)
         if not np.isfinite(residual):
-            trace.record(residual)
+            trace.record(residual, it)
             return _Inner(x, it, "failed", "FIRE: forces became non-finite")
         if stop.met(residual, clamp_error):
-            trace.record(residual)
+            trace.record(residual, it)
             return _Inner(x, it, "stop")
         if tol > 0 and float(np.max(np.abs(g))) <= tol:
-            trace.record(residual)
+            trace.record(residual, it)
             return _Inner(x, it, "tol")
         if it % _RECORD_EVERY == 0:
-            trace.record(residual)
+            trace.record(residual, it)
         if it == budget:
             break
         if trace.elapsed() > stop.max_seconds:
-            trace.record(residual)
+            trace.record(residual, it)
             return _Inner(x, it, "budget", f"FIRE: time budget of {stop.max_seconds:g} s exceeded")
 
         F = -g
@@ -350,7 +352,7 @@ def _fire_inner(
         y += dt * v
         flat[free] = y
         moving = True
-    trace.record(residual)
+    trace.record(residual, budget)
     return _Inner(x, budget, "budget", f"FIRE: no convergence in {stop.max_iter} iterations")
 
 
@@ -422,7 +424,7 @@ def _lbfgs_inner(
             done.update(status="budget", message=message)
             final = True
         if final or not step or it % _RECORD_EVERY == 0:
-            trace.record(residual)
+            trace.record(residual, it)
         if final:
             raise _StopNow
 
@@ -527,7 +529,7 @@ def paper_adagrad(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) ->
         else:
             final = False
         if final or it % _RECORD_EVERY == 0:
-            trace.record(residual)
+            trace.record(residual, it)
         if final:
             return Outcome(x, it, converged, message)
         opt.step()

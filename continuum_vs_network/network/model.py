@@ -9,21 +9,21 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
+
 __all__ = ["SpringNetwork"]
 
 
-def _frozen_copy(value: ArrayLike, dtype: type) -> NDArray:
-    """``value`` as a read-only array; an array that already is one is shared, not copied."""
-    if isinstance(value, np.ndarray) and value.dtype == dtype and not value.flags.writeable:
-        return value
-    return np.array(value, dtype=dtype, copy=True)
-
-
 def _as_float_array(name: str, value: ArrayLike, shape: tuple[int | None, ...]) -> NDArray:
-    arr = _frozen_copy(value, np.float64)
-    _check_shape(name, arr, shape)
-    bad = np.flatnonzero(~np.isfinite(arr).reshape(arr.shape[0], -1).all(axis=1))
-    if bad.size:
+    if isinstance(value, np.ndarray) and value.dtype == np.float64 and not value.flags.writeable:
+        arr = value  # a validated network's array, shared between copies
+        _check_shape(name, arr, shape)
+    else:
+        arr = check.float_array(name, value, shape, finite=False)
+    bad = (
+        np.flatnonzero(~np.isfinite(arr).reshape(arr.shape[0], -1).all(axis=1)) if arr.size else ()
+    )
+    if len(bad):
         raise ValueError(f"{name} must be finite; entry {bad[0]} is {arr[bad[0]]}")
     if arr.flags.writeable:
         arr.setflags(write=False)
@@ -89,13 +89,20 @@ class SpringNetwork:
 
     def __post_init__(self) -> None:
         positions = _as_float_array("positions", self.positions, (None, 2))
-        springs_raw = np.asarray(self.springs)
-        _check_shape("springs", springs_raw, (None, 2))
-        if springs_raw.size and not np.issubdtype(springs_raw.dtype, np.integer):
-            if not np.all(springs_raw == np.round(springs_raw)):
-                raise ValueError("springs must hold integer node indices")
-        springs = _frozen_copy(self.springs, np.int64)
-        n_nodes, n_springs = positions.shape[0], springs.shape[0]
+        n_nodes = positions.shape[0]
+        if n_nodes == 0:
+            raise check.ArgumentError("positions", self.positions, "an array of at least one node")
+        springs = self.springs
+        if not (
+            isinstance(springs, np.ndarray)
+            and springs.dtype == np.int64
+            and not springs.flags.writeable
+        ):
+            springs = check.index_array(
+                "springs", springs, n_nodes, what="node indices", shape=(None, 2)
+            )
+        _check_shape("springs", springs, (None, 2))
+        n_springs = springs.shape[0]
         if _VALIDATED.get(id(springs)) != n_nodes:
             _validate_topology(springs, n_nodes)
             if not springs.flags.writeable:  # a shared read-only topology is checked once
@@ -139,9 +146,15 @@ class SpringNetwork:
 
         Returns a (n_springs,) float array.
         """
-        x = self.positions if x is None else np.asarray(x, dtype=np.float64)
+        x = self.positions if x is None else self._positions_like(x)
         d = x[self.springs[:, 1]] - x[self.springs[:, 0]]
         return np.hypot(d[:, 0], d[:, 1])
+
+    def _positions_like(self, x: ArrayLike) -> NDArray[np.float64]:
+        """``x`` as (n_nodes, 2) float64 positions: arrays already so pass without a copy."""
+        if isinstance(x, np.ndarray) and x.dtype == np.float64 and x.shape == (self.n_nodes, 2):
+            return x
+        return check.float_array("x", x, (self.n_nodes, 2), finite=False)
 
     def strains(self, x: ArrayLike | None = None) -> NDArray[np.float64]:
         """Spring strains ``S_j = r_j / L_j - 1`` (Eq. 24), (n_springs,) float array."""
@@ -149,10 +162,15 @@ class SpringNetwork:
 
     def clamp_length(self, spring: ArrayLike, strain: ArrayLike) -> NDArray[np.float64]:
         """Length ``L_j (S + 1)`` at which spring(s) ``spring`` have strain ``strain`` (Eq. 25)."""
-        idx = np.asarray(spring, dtype=np.int64)
-        if np.any((idx < 0) | (idx >= self.n_springs)):
-            raise ValueError(f"spring index out of range 0..{self.n_springs - 1}: {spring}")
-        length = self.rest_length[idx] * (np.asarray(strain, dtype=np.float64) + 1.0)
+        top = self.n_springs - 1
+        if np.ndim(spring) == 0:
+            idx = check.integer(
+                "spring", spring, low=0, high=top, what=f"a spring index in 0..{top}"
+            )
+        else:
+            idx = check.index_array("spring", spring, self.n_springs, what="spring indices")
+        strain = check.float_array("strain", strain)
+        length = self.rest_length[idx] * (strain + 1.0)
         if np.any(length <= 0):
             raise ValueError(f"strain must be > -1 so that the clamp length is positive: {strain}")
         return length

@@ -206,7 +206,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
         viol = problem.clamp_violation(x) if m else np.empty(0)
         residual = float(np.max(np.abs(force))) if force.size else 0.0
         clamp_error = float(np.max(np.abs(viol))) if m else 0.0
-        trace.record(residual)
+        trace.record(residual, it)
         if stop.met(residual, clamp_error):
             return Outcome(x, it, True)
         if it == stop.max_iter:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from . import escape
 from .figures import Panel, plot_panels
 from .findings import Finding
 
@@ -56,6 +57,7 @@ class Document:
         self.lines: list[str] = []
         self.files: list[Path] = []
         self.findings: list[Finding] = []
+        self.summaries: dict[str, dict[str, Any]] = {}
         self._section = ""
 
     def add(self, *lines: str) -> None:
@@ -80,12 +82,36 @@ class Document:
         self.findings.append(finding)
         return finding
 
+    def summary(
+        self, key: str, title: str, headers: Sequence[str], rows: Sequence[Sequence]
+    ) -> None:
+        """Keep a small table in ``report.json`` (key ``"summaries"``) for the README.
+
+        Cells are stored as text, as the report shows them. Not added to the report itself.
+        """
+        self.summaries[key] = {
+            "title": title,
+            "headers": [str(h) for h in headers],
+            "rows": [[str(c) for c in row] for row in rows],
+        }
+
     def findings_table(self, findings: Sequence[Finding]) -> None:
-        """A claim / metric / measured / verdict / rule table of the given findings."""
-        self.table(
-            ["claim", "metric", "measured", "verdict", "rule"],
-            [[f.claim, f.metric, f.measured_text(), f"**{f.verdict}**", f.rule] for f in findings],
-        )
+        """A claim / metric / measured / verdict / rule table of the given findings.
+
+        When every finding has the same rule, it is stated once below the table.
+        """
+        if not findings:
+            return
+        rules = {f.rule for f in findings}
+        one = len(rules) == 1
+        headers = ["claim", "metric", "measured", "verdict"] + ([] if one else ["rule"])
+        rows = [
+            [f.claim, f.metric, f.measured_text(), f"**{f.verdict}**"] + ([] if one else [f.rule])
+            for f in findings
+        ]
+        self.table(headers, rows)
+        if one:
+            self.add(f"Verdict rule: {rules.pop()}.", "")
 
     def table(self, headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
         if self.lines and self.lines[-1] != "":
@@ -93,7 +119,7 @@ class Document:
         self.lines.append("| " + " | ".join(headers) + " |")
         self.lines.append("|" + "---|" * len(headers))
         for row in rows:
-            self.lines.append("| " + " | ".join(str(c).replace("|", "\\|") for c in row) + " |")
+            self.lines.append("| " + " | ".join(escape.cell(c) for c in row) + " |")
         self.lines.append("")
 
     def figure(self, name: str, panels: Sequence[Panel], caption: str, **kw: Any) -> None:

@@ -9,12 +9,11 @@ Learning trials also checkpoint inside the trial (``train(..., checkpoint=...)``
 killed trial resumes at its last checkpoint; a resumed run returns the same numbers as an
 uninterrupted one (wall-clock columns aside).
 
-Units of a phase run in parallel processes with ``workers > 1`` (learning trials,
-transmission and relaxation sizes); timing scenes (stability, solvers) always run serially
-so their wall-clock times are not measured under load. Results agree with a serial run:
-every unit draws its randomness from its own seed. (They agree to solver round-off, not bit
-for bit: Newton sizes its reuse of a factorisation from measured solve times, so iterates and
-iteration counts can differ slightly between runs; the same holds for a resumed run.)
+Units of a phase run in parallel with ``workers > 1`` or a Dask ``scheduler`` (learning
+trials, transmission and relaxation sizes), through the executor of :mod:`.executor`;
+timing scenes (stability, solvers) always run serially so their wall-clock times are not
+measured under load. Results agree with a serial run: every unit draws its randomness from
+its own seed, and its solver makes the same decisions wherever it runs.
 
 Testing hook: the environment variable ``CVN_TEST_KILL_AFTER`` (``"units:N"`` or
 ``"steps:N"``) makes the process kill itself with SIGKILL after ``N`` completed units or
@@ -24,25 +23,26 @@ learning steps, to test resuming.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
+import functools
 import json
 import os
-import platform
 import shutil
 import signal
-import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
-from ..io.atomic import atomic_path, write_text_atomic
+from ..io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
+from ..io.lock import folder_lock
+from .executor import Executor, TaskError, open_executor
+from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
+from .units import Unit, UnitContext, UnitResult
 
 __all__ = [
     "Provenance",
@@ -65,119 +65,6 @@ class SceneRunError(RuntimeError):
     def __init__(self, scene: str, unit: str, cause: BaseException) -> None:
         self.scene, self.unit, self.cause = scene, unit, cause
         super().__init__(f"scene {scene!r}, unit {unit!r}: {type(cause).__name__}: {cause}")
-
-
-@dataclass(frozen=True, eq=False)
-class Unit:
-    """One piece of a scene's work.
-
-    Attributes
-    ----------
-    key : str
-        Unique within the scene, ``/``-separated (``"train/newton/gcl/noise0/trial3"``).
-    func : callable ``f(scene, params, ctx) -> (arrays, meta)`` or ``-> History``
-        A module-level function (it is sent to worker processes by reference).
-    params : dict
-        JSON-able parameters of this unit.
-    depends : dict
-        JSON-able settings the result depends on besides ``params`` (fingerprinted).
-    phase : int
-        Units of phase ``p`` run after every unit of the phases before.
-    weight : int
-        Progress-bar weight (learning steps of a trial, 1 otherwise).
-    parallel : bool
-        May run in a worker process (False for timed units).
-    """
-
-    key: str
-    func: Callable[..., Any]
-    params: Mapping[str, Any]
-    depends: Mapping[str, Any] = field(default_factory=dict)
-    phase: int = 0
-    weight: int = 1
-    parallel: bool = True
-
-    @property
-    def fingerprint(self) -> str:
-        text = json.dumps(
-            {
-                "func": f"{self.func.__module__}.{self.func.__qualname__}",
-                "params": self.params,
-                "depends": self.depends,
-            },
-            sort_keys=True,
-            default=str,
-        )
-        return hashlib.sha256(text.encode()).hexdigest()[:20]
-
-    @property
-    def stem(self) -> str:
-        return self.key.replace("/", "__")
-
-
-@dataclass(frozen=True, eq=False)
-class UnitResult:
-    """The stored result of one unit.
-
-    Attributes
-    ----------
-    key : str
-    arrays : dict of str -> array
-        Empty for units that return a history (see :attr:`SceneResult.histories`).
-    meta : dict
-        Plain values (numbers, strings, lists).
-    seconds : float
-        Wall-clock time of the unit when it was computed.
-    """
-
-    key: str
-    arrays: Mapping[str, NDArray]
-    meta: Mapping[str, Any]
-    seconds: float
-
-
-@dataclass(frozen=True)
-class Provenance:
-    """Where a result comes from.
-
-    Attributes
-    ----------
-    version : str
-        Package version.
-    commit : str
-        Git commit of the package source ("unknown" outside a git checkout), with
-        ``+dirty`` when tracked files were modified.
-    python, numpy, scipy, platform : str
-    command : str
-        The command line of the run that completed the result.
-    seeds : tuple of int
-        The seeds the scene used.
-    started : str
-        ISO time the completing run started.
-    wall_seconds : float
-        Wall-clock time of the completing run (units reused from earlier runs excluded).
-    compute_seconds : float
-        Sum of every unit's own wall-clock time (across resumed runs).
-    units : int
-    reused : int
-        Units taken from an earlier (interrupted or finished) run.
-    workers : int
-    """
-
-    version: str
-    commit: str
-    python: str
-    numpy: str
-    scipy: str
-    platform: str
-    command: str
-    seeds: tuple[int, ...]
-    started: str
-    wall_seconds: float
-    compute_seconds: float
-    units: int
-    reused: int
-    workers: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -206,36 +93,6 @@ class SceneResult:
         return {k: u for k, u in self.units.items() if k.startswith(prefix)}
 
 
-@dataclass
-class UnitContext:
-    """What a unit function may use besides its scene and parameters.
-
-    Attributes
-    ----------
-    key : str
-        The unit's key.
-    directory : pathlib.Path
-        The scene's result directory.
-    checkpoint : pathlib.Path
-        A file the unit may use to checkpoint itself (removed when the unit completes).
-    on_step : callable or None
-        Call once per learning step (progress bar, kill hook).
-    """
-
-    key: str
-    directory: Path
-    checkpoint: Path
-    on_step: Callable[[], None] | None = None
-
-    def history(self, group: str):
-        """The merged history of the learning group ``"<solver>/<rule>/noise<i>"``."""
-        return _merged_history(self.directory, group)
-
-    def unit(self, key: str) -> UnitResult:
-        """The stored result of an earlier unit."""
-        return _read_unit(self.directory, key)
-
-
 # -- planning --------------------------------------------------------------------------------
 def plan(scene: Scene) -> list[Unit]:
     """The units of ``scene``, in order (only what the scene names)."""
@@ -243,10 +100,22 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_learning import plan_learning
 
         return plan_learning(scene)
+    if scene.kind == "continuum_learning":
+        from .units_continuum_learning import plan_continuum_learning
+
+        return plan_continuum_learning(scene)
     if scene.kind in ("transmission", "relaxation"):
         from .units_physics import plan_physics
 
         return plan_physics(scene)
+    if scene.kind == "stability":
+        from .units_stability import plan_stability
+
+        return plan_stability(scene)
+    if scene.kind == "accuracy":
+        from .units_accuracy import plan_accuracy
+
+        return plan_accuracy(scene)
     from .units_solvers import plan_solvers
 
     return plan_solvers(scene)
@@ -265,14 +134,35 @@ def _payload_path(directory: Path, key: str) -> Path:
     return _units_dir(directory) / (key.replace("/", "__") + ".npz")
 
 
-def _is_done(directory: Path, unit: Unit) -> bool:
+def _is_done(directory: Path, unit: Unit, *, verify: bool = False) -> bool:
+    """The unit's record matches its fingerprint (and, with ``verify``, its payload loads)."""
     rec = _record_path(directory, unit.key)
     if not (rec.exists() and _payload_path(directory, unit.key).exists()):
         return False
     try:
-        return json.loads(rec.read_text())["fingerprint"] == unit.fingerprint
-    except (OSError, ValueError, KeyError):
+        record = json.loads(rec.read_text())
+        if record["fingerprint"] != unit.fingerprint:
+            return False
+    except (OSError, ValueError, KeyError, TypeError):
         return False
+    return not verify or _payload_loads(directory, unit.key, bool(record.get("history")))
+
+
+def _payload_loads(directory: Path, key: str, history: bool) -> bool:
+    """True when the unit's payload reads back completely (every array, every CRC)."""
+    path = _payload_path(directory, key)
+    try:
+        if history:
+            from ..learning.history import History
+
+            History.load(path)
+        else:
+            with np.load(path, allow_pickle=False) as z:
+                for name in z.files:
+                    z[name]
+    except Exception:  # any failure to read back means: compute the unit again
+        return False
+    return True
 
 
 def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None:
@@ -368,7 +258,14 @@ def _compute(scene: Scene, unit: Unit, directory: Path, on_step: Callable | None
     """Run one unit and store its result; returns its wall-clock seconds."""
     ckpt = directory / "checkpoints" / f"{unit.stem}-{unit.fingerprint[:12]}.npz"
     ckpt.parent.mkdir(parents=True, exist_ok=True)
-    ctx = UnitContext(key=unit.key, directory=directory, checkpoint=ckpt, on_step=on_step)
+    ctx = UnitContext(
+        key=unit.key,
+        directory=directory,
+        checkpoint=ckpt,
+        on_step=on_step,
+        read_unit=functools.partial(_read_unit, directory),
+        read_history=functools.partial(_merged_history, directory),
+    )
     t0 = time.perf_counter()
     output = unit.func(scene, dict(unit.params), ctx)
     seconds = time.perf_counter() - t0
@@ -385,11 +282,34 @@ def _worker(scene: Scene, unit: Unit, directory: str) -> tuple[str, float]:
     return unit.key, seconds
 
 
-def run_scene(
+def _log_unreadable(directory: Path, units: list[Unit], done: set[str], log) -> None:
+    """Say which units are recomputed because their payload does not read back."""
+    bad = [u.key for u in units if u.key not in done and _is_done(directory, u)]
+    if bad and log:
+        log(f"{len(bad)} unit(s) with an unreadable payload are computed again (first: {bad[0]})")
+
+
+def run_scene(scene: Scene, directory: str | os.PathLike[str], **options: Any) -> SceneResult:
+    """Compute every unit of ``scene`` not already in ``directory``; return the result.
+
+    The folder is locked for the run (:func:`~continuum_vs_network.io.lock.folder_lock`): a
+    second run on it raises :class:`~continuum_vs_network.io.lock.FolderBusyError` at once.
+    Temporaries that killed runs left in it are removed first, and a unit whose stored
+    payload does not read back is computed again. The keyword options (``workers``,
+    ``scheduler``, ``progress``, ``fresh``, ``command``, ``log``) are described at
+    :func:`_run_scene`.
+    """
+    with folder_lock(directory):
+        remove_stale_temporaries(directory, locked=True)
+        return _run_scene(scene, directory, **options)
+
+
+def _run_scene(
     scene: Scene,
     directory: str | os.PathLike[str],
     *,
     workers: int = 1,
+    scheduler: str | None = None,
     progress: bool = True,
     fresh: bool = False,
     command: str | None = None,
@@ -403,7 +323,11 @@ def run_scene(
     directory : path
         The scene's result folder (created), e.g. ``results/<scene>``.
     workers : int
-        Processes for the parallel units (1: everything in this process).
+        Worker processes for the parallel units (1: everything in this process; N > 1: a
+        local Dask cluster of N workers, see :func:`.executor.open_executor`).
+    scheduler : str, optional
+        Address of a running Dask scheduler to run the parallel units on instead (its
+        workers must see ``directory``).
     progress : bool
         Show a tqdm progress bar (tqdm is imported only then).
     fresh : bool
@@ -425,6 +349,7 @@ def run_scene(
         for sub in ("units", "checkpoints", "frames"):
             shutil.rmtree(directory / sub, ignore_errors=True)
         (directory / "run.json").unlink(missing_ok=True)
+    env = environment()  # before this run writes anything (cached for the process)
     _units_dir(directory).mkdir(parents=True, exist_ok=True)
     write_text_atomic(
         directory / "scene.json", json.dumps(scene.to_dict(), indent=1, sort_keys=True)
@@ -435,26 +360,28 @@ def run_scene(
         raise AssertionError("duplicate unit keys")
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z")
     t_start = time.perf_counter()
-    done = {u.key for u in units if _is_done(directory, u)}
+    done = {u.key for u in units if _is_done(directory, u, verify=True)}
+    _log_unreadable(directory, units, done, log)
     reused = len(done)
     if log and done:
         log(f"{scene.name}: resuming, {len(done)} of {len(units)} units already computed")
     bar = _bar(progress, scene.name, units, done)
     killer = _Killer()
-    pool = None
+    executor = None
     try:
         for phase in sorted({u.phase for u in units}):
             todo = [u for u in units if u.phase == phase and u.key not in done]
-            serial = [u for u in todo if workers == 1 or not u.parallel]
-            pooled = [u for u in todo if workers > 1 and u.parallel]
+            parallel = workers > 1 or scheduler is not None
+            serial = [u for u in todo if not (parallel and u.parallel)]
+            pooled = [u for u in todo if parallel and u.parallel]
             if pooled:
-                pool = pool or _new_pool(workers)
-                _run_pool(pool, scene, pooled, directory, bar)
+                executor = executor or open_executor(workers=workers, scheduler=scheduler)
+                _run_parallel(executor, scene, pooled, directory, bar)
             for unit in serial:
                 _run_serial(scene, unit, directory, bar, killer)
     finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
+        if executor is not None:
+            executor.close()
         if bar is not None:
             bar.close()
     _clean(directory, units)
@@ -462,11 +389,11 @@ def run_scene(
     compute = sum(_read_record(directory, k)["seconds"] for k in keys)
     prov = Provenance(
         version=_version(),
-        commit=_git_commit(),
-        python=platform.python_version(),
-        numpy=np.__version__,
-        scipy=_scipy_version(),
-        platform=platform.platform(terse=True),
+        commit=env["commit"],
+        python=env["python"],
+        numpy=env["libraries"]["numpy"],
+        scipy=env["libraries"]["scipy"],
+        platform=env["platform"],
         command=command
         if command is not None
         else " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]),
@@ -476,7 +403,10 @@ def run_scene(
         compute_seconds=compute,
         units=len(units),
         reused=reused,
-        workers=int(workers),
+        workers=int(workers) if executor is None else executor.workers,
+        libraries=dict(env["libraries"]),
+        cpu=env["cpu"],
+        threads=blas_threads(),
     )
     write_text_atomic(
         directory / "run.json", json.dumps(dataclasses.asdict(prov), indent=1, sort_keys=True)
@@ -503,30 +433,24 @@ def _run_serial(scene: Scene, unit: Unit, directory: Path, bar, killer: _Killer)
     killer.tick("units")
 
 
-def _new_pool(workers: int):
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+def _run_parallel(
+    executor: Executor, scene: Scene, units: list[Unit], directory: Path, bar
+) -> None:
+    """Units on ``executor`` (each stores its own result); the first failure stops the rest."""
 
-    # spawn, not fork: a forked child would inherit this process's threads and locks
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    def done(i: int, _value: Any) -> None:
+        if bar is not None:
+            bar.update(units[i].weight)
 
-
-def _run_pool(pool, scene: Scene, units: list[Unit], directory: Path, bar) -> None:
-    from concurrent.futures import FIRST_EXCEPTION, wait
-
-    futures = {pool.submit(_worker, scene, u, str(directory)): u for u in units}
-    pending = set(futures)
-    while pending:
-        finished, pending = wait(pending, return_when=FIRST_EXCEPTION)
-        for fut in finished:
-            unit = futures[fut]
-            err = fut.exception()
-            if err is not None:
-                for other in pending:
-                    other.cancel()
-                raise SceneRunError(scene.name, unit.key, err) from err
-            if bar is not None:
-                bar.update(unit.weight)
+    try:
+        executor.run(
+            _worker,
+            [(scene, u, str(directory)) for u in units],
+            on_result=done,
+            label=f"{scene.name}-unit",
+        )
+    except TaskError as err:
+        raise SceneRunError(scene.name, units[err.index].key, err.cause) from err.cause
 
 
 def _bar(progress: bool, name: str, units: list[Unit], done: set[str]):
@@ -594,36 +518,6 @@ def _version() -> str:
         return metadata.version("continuum_vs_network")
     except metadata.PackageNotFoundError:  # pragma: no cover - not installed
         return "unknown"
-
-
-def _scipy_version() -> str:
-    import scipy
-
-    return scipy.__version__
-
-
-def _git_commit() -> str:
-    src = Path(__file__).resolve().parents[2]
-    try:
-        head = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=src,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=src,
-            capture_output=True,
-            text=True,
-            timeout=10,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
-    return head + ("+dirty" if dirty else "")
 
 
 def _seeds(scene: Scene) -> tuple[int, ...]:

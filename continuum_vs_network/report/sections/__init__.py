@@ -11,7 +11,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from . import learning, relaxation, solvers, stability, transmission
+from . import (
+    accuracy,
+    continuum_learning,
+    learning,
+    relaxation,
+    solvers,
+    stability,
+    transmission,
+)
 
 __all__ = ["SECTIONS"]
 
@@ -22,4 +30,6 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "relaxation": relaxation.section,
     "stability": stability.section,
     "solvers": solvers.section,
+    "accuracy": accuracy.section,
+    "continuum_learning": continuum_learning.section,
 }

@@ -41,8 +41,15 @@ def section(doc: Document, result) -> None:
         [
             ["package version", p.version],
             ["git commit", f"`{p.commit}`"],
-            ["python / numpy / scipy", f"{p.python} / {p.numpy} / {p.scipy}"],
+            ["python", p.python],
+            [
+                "libraries (installed versions)",
+                ", ".join(f"{k} {v}" for k, v in p.libraries.items() if v != "not installed")
+                or f"numpy {p.numpy}, scipy {p.scipy}",
+            ],
             ["platform", p.platform],
+            ["CPU", p.cpu],
+            ["thread pools (threadpoolctl)", p.threads],
             ["command", f"`{p.command}`"],
             [
                 "seeds",

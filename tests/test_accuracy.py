@@ -1,0 +1,82 @@
+"""Accuracy scene: every method's error against its run time, orders against textbook."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from continuum_vs_network.report import write_report
+from continuum_vs_network.report.sections.accuracy import convergence_order
+from continuum_vs_network.scenes import load_scene, run_scene
+
+SCENE = """
+name = "acc"
+description = "tiny accuracy scene"
+kind = "accuracy"
+[accuracy]
+elements = ["P1", "P2_curved"]
+mesh_sizes = [0.4, 0.2, 0.1]
+schemes = ["backward_euler", "newmark", "explicit"]
+problems = ["overdamped"]
+steps = [8, 32, 128]
+size = 4
+"""
+
+
+@pytest.fixture(scope="module")
+def accuracy(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("acc")
+    (tmp / "acc.toml").write_text(SCENE)
+    result = run_scene(load_scene(tmp / "acc.toml"), tmp / "results", progress=False)
+    folder = tmp / "reports" / "acc"
+    write_report(result, folder, render=False)
+    return result, folder
+
+
+def test_convergence_order_of_a_power_law():
+    h = np.array([0.4, 0.2, 0.1, 0.05])
+    assert convergence_order(h, 3.0 * h**2.5) == pytest.approx(2.5)
+    assert np.isnan(convergence_order(h, np.full(4, np.nan)))
+
+
+def _errors(result, prefix, keys):
+    return np.array([result.units[f"{prefix}{k}"].meta["error"] for k in keys])
+
+
+def test_finite_element_orders_on_lames_cylinder(accuracy):
+    result, _ = accuracy
+    h = np.array([0.4, 0.2, 0.1])
+    hs = ["h0.4", "h0.2", "h0.1"]
+    assert convergence_order(h, _errors(result, "accuracy/fe/P1/", hs)) == pytest.approx(2, abs=0.2)
+    p2 = _errors(result, "accuracy/fe/P2_curved/", hs)
+    assert convergence_order(h, p2) == pytest.approx(3, abs=0.35)
+    assert p2[-1] < 1e-4
+
+
+def test_time_integrators_against_the_reference(accuracy):
+    result, _ = accuracy
+    n = ["n8", "n32", "n128"]
+    dt = np.array([result.units[f"accuracy/network/overdamped/newmark/{k}"].meta["dt"] for k in n])
+    for medium in ("network", "continuum"):
+        be = _errors(result, f"accuracy/{medium}/overdamped/backward_euler/", n)
+        nm = _errors(result, f"accuracy/{medium}/overdamped/newmark/", n)
+        assert convergence_order(dt, be) == pytest.approx(1, abs=0.25)
+        assert convergence_order(dt, nm) == pytest.approx(2, abs=0.25)
+    # explicit: the coarse step is above the stability limit and refused, the others run
+    metas = [result.units[f"accuracy/network/overdamped/explicit/{k}"].meta for k in n]
+    for m in metas:
+        assert bool(m["refused"]) == (m["dt"] > m["dt_limit"])
+    assert metas[0]["refused"].startswith("ValueError") and np.isnan(metas[0]["error"])
+    assert "accuracy/continuum/overdamped/explicit/n8" not in result.units
+
+
+def test_findings_land_in_report_json(accuracy):
+    _, folder = accuracy
+    meta = json.loads((folder / "report.json").read_text())
+    verdicts = {f["claim"]: f["verdict"] for f in meta["findings"]}
+    assert len(verdicts) == 2 + 3 + 2 + 1
+    assert verdicts["P1 elements converge at order 2 in h (L2 displacement error)"] == "reproduced"
+    text = (folder / "report.md").read_text()
+    assert "fig_fe_accuracy.png" in text and "fig_integrators_accuracy.png" in text
