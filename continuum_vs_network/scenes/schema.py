@@ -389,7 +389,10 @@ class LearningSpec:
         (),
         "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
         check=_each(_positive),
-        used=_kinds("learning"),
+        used=_when(
+            lambda s: s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules),
+            "by learning scenes with a GCL rule",
+        ),
     )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
     alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
