@@ -4,7 +4,8 @@ Light to import (numpy and scipy only). The main names:
 
 * tasks: :class:`AllosteryTask`, :func:`paper_task`, :func:`stern_task`;
 * rules: :class:`CoupledLearning`, :class:`ProspectiveConfiguration`,
-  :class:`ExactGradient` (frozen dataclasses with ``update(net, task, ...) -> Step``);
+  :class:`ExactGradient`, :class:`DirectedAging` (frozen dataclasses with
+  ``update(net, task, ...) -> Step``);
 * equilibria for learning: :class:`Solver`, :class:`Tracker`;
 * exact gradients: :func:`cost_gradient`, :class:`Sensitivity`, :func:`gcl_limit`;
 * training: :func:`train` -> :class:`History` (``.save`` / ``History.load``);
@@ -13,6 +14,7 @@ Light to import (numpy and scipy only). The main names:
 
 from __future__ import annotations
 
+from .aging import DirectedAging
 from .coupling import Coupling, measure_coupling
 from .history import History
 from .rules import (
@@ -33,6 +35,7 @@ __all__ = [
     "AllosteryTask",
     "CoupledLearning",
     "Coupling",
+    "DirectedAging",
     "ExactGradient",
     "History",
     "LearningError",

@@ -301,6 +301,18 @@ class Rule:
             net, task.pinned, clamps, warm.free, key="free", guess=warm.free_guess()
         )
 
+    def _fully_clamped(self, net, task, warm, tracker, noise, rng):
+        """The state with sources *and* targets clamped at the task's strains (GPC's
+        clamped state, the trainer's imposed strain of directed aging): ``(state, target
+        clamp lengths, measured spring lengths)``."""
+        ref = self.strain_reference
+        lengths = task.desired_lengths(net, ref)
+        clamps = task.source_clamps(net, ref)
+        clamps.update(zip(task.targets.tolist(), lengths.tolist()))
+        x0 = warm.clamped if warm.clamped is not None else warm.free
+        clamped = tracker.solve(net, task.pinned, clamps, x0, key="clamped")
+        return clamped, lengths, _noisy(net.lengths(clamped.positions), noise, rng)
+
     def update(
         self,
         net: SpringNetwork,
@@ -491,13 +503,7 @@ class ProspectiveConfiguration(Rule):
         return False
 
     def _update(self, net, task, warm, tracker, noise, rng) -> Step:
-        ref = self.strain_reference
-        lengths = task.desired_lengths(net, ref)
-        clamps = task.source_clamps(net, ref)
-        clamps.update(zip(task.targets.tolist(), lengths.tolist()))
-        x0 = warm.clamped if warm.clamped is not None else warm.free
-        clamped = tracker.solve(net, task.pinned, clamps, x0, key="clamped")
-        r_c = _noisy(net.lengths(clamped.positions), noise, rng)
+        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, noise, rng)
         k, L = net.stiffness, net.rest_length
         if self.dof == "rest_length":
             raw = self.alpha * k * (r_c - L)
