@@ -2,7 +2,8 @@
 
 Light to import (numpy and scipy only). The main names:
 
-* tasks: :class:`AllosteryTask`, :func:`paper_task`, :func:`stern_task`;
+* tasks: :class:`AllosteryTask`, :func:`paper_task`, :func:`stern_task`; several examples
+  at once: :class:`TaskSet`, :func:`examples_task`, :func:`symmetric`;
 * rules: :class:`CoupledLearning`, :class:`ProspectiveConfiguration`,
   :class:`ExactGradient`, :class:`DirectedAging` (frozen dataclasses with
   ``update(net, task, ...) -> Step``);
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 from .aging import DirectedAging
 from .coupling import Coupling, measure_coupling
+from .examples import TaskSet, examples_task, symmetric
 from .history import History
 from .rules import (
     CoupledLearning,
@@ -44,12 +46,15 @@ __all__ = [
     "Sensitivity",
     "Solver",
     "Step",
+    "TaskSet",
     "Tracker",
     "Warm",
     "cost_gradient",
+    "examples_task",
     "gcl_limit",
     "measure_coupling",
     "paper_task",
     "stern_task",
+    "symmetric",
     "train",
 ]

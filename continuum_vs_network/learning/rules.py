@@ -74,6 +74,7 @@ from numpy.typing import NDArray
 from .. import _validate as check
 from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
+from .examples import TaskSet
 from .sensitivity import Cost, cost_gradient
 from .states import Solver, Tracker
 from .tasks import AllosteryTask, StrainReference, check_strain_reference
@@ -108,11 +109,18 @@ class Warm:
     previous_free : (n_nodes, 2) float array or None
         The free equilibrium one step earlier: with ``free`` it extrapolates the next free
         state (a guess for the fast solver; the warm start stays ``free``).
+    examples : tuple of Warm or None
+        One warm start per example of a :class:`~.examples.TaskSet`.
     """
 
     free: NDArray | None = None
     clamped: NDArray | None = None
     previous_free: NDArray | None = None
+    examples: tuple[Warm, ...] | None = None
+
+    def example(self, e: int) -> Warm:
+        """The warm start of example ``e`` (empty when there is none)."""
+        return self.examples[e] if self.examples is not None else Warm()
 
     def free_guess(self) -> NDArray | None:
         """Linear extrapolation ``2 free - previous_free`` (or ``free``)."""
@@ -140,6 +148,9 @@ class Step:
         Spring lengths as the rule read them (with read-out noise, if any).
     raw : (n_springs,) float array
         The rule's update before masks and floors.
+    examples : tuple of Step or None
+        For a :class:`~.examples.TaskSet`: each example's step (its states and raw
+        update); ``delta`` is their summed ``raw``, masked and floored once.
     """
 
     delta: NDArray[np.float64]
@@ -151,10 +162,13 @@ class Step:
     measured_clamped: NDArray | None = field(default=None, repr=False)
     raw: NDArray | None = field(default=None, repr=False)
     previous: Warm | None = field(default=None, repr=False)
+    examples: tuple[Step, ...] | None = field(default=None, repr=False)
 
     @property
     def warm(self) -> Warm:
         """Warm starts for the next step (this step's states; the older ones kept)."""
+        if self.examples is not None:
+            return Warm(examples=tuple(s.warm for s in self.examples))
         before = self.previous or Warm()
         return Warm(
             free=before.free if self.free is None else self.free.positions,
@@ -328,7 +342,8 @@ class Rule:
         Parameters
         ----------
         net : SpringNetwork
-        task : AllosteryTask
+        task : AllosteryTask or TaskSet
+            A task set (several examples) gives the sum of the per-example updates.
         warm : Warm, optional
             Warm starts (the previous step's ``step.warm``).
         tracker : Tracker, optional
@@ -356,9 +371,26 @@ class Rule:
             raise ValueError("noise > 0 needs rng, a numpy.random.Generator")
         tracker = tracker or Tracker(self.solver)
         warm = warm or Warm()
+        if isinstance(task, TaskSet):
+            return self._update_examples(net, task, warm, tracker, float(noise), rng)
         step = self._update(net, task, warm, tracker, float(noise), rng)
         _check_finite_update(step.delta, self.dof)
         return dataclasses.replace(step, previous=warm)
+
+    def _update_examples(self, net, tasks, warm, tracker, noise, rng) -> Step:
+        """Several examples at once: the sum of the per-example updates (.examples)."""
+        steps = []
+        for e, task in enumerate(tasks.tasks):
+            w = warm.example(e)
+            step = self._update(net, task, w, tracker, noise, rng)
+            steps.append(dataclasses.replace(step, previous=w))
+        raw = np.sum([s.raw for s in steps], axis=0)
+        delta = self._delta(net, tasks, raw)
+        _check_finite_update(delta, self.dof)
+        return Step(
+            delta=delta, dof=self.dof, free=None, clamped=None, raw=raw,
+            previous=warm, examples=tuple(steps),
+        )  # fmt: skip
 
     def _update(
         self,
