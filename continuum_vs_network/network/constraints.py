@@ -19,6 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from .._validate import index_array
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .model import SpringNetwork
@@ -40,7 +41,7 @@ def default_pins(net: SpringNetwork, avoid: ArrayLike = ()) -> NDArray[np.bool_]
     Returns a (n_nodes, 2) bool mask.
     """
     x = net.positions
-    avoid = np.asarray(avoid, dtype=np.int64).ravel()
+    avoid = index_array("avoid", np.ravel(avoid), net.n_springs, what="spring indices")
     if avoid.size:
         avoid_nodes = np.unique(net.springs[avoid].ravel())
         dist = np.min(np.linalg.norm(x[:, None, :] - x[None, avoid_nodes, :], axis=2), axis=1)

@@ -86,6 +86,20 @@ def estimate(scene: Scene) -> Estimate:
                 f"sweeps of {L.sweep_points} points",
             )
         return est
+    if scene.kind == "continuum_learning" and net is not None and L is not None:
+        nodes = net.size**2
+        c = scene.continuum
+        refine, order = (c.refine, c.order) if c is not None else (0, 1)
+        dofs = 2 * nodes * 4**refine * (4 if order == 2 else 1)
+        est.add("network", "size", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
+        what = f"{dofs} finite-element unknowns (refine {refine}, order {order})"
+        est.add("network", "size", dofs * FE_BYTES_PER_DOF, what)
+        n_targets = scene.task.n_targets if scene.task is not None else 1
+        runs = len(L.rules) * L.trials * (refine + 2)  # the network and every refinement
+        key = "steps" if L.steps / 300 > L.trials / 10 else "trials"
+        est.add("learning", key, 2 * runs * _history_bytes(L.steps, n_targets),
+                f"{runs} histories of {L.steps} steps")  # fmt: skip
+        return est
     if scene.kind == "accuracy":
         a = scene.accuracy
         assert a is not None

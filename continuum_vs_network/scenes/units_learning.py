@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 
 from ..io.atomic import atomic_path
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
 __all__ = [
     "build_rules",

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 from .units_physics import centre_spring, lattice
 
 __all__ = ["plan_solvers", "warm_up"]
