@@ -78,3 +78,49 @@ def test_aging_trains_through_train_and_lowers_the_task_error(lattice):
 def test_aging_rejects_a_bad_rate():
     with pytest.raises(ValueError, match="alpha"):
         DirectedAging(-1.0)
+
+
+# -- joint learning of rest lengths and stiffnesses (dof="both") ----------------------------
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda dof: DirectedAging(1e-3, dof=dof),
+        lambda dof: ProspectiveConfiguration(1e-3, dof=dof),
+        lambda dof: cvn.CoupledLearning(1e-3, 1e-2, dof=dof),
+        lambda dof: cvn.ExactGradient(1e-3, dof=dof),
+    ],
+)
+def test_joint_update_stacks_the_rest_length_and_stiffness_updates(lattice, make):
+    net, task = lattice
+    both = make("both").update(net, task).delta
+    assert both.shape == (2, net.n_springs)
+    for row, dof in zip(both, ("rest_length", "stiffness")):
+        assert np.allclose(row, make(dof).update(net, task).delta, rtol=1e-9, atol=1e-15)
+
+
+def test_joint_exact_step_descends_along_the_full_gradient(lattice):
+    net, task = lattice
+    step = cvn.ExactGradient(1e-4, dof="both").update(net, task)
+    new = step.apply(net)
+    assert np.allclose(new.rest_length - net.rest_length, step.delta[0])
+    assert np.allclose(new.stiffness - net.stiffness, step.delta[1])
+
+    def error(n):
+        return task.error(
+            n, cvn.relax(n, pinned=task.pinned, clamped=task.source_clamps(n)).positions
+        )
+
+    c0, c1 = error(net), error(new)
+    # first order: C falls by |grad|^2 alpha over both kinds of parameters together
+    assert c1 - c0 == pytest.approx(-np.sum(step.delta**2) / 1e-4, rel=1e-2)
+
+
+def test_joint_training_runs_through_train_and_learns_faster_than_k_alone(lattice):
+    net, task = lattice
+    h = train(net, task, cvn.CoupledLearning(0.3, 0.1, dof="both"), 30, progress=False)
+    k_only = train(net, task, cvn.CoupledLearning(0.3, 0.1, dof="stiffness"), 30, progress=False)
+    assert h.completed[0] == 30 and h.settings["dof"] == "both"
+    assert h.error_initial[0, -1] < 0.1 * h.error_initial[0, 0]
+    assert h.error_initial[0, -1] < k_only.error_initial[0, -1]
+    assert np.any(h.final[0].stiffness != net.stiffness)
+    assert np.any(h.final[0].rest_length != net.rest_length)

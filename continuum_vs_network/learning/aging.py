@@ -61,10 +61,13 @@ class DirectedAging(Rule):
     def _update(self, net, task, warm, tracker, noise, rng) -> Step:
         clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, noise, rng)
         k, L = net.stiffness, net.rest_length
-        if self.dof == "rest_length":
-            raw = self.alpha * (r_c - L)
-        else:
-            raw = -0.5 * self.alpha * k * (r_c / L - 1.0) ** 2
+
+        def local(dof: str):
+            if dof == "rest_length":
+                return self.alpha * (r_c - L)
+            return -0.5 * self.alpha * k * (r_c / L - 1.0) ** 2
+
+        raw = self._per_dof(local)
         return Step(
             delta=self._delta(net, task, raw),
             dof=self.dof,

@@ -53,7 +53,10 @@ exponentially when the target should stretch (or runs to 0 when it should shrink
 Prospective configuration in the ``"current"`` convention has the same runaway on every
 clamped spring (``dL = alpha k S L``).
 
-Options every rule honours: ``dof``, ``learn_sources`` and ``learn_targets`` (both False by
+Options every rule honours: ``dof`` (``"rest_length"``, ``"stiffness"``, or ``"both"``:
+rest lengths and stiffnesses learned together, each by its own line of the rule, from the
+same states; the exact gradient's two rows are the gradient with respect to both),
+``learn_sources`` and ``learn_targets`` (both False by
 default: bulk learning; a target that learns its own rest length meets the task trivially,
 without the bulk transmitting anything, see :mod:`.coupling`),
 ``strain_reference`` (``"initial"``, the default: fixed clamp lengths from the task's
@@ -75,7 +78,7 @@ from .. import _validate as check
 from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
 from .examples import TaskSet
-from .sensitivity import Cost, cost_gradient
+from .sensitivity import Cost, Sensitivity, cost_gradient
 from .states import Solver, Tracker
 from .tasks import AllosteryTask, StrainReference, check_strain_reference
 
@@ -90,8 +93,10 @@ __all__ = [
     "Warm",
 ]
 
-Dof = Literal["rest_length", "stiffness", "eigenstrain", "modulus"]
-_NETWORK_DOFS = ("rest_length", "stiffness")
+Dof = Literal["rest_length", "stiffness", "both", "eigenstrain", "modulus"]
+_NETWORK_DOFS = ("rest_length", "stiffness", "both")
+#: the rows of a joint (``dof="both"``) update, in order
+JOINT = ("rest_length", "stiffness")
 
 
 class LearningError(RuntimeError):
@@ -135,9 +140,10 @@ class Step:
 
     Attributes
     ----------
-    delta : (n_springs,) float array
-        Change of ``L`` or ``k`` (masks and floors applied).
-    dof : {"rest_length", "stiffness"}
+    delta : (n_springs,) float array, or (2, n_springs) for ``dof="both"``
+        Change of ``L`` or ``k`` (masks and floors applied); for ``"both"`` the rows are
+        the changes of ``L`` and of ``k`` (:data:`JOINT`), learned together.
+    dof : {"rest_length", "stiffness", "both"}
     free : Equilibrium or None
         Free state (sources clamped) of the network before the step, when the rule used one.
     clamped : Equilibrium or None
@@ -190,36 +196,47 @@ class Step:
             except ValueError as err:
                 raise LearningError(str(err)) from err
         _check_finite_update(self.delta, self.dof)
-        if self.dof == "rest_length":
-            new = net.rest_length + self.delta
-            _check_finite_update(new, self.dof)
-            bad = np.flatnonzero(new <= 0)
-            if bad.size:
-                j = int(bad[0])
-                raise LearningError(
-                    f"rest length of spring {j} would become {new[j]:.3g} <= 0 "
-                    f"({bad.size} springs); set min_rest_length to floor it"
-                )
-            return net.with_rest_length(new)
-        new = net.stiffness + self.delta
-        _check_finite_update(new, self.dof)
-        bad = np.flatnonzero(new < 0)
+        if self.dof == "both":  # rest lengths and stiffnesses together: rows JOINT
+            for dof, row in zip(JOINT, self.delta):
+                net = _apply_one(net, dof, row)
+            return net
+        return _apply_one(net, self.dof, self.delta)
+
+
+def _apply_one(net: SpringNetwork, dof: str, delta: NDArray) -> SpringNetwork:
+    """``net`` with ``delta`` added to its rest lengths or stiffnesses (checked)."""
+    if dof == "rest_length":
+        new = net.rest_length + delta
+        _check_finite_update(new, dof)
+        bad = np.flatnonzero(new <= 0)
         if bad.size:
             j = int(bad[0])
             raise LearningError(
-                f"stiffness of spring {j} would become {new[j]:.3g} < 0 "
-                f"({bad.size} springs); set min_stiffness to floor it"
+                f"rest length of spring {j} would become {new[j]:.3g} <= 0 "
+                f"({bad.size} springs); set min_rest_length to floor it"
             )
-        return net.with_stiffness(new)
+        return net.with_rest_length(new)
+    new = net.stiffness + delta
+    _check_finite_update(new, dof)
+    bad = np.flatnonzero(new < 0)
+    if bad.size:
+        j = int(bad[0])
+        raise LearningError(
+            f"stiffness of spring {j} would become {new[j]:.3g} < 0 "
+            f"({bad.size} springs); set min_stiffness to floor it"
+        )
+    return net.with_stiffness(new)
 
 
 def _check_finite_update(values: NDArray, dof: str) -> None:
     """A non-finite update (an overflow: learning rate too large, a diverged state) stops."""
+    values = np.asarray(values)
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
-        j = int(bad[0])
+        j = int(bad[0]) % values.shape[-1]
+        value = values.ravel()[bad[0]]
         raise LearningError(
-            f"the {dof} update of spring {j} is not finite ({values[j]}; {bad.size} springs): "
+            f"the {dof} update of spring {j} is not finite ({value}; {bad.size} springs): "
             f"the step overflowed (lower the learning rate)"
         )
 
@@ -248,7 +265,9 @@ class Rule:
     solver: Solver = field(default_factory=Solver)
 
     def __post_init__(self) -> None:
-        check.choice("dof", self.dof, ("rest_length", "stiffness", "eigenstrain", "modulus"))
+        check.choice(
+            "dof", self.dof, ("rest_length", "stiffness", "both", "eigenstrain", "modulus")
+        )
         check_strain_reference(self.strain_reference)
         check.boolean("learn_sources", self.learn_sources)
         check.boolean("learn_targets", self.learn_targets)
@@ -295,13 +314,24 @@ class Rule:
 
     def _delta(self, net: SpringNetwork, task: AllosteryTask, raw: NDArray) -> NDArray:
         """Mask and floor a raw update. A floor stops a decrease; it never lifts a value."""
+        if self.dof == "both":
+            return np.stack([self._delta_one(net, task, r, d) for r, d in zip(raw, JOINT)])
+        return self._delta_one(net, task, raw, self.dof)
+
+    def _delta_one(self, net, task, raw: NDArray, dof: str) -> NDArray:
         raw = np.where(self.learning_mask(net, task), raw, 0.0)
-        old = net.rest_length if self.dof == "rest_length" else net.stiffness
-        floor = self.min_rest_length if self.dof == "rest_length" else self.min_stiffness
+        old = net.rest_length if dof == "rest_length" else net.stiffness
+        floor = self.min_rest_length if dof == "rest_length" else self.min_stiffness
         if floor is None:
             return raw
         new = np.maximum(old + raw, np.minimum(old, floor))
         return new - old
+
+    def _per_dof(self, local) -> NDArray:
+        """``local(dof)`` for the rule's ``dof``; rows :data:`JOINT` stacked for "both"."""
+        if self.dof == "both":
+            return np.stack([local(d) for d in JOINT])
+        return local(self.dof)
 
     def _free(
         self,
@@ -487,10 +517,13 @@ class CoupledLearning(Rule):
         nudged = tracker.solve(net, task.pinned, clamps, free.positions, key="free", guess=guess)
         r_nudged = _noisy(net.lengths(nudged.positions), noise, rng)
         k, L = net.stiffness, net.rest_length
-        if self.dof == "rest_length":
-            raw = (self.alpha / self.eta) * k * (r_nudged - r_free)
-        else:
-            raw = (self.alpha / (2 * self.eta)) * ((r_free - L) ** 2 - (r_nudged - L) ** 2)
+
+        def local(dof: str) -> NDArray:
+            if dof == "rest_length":
+                return (self.alpha / self.eta) * k * (r_nudged - r_free)
+            return (self.alpha / (2 * self.eta)) * ((r_free - L) ** 2 - (r_nudged - L) ** 2)
+
+        raw = self._per_dof(local)
         return Step(
             delta=self._delta(net, task, raw),
             dof=self.dof,
@@ -537,10 +570,13 @@ class ProspectiveConfiguration(Rule):
     def _update(self, net, task, warm, tracker, noise, rng) -> Step:
         clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, noise, rng)
         k, L = net.stiffness, net.rest_length
-        if self.dof == "rest_length":
-            raw = self.alpha * k * (r_c - L)
-        else:
-            raw = -0.5 * self.alpha * (r_c - L) ** 2
+
+        def local(dof: str) -> NDArray:
+            if dof == "rest_length":
+                return self.alpha * k * (r_c - L)
+            return -0.5 * self.alpha * (r_c - L) ** 2
+
+        raw = self._per_dof(local)
         return Step(
             delta=self._delta(net, task, raw),
             dof=self.dof,
@@ -586,14 +622,20 @@ class ExactGradient(Rule):
         free = self._free(net, task, tracker, warm)
         r_free = _noisy(net.lengths(free.positions), noise, rng)
         try:
-            grad = cost_gradient(
-                net,
-                task,
-                free,
-                strain_reference=self.strain_reference,
-                dof=self.dof,
-                cost=self.cost,
-                target_lengths=r_free[task.targets],
+            sens = Sensitivity(
+                net, task.pinned, task.source_clamps(net, self.strain_reference), free
+            )  # one factorisation serves both rows of dof="both"
+            grad = self._per_dof(
+                lambda dof: cost_gradient(
+                    net,
+                    task,
+                    free,
+                    strain_reference=self.strain_reference,
+                    dof=dof,
+                    cost=self.cost,
+                    target_lengths=r_free[task.targets],
+                    sensitivity=sens,
+                )
             )
         except (np.linalg.LinAlgError, RuntimeError) as err:
             raise LearningError(f"exact gradient: singular KKT system ({err})") from err

@@ -345,9 +345,7 @@ def _run_trial(
 
 
 def _energy_gradient(net: SpringNetwork, x: NDArray, dof: str, mask: NDArray) -> float:
-    dr = net.lengths(x) - net.rest_length
-    g = -net.stiffness * dr if dof == "rest_length" else 0.5 * dr**2
-    return float(np.linalg.norm(g[mask]))
+    return _summed_gradient(net, [x], dof, mask)
 
 
 def _record_measure(rec, t, net, task, rule, free, mask) -> None:
@@ -397,11 +395,13 @@ def _record_examples(rec, t, net, tasks: TaskSet, rule, free, mask) -> None:
 
 
 def _summed_gradient(net: SpringNetwork, xs: list, dof: str, mask: NDArray) -> float:
+    """``|sum_x dE/dtheta(x)|`` over the learning springs (both rows for ``dof="both"``)."""
     g = 0.0
     for x in xs:
         dr = net.lengths(x) - net.rest_length
-        g = g + (-net.stiffness * dr if dof == "rest_length" else 0.5 * dr**2)
-    return float(np.linalg.norm(np.asarray(g)[mask]))
+        by = {"rest_length": -net.stiffness * dr, "stiffness": 0.5 * dr**2}
+        g = g + (np.stack([by["rest_length"], by["stiffness"]]) if dof == "both" else by[dof])
+    return float(np.linalg.norm(np.asarray(g)[..., mask]))
 
 
 def _record_update(rec, t, step: Step, net, rule, mask) -> None:

@@ -113,12 +113,14 @@ RULES = (
     "gpc_all",
     "aging",
     "aging_k",
+    "gcl_both",
 )
 #: Rules only the paper task knows, and only Stern-scale tasks know.
 PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
-STERN_RULES = ("gcl_all", "gpc_all", "aging", "aging_k")
-#: The rules a ``beyond_paper`` scene compares (in the bulk, on the paper's and Stern's task).
-BEYOND_RULES = ("aging", "aging_k", "gpc", "gcl", "exact")
+STERN_RULES = ("gcl_all", "gpc_all", "aging", "aging_k", "gcl_both")
+#: The rules a ``beyond_paper`` scene compares (in the bulk, on the paper's and Stern's task;
+#: ``gcl_both`` learns rest lengths and stiffnesses together).
+BEYOND_RULES = ("aging", "aging_k", "gpc", "gcl", "gcl_both", "exact")
 #: The rules a ``continuum_learning`` scene trains both media with (Stern-scale meaning:
 #: ``gcl``, ``gpc``, ``exact`` in the bulk, sources' and targets' material frozen).
 CONTINUUM_RULES = ("gcl", "gpc", "exact", "gcl_all", "gpc_all")

@@ -1,7 +1,8 @@
 """Units of a ``beyond_paper`` scene: what the field uses beyond the paper.
 
 * ``beyond/compare/<task>/<rule>``: every rule of ``[learning] rules`` (directed aging of
-  rest lengths ``aging`` and of stiffnesses ``aging_k``, ``gpc``, ``gcl``, ``exact``) on
+  rest lengths ``aging`` and of stiffnesses ``aging_k``, ``gpc``, ``gcl``, ``exact``, and
+  ``gcl_both``: GCL of rest lengths and stiffnesses together, ``dof="both"``) on
   the paper's task (the paper's network, one source and one target at strains about 5)
   and on Stern's task (an ``n x n`` lattice, ``n = [network] sizes[0]``, with ``[task]``'s
   sources and targets). The same rule objects on both tasks: bulk learning (sources and
@@ -45,6 +46,7 @@ def _table(scene: Scene) -> dict[str, Any]:
     L = scene.learning
     base = stern_rules(alpha=L.alpha_gcl, eta=L.eta, alpha_gpc=L.alpha_gpc)
     table = {"gcl": base["GCL"], "gpc": base["GPC"], "exact": base["exact"]}
+    table["gcl_both"] = dataclasses.replace(base["GCL"], dof="both", min_stiffness=1e-3)
     table.update(aging_rules(L.alpha_aging, base["GPC"]))
     return table
 

@@ -251,7 +251,8 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
     ``exact`` learn in the bulk (sources and targets frozen; the exact gradient uses
     ``alpha_gcl`` on the length cost, as ``stern_rules`` matches the step sizes),
     ``gcl_all`` and ``gpc_all`` let every spring learn, ``aging`` and ``aging_k`` are
-    directed aging of rest lengths and stiffnesses (in the bulk, :func:`aging_rules`).
+    directed aging of rest lengths and stiffnesses (in the bulk, :func:`aging_rules`),
+    ``gcl_both`` GCL of rest lengths and stiffnesses together (``dof="both"``).
     Keys are :func:`run_names`.
     """
     import dataclasses
@@ -285,6 +286,7 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
             "gpc_all": every["GPC"],
         }
         table.update(aging_rules(L.alpha_aging, bulk["GPC"]))
+        table["gcl_both"] = dataclasses.replace(bulk["GCL"], dof="both", min_stiffness=1e-3)
     out = {}
     for rule in L.rules:
         if rule.startswith("gcl") and L.etas:

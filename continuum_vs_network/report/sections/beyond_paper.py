@@ -76,7 +76,8 @@ def _compare(doc, scene, units) -> None:
         f"{L.alpha_gcl:g} (eta {L.eta:g}), GPC {L.alpha_gpc:g}, exact gradient (length cost) "
         f"{L.alpha_gcl:g}, each divided by the network's mean stiffness (their steps scale "
         "with k; the paper's network has mean k about 25); directed aging's rate carries no "
-        "k and is used as given.",
+        "k and is used as given. `gcl_both` is GCL of rest lengths and stiffnesses together "
+        '(`dof = "both"`, each by its own line of the rule, from the same two states).',
         "",
     )
     panels = []
