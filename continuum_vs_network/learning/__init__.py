@@ -3,7 +3,8 @@
 Light to import (numpy and scipy only). The main names:
 
 * tasks: :class:`AllosteryTask`, :func:`paper_task`, :func:`stern_task`; several examples
-  at once: :class:`TaskSet`, :func:`examples_task`, :func:`symmetric`;
+  at once: :class:`TaskSet`, :func:`examples_task`, :func:`symmetric`; node
+  displacements as outputs: :class:`NodeTask`, :func:`node_task`;
 * rules: :class:`CoupledLearning`, :class:`ProspectiveConfiguration`,
   :class:`ExactGradient`, :class:`DirectedAging` (frozen dataclasses with
   ``update(net, task, ...) -> Step``);
@@ -19,6 +20,7 @@ from .aging import DirectedAging
 from .coupling import Coupling, measure_coupling
 from .examples import TaskSet, examples_task, symmetric
 from .history import History
+from .node_tasks import NodeTask, node_cost_gradient, node_task
 from .rules import (
     CoupledLearning,
     ExactGradient,
@@ -41,6 +43,7 @@ __all__ = [
     "ExactGradient",
     "History",
     "LearningError",
+    "NodeTask",
     "ProspectiveConfiguration",
     "Rule",
     "Sensitivity",
@@ -53,6 +56,8 @@ __all__ = [
     "examples_task",
     "gcl_limit",
     "measure_coupling",
+    "node_cost_gradient",
+    "node_task",
     "paper_task",
     "stern_task",
     "symmetric",

@@ -95,6 +95,7 @@ _KINDS = {"LearnableBody": ("continuum_vs_network.continuum.learnable", "Learnab
 _TASKS = {
     "MaterialTask": ("continuum_vs_network.continuum.material_task", "MaterialTask"),
     "TaskSet": ("continuum_vs_network.learning.examples", "TaskSet"),
+    "NodeTask": ("continuum_vs_network.learning.node_tasks", "NodeTask"),
 }
 
 

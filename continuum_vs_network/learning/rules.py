@@ -78,6 +78,7 @@ from .. import _validate as check
 from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
 from .examples import TaskSet
+from .node_tasks import NodeTask, node_cost_gradient
 from .sensitivity import Cost, Sensitivity, cost_gradient
 from .states import Solver, Tracker
 from .tasks import AllosteryTask, StrainReference, check_strain_reference
@@ -350,10 +351,16 @@ class Rule:
         clamped state, the trainer's imposed strain of directed aging): ``(state, target
         clamp lengths, measured spring lengths)``."""
         ref = self.strain_reference
+        x0 = warm.clamped if warm.clamped is not None else warm.free
+        if isinstance(task, NodeTask):  # target coordinates pinned at the desired values
+            lengths = task.desired
+            pinned, start = task.node_clamps(net.positions if x0 is None else x0, lengths)
+            clamps = task.source_clamps(net)
+            clamped = tracker.solve(net, pinned, clamps, start, key="clamped")
+            return clamped, lengths, _noisy(net.lengths(clamped.positions), noise, rng)
         lengths = task.desired_lengths(net, ref)
         clamps = task.source_clamps(net, ref)
         clamps.update(zip(task.targets.tolist(), lengths.tolist()))
-        x0 = warm.clamped if warm.clamped is not None else warm.free
         clamped = tracker.solve(net, task.pinned, clamps, x0, key="clamped")
         return clamped, lengths, _noisy(net.lengths(clamped.positions), noise, rng)
 
@@ -399,6 +406,10 @@ class Rule:
         noise = check.real("noise", noise, low=0)
         if noise > 0 and not isinstance(rng, np.random.Generator):
             raise ValueError("noise > 0 needs rng, a numpy.random.Generator")
+        if isinstance(task, NodeTask) and noise > 0:
+            raise ValueError(
+                "read-out noise is relative to spring lengths: node tasks take noise 0"
+            )
         tracker = tracker or Tracker(self.solver)
         warm = warm or Warm()
         if isinstance(task, TaskSet):
@@ -500,22 +511,12 @@ class CoupledLearning(Rule):
         _check_rate("eta", self.eta)
 
     def _update(self, net, task, warm, tracker, noise, rng) -> Step:
-        ref = self.strain_reference
-        free = self._free(net, task, tracker, warm)
-        r_free = _noisy(net.lengths(free.positions), noise, rng)
-        s_free = task.target_strains(net, r_free[task.targets], ref)
-        s_nudge = s_free + self.eta * (task.target_strain - s_free)
-        lengths = task.target_rest(net, ref) * (1.0 + s_nudge)
-        if np.any(lengths <= 0):
-            raise LearningError(f"nudged target length {lengths.min():.3g} <= 0")
-        clamps = task.source_clamps(net, ref)
-        clamps.update(zip(task.targets.tolist(), lengths.tolist()))
-        guess = None
-        if warm.clamped is not None and warm.free is not None:
-            # the nudge moves the network about as much as it did one step earlier
-            guess = free.positions + (np.asarray(warm.clamped) - np.asarray(warm.free))
-        nudged = tracker.solve(net, task.pinned, clamps, free.positions, key="free", guess=guess)
-        r_nudged = _noisy(net.lengths(nudged.positions), noise, rng)
+        if isinstance(task, NodeTask):
+            free, nudged, lengths, r_free, r_nudged = self._node_states(net, task, warm, tracker)
+        else:
+            free, nudged, lengths, r_free, r_nudged = self._states(
+                net, task, warm, tracker, noise, rng
+            )
         k, L = net.stiffness, net.rest_length
 
         def local(dof: str) -> NDArray:
@@ -534,6 +535,35 @@ class CoupledLearning(Rule):
             measured_clamped=r_nudged,
             raw=raw,
         )
+
+    def _node_states(self, net, task, warm, tracker):
+        """Free state and the state with the target coordinates nudged (node clamps)."""
+        free = self._free(net, task, tracker, warm)
+        out = task.outputs(free.positions)
+        nudge = out + self.eta * (task.desired - out)
+        pinned, start = task.node_clamps(free.positions, nudge)
+        nudged = tracker.solve(net, pinned, task.source_clamps(net), start, key="nodes")
+        return free, nudged, nudge, net.lengths(free.positions), net.lengths(nudged.positions)
+
+    def _states(self, net, task, warm, tracker, noise, rng):
+        """Free state and the state with the target springs nudged (Eq. 13)."""
+        ref = self.strain_reference
+        free = self._free(net, task, tracker, warm)
+        r_free = _noisy(net.lengths(free.positions), noise, rng)
+        s_free = task.target_strains(net, r_free[task.targets], ref)
+        s_nudge = s_free + self.eta * (task.target_strain - s_free)
+        lengths = task.target_rest(net, ref) * (1.0 + s_nudge)
+        if np.any(lengths <= 0):
+            raise LearningError(f"nudged target length {lengths.min():.3g} <= 0")
+        clamps = task.source_clamps(net, ref)
+        clamps.update(zip(task.targets.tolist(), lengths.tolist()))
+        guess = None
+        if warm.clamped is not None and warm.free is not None:
+            # the nudge moves the network about as much as it did one step earlier
+            guess = free.positions + (np.asarray(warm.clamped) - np.asarray(warm.free))
+        nudged = tracker.solve(net, task.pinned, clamps, free.positions, key="free", guess=guess)
+        r_nudged = _noisy(net.lengths(nudged.positions), noise, rng)
+        return free, nudged, lengths, r_free, r_nudged
 
     def _medium_step(self, medium, task, tracker) -> Step:
         free = medium.free_state(task, tracker=tracker)
@@ -622,21 +652,24 @@ class ExactGradient(Rule):
         free = self._free(net, task, tracker, warm)
         r_free = _noisy(net.lengths(free.positions), noise, rng)
         try:
-            sens = Sensitivity(
-                net, task.pinned, task.source_clamps(net, self.strain_reference), free
-            )  # one factorisation serves both rows of dof="both"
-            grad = self._per_dof(
-                lambda dof: cost_gradient(
-                    net,
-                    task,
-                    free,
-                    strain_reference=self.strain_reference,
-                    dof=dof,
-                    cost=self.cost,
-                    target_lengths=r_free[task.targets],
-                    sensitivity=sens,
+            if isinstance(task, NodeTask):
+                grad = self._per_dof(lambda dof: node_cost_gradient(net, task, free, dof=dof))
+            else:
+                sens = Sensitivity(
+                    net, task.pinned, task.source_clamps(net, self.strain_reference), free
+                )  # one factorisation serves both rows of dof="both"
+                grad = self._per_dof(
+                    lambda dof: cost_gradient(
+                        net,
+                        task,
+                        free,
+                        strain_reference=self.strain_reference,
+                        dof=dof,
+                        cost=self.cost,
+                        target_lengths=r_free[task.targets],
+                        sensitivity=sens,
+                    )
                 )
-            )
         except (np.linalg.LinAlgError, RuntimeError) as err:
             raise LearningError(f"exact gradient: singular KKT system ({err})") from err
         tracker.stats.factorisations += 1

@@ -36,6 +36,7 @@ from ..network.model import SpringNetwork
 from .examples import TaskSet
 from .history import LEGACY, MEASUREMENTS, UPDATES, History
 from .medium import is_medium, learning_arrays, with_learning_arrays
+from .node_tasks import NodeTask
 from .rules import LearningError, Rule, Step, Warm
 from .states import Tracker
 from .tasks import AllosteryTask
@@ -218,9 +219,10 @@ def _build(seed: int, net: NetworkSpec, task: TaskSpec):
             "net must be a SpringNetwork or a learning medium (LearnableBody), or build one; "
             f"got {type(net0).__name__}"
         )
-    if not isinstance(task0, AllosteryTask | TaskSet):
+    if not isinstance(task0, AllosteryTask | TaskSet | NodeTask):
         raise ValueError(
-            f"task must be an AllosteryTask or a TaskSet or build one, got {type(task0).__name__}"
+            "task must be an AllosteryTask, a NodeTask or a TaskSet or build one, got "
+            f"{type(task0).__name__}"
         )
     task0.check(net0)
     return net0, task0, np.random.default_rng(noise_ss)
@@ -352,6 +354,9 @@ def _record_measure(rec, t, net, task, rule, free, mask) -> None:
     if isinstance(task, TaskSet):
         _record_examples(rec, t, net, task, rule, free, mask)
         return
+    if isinstance(task, NodeTask):
+        _record_nodes(rec, t, net, task, rule, free, mask)
+        return
     if is_medium(net):
         if free is not None:
             for name, value in net.measurements(task, free, rule.dof, mask).items():
@@ -392,6 +397,22 @@ def _record_examples(rec, t, net, tasks: TaskSet, rule, free, mask) -> None:
     rec["energy_free"][t] = float(sum(f.energy for f in free))
     rec["energy_gradient_free"][t] = _summed_gradient(net, xs, rule.dof, mask)
     rec["residual"][t] = float(max(f.residual for f in free))
+
+
+def _record_nodes(rec, t, net, task: NodeTask, rule, free, mask) -> None:
+    """A node task: ``target_length`` holds the target coordinates, ``target_strain`` their
+    displacements, ``desired_length`` the desired coordinates; one error (no strain)."""
+    rec["desired_length"][t] = task.desired
+    if free is None:
+        return
+    x = free.positions
+    out = task.outputs(x)
+    rec["target_length"][t] = out
+    rec["target_strain"][t] = out - task.reference
+    rec["error_current"][t] = rec["error_initial"][t] = task.error(net, x)
+    rec["energy_free"][t] = free.energy
+    rec["energy_gradient_free"][t] = _energy_gradient(net, x, rule.dof, mask)
+    rec["residual"][t] = free.residual
 
 
 def _summed_gradient(net: SpringNetwork, xs: list, dof: str, mask: NDArray) -> float:
