@@ -76,6 +76,7 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
         units
     )
     assert "beyond/capacity/size6/examples2" in units
+    assert {"beyond/node/aging", "beyond/node/gcl"} <= set(units)
     # uniform k on the lattice and equal rates: aging and GPC take identical steps
     a = np.asarray(units["beyond/compare/stern/aging"].arrays["error"])
     g = np.asarray(units["beyond/compare/stern/gpc"].arrays["error"])
@@ -91,3 +92,4 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
     assert claims[f"{key} (Stern's task)"] == "reproduced"
     assert claims[f"{key} (paper's task)"] == "not comparable"
     assert any(c.startswith("a larger network holds more") for c in claims)
+    assert "gcl learns a node-displacement task" in claims

@@ -16,6 +16,11 @@
   its own source and target spring, strains from ``[task] source_std`` and
   ``target_std``) on every lattice of ``[network] sizes``, for every ``m`` of
   ``[learning] examples``.
+* ``beyond/node/<rule>``: every rule on a node task
+  (:func:`~continuum_vs_network.learning.node_tasks.node_task`: ``[task] n_sources``
+  sources, ``n_targets`` target node coordinates asked to move by ``N(0, target_std)``
+  mean rest lengths) on the first lattice; its coupling is the source share of the target
+  displacements (sources on and off, as :mod:`~continuum_vs_network.learning.coupling`).
 * ``beyond/symmetric``: GCL on one source and one target trained in both directions at
   once (:func:`~continuum_vs_network.learning.examples.symmetric`) on the first lattice.
 
@@ -71,6 +76,16 @@ def plan_beyond_paper(scene: Scene) -> list[Unit]:
             weight=steps,
         )
         for task in TASKS
+        for rule in scene.learning.rules
+    ]
+    units += [
+        Unit(
+            key=f"beyond/node/{rule}",
+            func=node_unit,
+            params={"rule": rule},
+            depends=depends,
+            weight=steps,
+        )
         for rule in scene.learning.rules
     ]
     for n in scene.network.sizes:
@@ -221,3 +236,53 @@ def symmetric_unit(scene: Scene, params: dict, ctx: UnitContext):
         )
     meta.update(error_initial=per[0], error_final=per[1])
     return arrays, meta
+
+
+def node_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """One rule on a node task (target node displacements)."""
+    from ..learning.coupling import coupling_verdict, outcome, source_share
+    from ..learning.node_tasks import node_task
+    from ..learning.train import train
+    from ..network.equilibrium import EquilibriumError, relax
+
+    t = scene.task
+    net, rng = _lattice(scene, scene.network.sizes[0], 4)
+    task = node_task(
+        net, rng, n_sources=t.n_sources, n_targets=t.n_targets, source_std=t.source_std,
+        displacement_std=t.target_std,
+    )  # fmt: skip
+    rule = per_stiffness(beyond_rules(scene)[params["rule"]], net)
+    h = train(net, task, rule, scene.learning.steps, progress=False, callback=_callback(ctx))
+    e = np.asarray(h.error_initial[0], dtype=float)
+    done = int(h.completed[0]) == h.steps
+    ratio = float(e[-1] / e[0]) if done and e[0] > 0 else float("nan")
+    share, verdict = float("nan"), "not measured"
+    if done:
+        off = task.with_source_strain(np.zeros(task.n_sources))
+
+        def out(n, k):
+            return k.outputs(relax(n, pinned=k.pinned, clamped=k.source_clamps(n)).positions)
+
+        try:
+            share = source_share(
+                out(h.final[0], task) - task.reference,
+                out(h.final[0], off) - task.reference,
+                out(net, off) - task.reference,
+            )
+            verdict = coupling_verdict(share)
+        except EquilibriumError:
+            pass
+    meta = {
+        "completed": int(h.completed[0]),
+        "stop_reason": h.stop_reason[0],
+        "ratio": ratio,
+        "source_share": share,
+        "coupling": verdict,
+        "outcome": outcome(ratio, None if verdict == "not measured" else verdict)
+        if done
+        else "stopped",
+        "seconds": float(np.nanmax(h.seconds[0])),
+        "rule": h.settings,
+        "n_targets": task.n_targets,
+    }
+    return {"error": e, "seconds": np.asarray(h.seconds[0], dtype=float)}, meta
