@@ -121,6 +121,16 @@ def estimate(scene: Scene) -> Estimate:
         # element operators (~ 600 bytes per DOF for P1) next to the factorisation
         est.add("continuum", "refine", dofs * FE_BYTES_PER_DOF, f"{dofs} FE unknowns")
         return est
+    if net is not None and scene.kind == "beyond_paper":
+        n = max(net.sizes)
+        nodes = n * n
+        est.add("network", "sizes", nodes * SOLVE_BYTES_PER_NODE, f"solving a {n} x {n} lattice")
+        runs = len(net.sizes) * len(L.examples) + 2 * len(L.rules) + 1
+        est.add(
+            "learning", "steps", runs * _history_bytes(L.steps, 2 * max(L.examples)),
+            f"{runs} histories of {L.steps} steps",
+        )  # fmt: skip
+        return est
     if net is None or scene.kind not in ("transmission", "relaxation", "stability", "solvers"):
         return est  # a kind without an estimate yet
     sizes = (net.size,) if scene.kind == "stability" else net.sizes
