@@ -80,7 +80,7 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
     for key, unit in result.units.items():
         a = unit.arrays
         if key.startswith("continuum_learning/"):
-            if export.continuum:
+            if export.continuum and "triangles" in a:
                 written.append(_learned_field_mesh(key, a, folder))
             continue
         if key.startswith("fields/"):

@@ -8,6 +8,15 @@ for every rule of ``[learning] rules`` the *same* rule object trains
   continuum on the lattice's own triangles, refined ``r`` times (element size ``h / 2^r``),
   P1 or P2 (``[continuum] order``), learning its eigenstrain field. Sources and targets are
   the material springs between the same material points, clamped and read exactly.
+* ``continuum_learning/relaxation`` (after the training units): the trained network and
+  the trained continuum on the lattice triangles (first rule) at rest with the sources off;
+  the sources are switched on at ``t = 0`` and both creep against node drag ``c = 1``
+  (its continuum equivalent, :func:`~continuum_vs_network.continuum.node_drag_to_continuum`):
+  the network by :func:`~continuum_vs_network.network.dynamics.simulate` (overdamped,
+  clamps as prescribed end-node displacements), the continuum by
+  :func:`~continuum_vs_network.continuum.learned_relaxation.source_step` (exact clamps);
+  target strains against time, the time to settle within 10 % of their values at the end
+  of the run, and the gap between those and the exact-clamp free state.
 * ``continuum_learning/paper/refine<r>``: the paper's one-source, one-target task
   (:func:`~continuum_vs_network.learning.tasks.paper_task` strains, about 5) on the same
   continuum patch with the first rule (linear elasticity: the continuum is scale-free; the
@@ -35,10 +44,13 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import CONTINUUM_RULES, Scene
+from .units import Unit, UnitContext
 
 __all__ = ["continuum_rule", "plan_continuum_learning"]
+
+#: time step and duration of the source-step relaxation (units of drag / stiffness)
+RELAX_DT, RELAX_T_END = 1.0, 200.0
 
 
 def continuum_rule(scene: Scene, name: str):
@@ -90,6 +102,16 @@ def plan_continuum_learning(scene: Scene) -> list[Unit]:
                     parallel=False,
                 )
             )
+    units.append(
+        Unit(
+            key="continuum_learning/relaxation",
+            func=relaxation_unit,
+            params={"rule": rules[0], "dt": RELAX_DT, "t_end": RELAX_T_END},
+            depends=depends,
+            phase=1,
+            parallel=False,
+        )
+    )
     for r in range(scene.continuum.refine + 1):
         units.append(
             Unit(
@@ -254,4 +276,73 @@ def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
         source_strain=mtask.source_strain.tolist(),
         target_strain=mtask.target_strain.tolist(),
     )
+    return arrays, meta
+
+
+def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """Target strains after the sources switch on: trained network and trained continuum."""
+    from ..continuum.learnable import learnable_body
+    from ..continuum.learned_relaxation import source_step, time_to_settle
+    from ..continuum.material_task import MaterialTask
+    from ..continuum.materials import lattice_area_per_node, lattice_lame, node_drag_to_continuum
+    from ..continuum.mesh import network_mesh
+    from ..continuum.viscoelastic import Damping
+    from ..network.dynamics import simulate
+    from ..network.equilibrium import relax
+
+    rule = params["rule"]
+    net, task = _lattice_and_task(scene, "stern")
+    L0 = net.rest_length
+    change = ctx.unit(f"continuum_learning/network/{rule}").arrays["rest_change"]
+    trained = net.with_rest_length(L0 * (1.0 + np.asarray(change)))
+    off = {int(s): float(L0[s]) for s in task.sources}
+    on = {int(s): float(L0[s] * (1 + S)) for s, S in zip(task.sources, task.source_strain)}
+    x_off = relax(trained, pinned=task.pinned, clamped=off, tol=1e-12).positions
+    x_on = relax(trained, pinned=task.pinned, clamped=on, tol=1e-12).positions
+    t0 = time.perf_counter()
+    traj = simulate(
+        trained,
+        dt=params["dt"],
+        t_end=params["t_end"],
+        pinned=task.pinned,
+        clamped=on,
+        x0=x_off,
+        damping=1.0,
+        inertia=False,
+    )
+    net_seconds = time.perf_counter() - t0
+    i, j = trained.springs[task.targets].T
+    pos = traj.positions
+    net_strain = np.linalg.norm(pos[:, j] - pos[:, i], axis=2) / L0[task.targets] - 1.0
+    net_final = trained.lengths(x_on)[task.targets] / L0[task.targets] - 1.0
+
+    field = ctx.unit(f"continuum_learning/refine0/{rule}").arrays["field"]
+    c = scene.continuum
+    body = learnable_body(
+        network_mesh(net), lattice_lame(float(np.mean(net.stiffness))), order=c.order
+    ).with_eigenstrain(field)
+    mtask = MaterialTask.from_network(net, task, body)
+    _, eta = node_drag_to_continuum(1.0, area_per_node=lattice_area_per_node(1.0))
+    step = source_step(
+        body, mtask, damping=Damping(drag=eta), dt=params["dt"], t_end=params["t_end"]
+    )
+    arrays = {
+        "times": step.times,
+        "continuum_strain": step.target_strain,
+        "continuum_final": step.final,
+        "network_times": traj.times,
+        "network_strain": net_strain,
+        "network_final": net_final,
+    }
+    meta = {
+        "rule": rule,
+        "continuum_settle": time_to_settle(step.times, step.target_strain, step.target_strain[-1]),
+        "network_settle": time_to_settle(traj.times, net_strain, net_strain[-1]),
+        "continuum_gap": float(np.max(np.abs(step.target_strain[-1] - step.final))),
+        "network_gap": float(np.max(np.abs(net_strain[-1] - net_final))),
+        "continuum_seconds": step.seconds,
+        "network_seconds": net_seconds,
+        "dt": params["dt"],
+        "t_end": params["t_end"],
+    }
     return arrays, meta
