@@ -6,7 +6,7 @@ A scene is data only (no code is executed from it). Top-level keys::
     description = "one line"  # shown by ``cvn scenes`` and in the report
     seed = 0                  # first seed; trial i uses seed + i
     kind = "learning"         # learning | transmission | relaxation | stability | solvers
-                              # | accuracy
+                              # | accuracy | continuum_learning | beyond_paper
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
 ``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[export]``, ``[report]``,
@@ -68,6 +68,7 @@ KINDS = (
     "solvers",
     "accuracy",
     "continuum_learning",
+    "beyond_paper",
 )
 
 #: For each kind: (tables it needs, tables it also accepts).
@@ -91,17 +92,35 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
         frozenset({"network", "task", "learning", "continuum"}),
         frozenset({"export", "report"}),
     ),
+    "beyond_paper": (frozenset({"network", "task", "learning"}), frozenset({"report"})),
 }
 
 #: Learning runs a scene can name. Paper task: the paper's experiments (see
 #: :func:`continuum_vs_network.learning.replication.paper_experiments`; ``gcl``, ``gpc`` and
 #: ``exact`` let every spring learn, as the paper does). Stern-scale tasks: ``gcl``, ``gpc``
 #: and ``exact`` learn in the bulk only (sources and targets frozen), ``gcl_all`` and
-#: ``gpc_all`` let every spring learn (a target can then meet the task alone).
-RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact", "gcl_all", "gpc_all")
+#: ``gpc_all`` let every spring learn (a target can then meet the task alone); ``aging`` and
+#: ``aging_k`` are directed aging of rest lengths and of stiffnesses
+#: (:class:`~continuum_vs_network.learning.aging.DirectedAging`, in the bulk).
+RULES = (
+    "gcl",
+    "gcl_floor",
+    "gcl_frozen",
+    "gpc",
+    "gpc_frozen",
+    "exact",
+    "gcl_all",
+    "gpc_all",
+    "aging",
+    "aging_k",
+    "gcl_both",
+)
 #: Rules only the paper task knows, and only Stern-scale tasks know.
 PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
-STERN_RULES = ("gcl_all", "gpc_all")
+STERN_RULES = ("gcl_all", "gpc_all", "aging", "aging_k", "gcl_both")
+#: The rules a ``beyond_paper`` scene compares (in the bulk, on the paper's and Stern's task;
+#: ``gcl_both`` learns rest lengths and stiffnesses together).
+BEYOND_RULES = ("aging", "aging_k", "gpc", "gcl", "gcl_both", "exact")
 #: The rules a ``continuum_learning`` scene trains both media with (Stern-scale meaning:
 #: ``gcl``, ``gpc``, ``exact`` in the bulk, sources' and targets' material frozen).
 CONTINUUM_RULES = ("gcl", "gpc", "exact", "gcl_all", "gpc_all")
@@ -272,9 +291,10 @@ class NetworkSpec:
     sizes: tuple[int, ...] | None = _key(
         "list[int]",
         None,
-        "n x n triangular lattices, one per entry (transmission, relaxation, solvers)",
+        "n x n triangular lattices, one per entry (transmission, relaxation, solvers; "
+        "beyond_paper: the first hosts Stern's task, all the capacity study)",
         check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
-        used=_kinds("transmission", "relaxation", "solvers"),
+        used=_kinds("transmission", "relaxation", "solvers", "beyond_paper"),
     )
     noise: float | None = _key(
         "float",
@@ -389,10 +409,36 @@ class LearningSpec:
         (),
         "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
         check=_each(_positive),
-        used=_kinds("learning"),
+        used=_when(
+            lambda s: s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules),
+            "by learning scenes with a GCL rule",
+        ),
     )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
-    alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
+    alpha_exact: float = _key(
+        "float",
+        1.0,
+        "exact-gradient learning rate",
+        check=_positive,
+        used=_kinds("learning", "continuum_learning"),
+    )
+    alpha_aging: float = _key(
+        "float",
+        0.5,
+        "directed-aging rate (aging, aging_k)",
+        check=_positive,
+        used=_when(
+            lambda s: any(r.startswith("aging") for r in s.learning.rules),
+            "with rules aging or aging_k",
+        ),
+    )
+    examples: tuple[int, ...] = _key(
+        "list[int]",
+        (1, 2, 4, 8),
+        "numbers of examples trained together, one capacity run per entry and lattice size",
+        check=_all(_unique_nonempty, _each(_at_least(1)), _increasing),
+        used=_kinds("beyond_paper"),
+    )
     floor: float = _key(
         "float",
         0.1,
@@ -1004,6 +1050,9 @@ def _check_kind(scene: Scene, file: str) -> None:
     if kind == "continuum_learning":
         _check_continuum_learning(scene, file, need_key)
         return
+    if kind == "beyond_paper":
+        _check_beyond_paper(scene, file, need_key)
+        return
     if kind == "accuracy":
         return
     if kind == "learning":
@@ -1044,7 +1093,8 @@ def _check_kind(scene: Scene, file: str) -> None:
                     "learning",
                     "rules",
                     f"{bad[0]!r} exists for Stern-scale tasks only (the paper's 'gcl' and "
-                    "'gpc' already let every spring learn)",
+                    "'gpc' already let every spring learn; directed aging of the paper task "
+                    "is in the beyond_paper scene)",
                 )
         if scene.solver is not None:
             bad = [m for m in scene.solver.methods if m not in ("newton", "paper")]
@@ -1121,6 +1171,31 @@ def _check_continuum_learning(scene: Scene, file: str, need_key) -> None:
             "strain_reference",
             "a continuum's material springs measure strain against the undeformed body; "
             "set strain_reference = 'initial'",
+        )
+
+
+def _check_beyond_paper(scene: Scene, file: str, need_key) -> None:
+    if scene.network.builder != "triangular":
+        raise SceneError(file, "network", "builder", "beyond_paper runs on triangular lattices")
+    need_key("network", "sizes", "for a beyond_paper scene (the capacity study's lattices)")
+    if scene.task.kind != "stern":
+        raise SceneError(
+            file, "task", "kind", "beyond_paper takes kind = 'stern' (the paper's task is added)"
+        )
+    bad = [r for r in scene.learning.rules if r not in BEYOND_RULES]
+    if bad:
+        raise SceneError(
+            file,
+            "learning",
+            "rules",
+            f"{bad[0]!r} is not a beyond_paper rule ({', '.join(BEYOND_RULES)})",
+        )
+    if scene.learning.strain_reference != "initial":
+        raise SceneError(
+            file,
+            "learning",
+            "strain_reference",
+            "beyond_paper learns fixed target geometries; set strain_reference = 'initial'",
         )
 
 
