@@ -34,7 +34,8 @@ def section(doc: Document, result) -> None:
         "is the quantity `relax`'s tolerance bounds (its stop rule, the same for every "
         "method; see `cvn.relax`). Every method records it at its iterations (Newton every "
         "one, the others every tenth), with the iteration number and the wall-clock time it "
-        "was reached (a warm-up solve first, so imports are not timed)."
+        "was reached (a warm-up solve first, so imports are not timed; one BLAS thread, "
+        "as in every timed unit)."
     )
     rows = []
     it_panels, t_panels = [], []
