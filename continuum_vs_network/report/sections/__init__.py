@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from . import accuracy, learning, relaxation, solvers, stability, transmission
+from . import accuracy, learning, physical_time, relaxation, solvers, stability, transmission
 
 __all__ = ["SECTIONS"]
 
@@ -23,4 +23,5 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "stability": stability.section,
     "solvers": solvers.section,
     "accuracy": accuracy.section,
+    "physical_time": physical_time.section,
 }
