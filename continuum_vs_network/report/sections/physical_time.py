@@ -57,7 +57,7 @@ def section(doc: Document, result) -> None:
         f"({scene.task.n_sources} sources, {scene.task.n_targets} target(s)), bulk learning "
         "(sources and targets frozen), strains against the initial rest lengths, clamps as "
         "held end nodes. The ratio is rho = alpha k tau, with tau the relaxation time after "
-        "the source step, measured for each size (1/e of the displacement). The quasi-static "
+        "the source step, measured for each size (the net force below 1 % of its start). The quasi-static "
         "limit is the same run with an equilibrium at every step. Errors are Eq. 26 at the "
         "equilibrium free state of the parameters learned so far, relative to the initial "
         f"error. Learning time T: when the error has made all but {spec.fraction:g} of its "
