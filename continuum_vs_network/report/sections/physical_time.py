@@ -57,14 +57,14 @@ def section(doc: Document, result) -> None:
         f"({scene.task.n_sources} sources, {scene.task.n_targets} target(s)), bulk learning "
         "(sources and targets frozen), strains against the initial rest lengths, clamps as "
         "held end nodes. The ratio is rho = alpha k tau, with tau the relaxation time after "
-        "the source step, measured for each size (the net force below 1 % of its start). The quasi-static "
-        "limit is the same run with an equilibrium at every step. Errors are Eq. 26 at the "
-        "equilibrium free state of the parameters learned so far, relative to the initial "
-        f"error. Learning time T: when the error has made all but {spec.fraction:g} of its "
-        "quasi-static drop (in the same run length). A run is past the quasi-static regime "
-        f"when T is {SLOWDOWN:g} times the quasi-static T or the error rises by "
-        f"{OSCILLATION:g} in total (oscillation); the critical ratio is the smallest such "
-        "ratio (interpolated in log-log)."
+        "the source step, measured for each size (the net force below 1 % of its start). The "
+        "quasi-static limit is the same run with an equilibrium at every step. Errors are "
+        "Eq. 26 at the equilibrium free state of the parameters learned so far, relative to "
+        "the initial error. Learning time T: when the error has made all but "
+        f"{spec.fraction:g} of its quasi-static drop (in the same run length). A run is "
+        f"past the quasi-static regime when T is {SLOWDOWN:g} times the quasi-static T or "
+        f"the error rises by {OSCILLATION:g} in total (oscillation); the critical ratio is "
+        "the smallest such ratio (interpolated in log-log)."
     )
     rows = []
     for name, units in rules.items():
