@@ -9,7 +9,8 @@ the names below) needs only numpy and scipy; scikit-fem loads on the first mesh 
 - :mod:`.static`: Dirichlet conditions and static solves with one sparse factorisation;
 - :mod:`.probes`: sparse displacement and strain probes;
 - :mod:`.transmission`: source patches, the Eshelby inclusion, strain against distance;
-- :mod:`.viscoelastic`: mass, damping and implicit time stepping, relaxation times.
+- :mod:`.viscoelastic`: mass, damping and implicit time stepping, relaxation times;
+- :mod:`.maxwell`: the Maxwell arm of a standard linear solid (internal strains).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from .materials import (
     NetworkModuli,
     lattice_area_per_node,
     lattice_lame,
+    lattice_maxwell_arm,
     lattice_viscous_lame,
     network_moduli,
     node_drag_to_continuum,
@@ -79,6 +81,8 @@ from .viscoelastic import (
     Damping,
     damping_matrix,
     explicit_limit,
+    lattice_damping,
+    linear_system,
     relaxation_time,
     simulate_body,
     slowest_relaxation_time,
@@ -118,8 +122,11 @@ __all__ = [
     "factorise",
     "fix",
     "lattice_area_per_node",
+    "lattice_damping",
     "lattice_lame",
+    "lattice_maxwell_arm",
     "lattice_viscous_lame",
+    "linear_system",
     "locate",
     "mass_matrix",
     "mesh_quality",

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from .coupling import Coupling, measure_coupling
 from .history import History
+from .physical_time import TimeHistory, learn_in_time, network_relaxation_time
 from .rules import (
     CoupledLearning,
     ExactGradient,
@@ -41,11 +42,14 @@ __all__ = [
     "Sensitivity",
     "Solver",
     "Step",
+    "TimeHistory",
     "Tracker",
     "Warm",
     "cost_gradient",
     "gcl_limit",
+    "learn_in_time",
     "measure_coupling",
+    "network_relaxation_time",
     "paper_task",
     "stern_task",
     "train",
