@@ -273,6 +273,12 @@ def learn_in_time(
     if int(n_outputs) != n_outputs or n_outputs < 1:
         raise ValueError(f"n_outputs must be an integer >= 1, got {n_outputs}")
     task.check(net)
+    ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()
+    if np.unique(ends).size != ends.size:
+        raise ValueError(
+            "learning in physical time holds every clamp by its two end nodes: the task's "
+            "sources and targets must not share nodes"
+        )
     dt, duration = float(dt), float(duration)
     n_steps = max(1, math.ceil(duration / dt - 1e-9))
     if form == "phases":

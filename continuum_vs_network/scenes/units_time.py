@@ -124,14 +124,19 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     spec, t = scene.physical_time, scene.task
     n, name = params["n"], params["rule"]
     net = lattice(scene, n)
-    task = stern_task(
-        net,
-        t.n_sources,
-        t.n_targets,
-        np.random.default_rng([scene.seed, n]),
-        source_std=t.source_std,
-        target_std=t.target_std,
-    )
+    rng = np.random.default_rng([scene.seed, n])
+    for _ in range(200):  # clamps are held end nodes: sources and targets share no node
+        task = stern_task(
+            net, t.n_sources, t.n_targets, rng, source_std=t.source_std, target_std=t.target_std
+        )
+        ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()
+        if np.unique(ends).size == ends.size:
+            break
+    else:
+        raise ValueError(
+            f"no task of {t.n_sources} sources and {t.n_targets} targets without shared nodes "
+            f"found on the {n} x {n} lattice in 200 draws; use fewer springs or a larger lattice"
+        )
     vis = Viscosity(
         drag=spec.drag,
         dashpot=spec.dashpot,
