@@ -15,7 +15,7 @@ from continuum_vs_network.learning import (
 )
 from continuum_vs_network.learning.physical_time import learn_in_time, network_relaxation_time
 from continuum_vs_network.network.viscous import Viscosity
-from continuum_vs_network.scenes.units_time import critical_ratio, crossing_time, rise
+from continuum_vs_network.scenes.units_time import critical_ratio, crossing_time, rebound
 
 BULK = {"strain_reference": "initial", "learn_sources": False, "learn_targets": False}
 
@@ -134,14 +134,17 @@ def test_study_measures():
     t = np.array([0.0, 1.0, 2.0, 3.0])
     assert crossing_time(t, np.array([1.0, 0.6, 0.2, 0.1]), 0.4) == pytest.approx(1.5)
     assert crossing_time(t, np.array([1.0, 0.9, 0.8, 0.7]), 0.5) == np.inf
-    assert rise(np.array([1.0, 0.5, 0.7, 0.2, 0.3])) == pytest.approx(0.3)
+    assert rebound(np.array([1.0, 0.5, 0.7, 0.2, 0.3])) == pytest.approx(1.5)
+    assert rebound(np.array([1.0, 0.1, 1e-5, 2e-3, 1e-3])) == pytest.approx(200)  # overshoot
+    assert rebound(np.array([1.0, 1e-8, 1e-7])) == 1.0  # below the floor
+    assert rebound(np.array([1.0, 0.5, 0.25])) == 1.0
     ratios = [1.0, 10.0, 100.0]
-    assert critical_ratio(ratios, [1.0, 1.0, 1.0], [0.0, 0.0, 0.0]) == (np.inf, "none")
-    r, by = critical_ratio(ratios, [1.0, 1.0, 4.0], [0.0, 0.0, 0.0])
+    assert critical_ratio(ratios, [1.0, 1.0, 1.0], [1.0, 1.0, 1.0]) == (np.inf, "none")
+    r, by = critical_ratio(ratios, [1.0, 1.0, 4.0], [1.0, 1.0, 1.0])
     assert by == "slowdown" and r == pytest.approx(10 * 10**0.5)  # log-log halfway to 4
-    r, by = critical_ratio(ratios, [1.0, 1.0, 1.0], [0.0, 0.01, 1.0])
+    r, by = critical_ratio(ratios, [1.0, 1.0, 1.0], [1.0, 1.0, 4.0])
     assert by == "oscillation" and r == pytest.approx(10 * 10**0.5)
-    assert critical_ratio(ratios, [3.0, 1.0, 1.0], [0.0, 0.0, 0.0]) == (1.0, "slowdown")
+    assert critical_ratio(ratios, [3.0, 1.0, 1.0], [1.0, 1.0, 1.0]) == (1.0, "slowdown")
 
 
 def test_time_history_series_has_one_frame_per_output(small, tmp_path):

@@ -18,8 +18,8 @@ and learning step equal; ``gcl_phases`` learns once per cycle of two phases of
 
 Measured per ratio (errors relative to the initial one): the time to make all but
 ``fraction`` of the quasi-static error drop, in both runs (``T`` and ``T_qs``) and their
-ratio (the slowdown), the final errors, and the oscillation: the summed rises of the error,
-``sum max(0, e(t_{i+1}) - e(t_i))``.
+ratio (the slowdown), the final errors, and the oscillation: the largest factor by which
+the error climbs back above its running minimum (:func:`rebound`).
 """
 
 from __future__ import annotations
@@ -32,13 +32,15 @@ import numpy as np
 from .runner import Unit, UnitContext
 from .schema import Scene
 
-__all__ = ["OSCILLATION", "SLOWDOWN", "critical_ratio", "crossing_time", "plan_time", "rise"]
+__all__ = ["OSCILLATION", "SLOWDOWN", "critical_ratio", "crossing_time", "plan_time", "rebound"]
 
 #: A run is past the quasi-static regime when it learns this many times slower than its
 #: quasi-static limit ...
 SLOWDOWN = 2.0
-#: ... or when its error rises by this much in total (relative to the initial error).
-OSCILLATION = 0.1
+#: ... or when its error climbs back to this many times its running minimum (oscillation).
+OSCILLATION = 2.0
+#: Errors below this fraction of the initial one are at the solver's floor: no rebound.
+FLOOR = 1e-6
 
 
 def plan_time(scene: Scene) -> list[Unit]:
@@ -72,16 +74,23 @@ def crossing_time(times: np.ndarray, values: np.ndarray, level: float) -> float:
     return float(times[i - 1] + (times[i] - times[i - 1]) * (v0 - level) / (v0 - v1))
 
 
-def rise(values: np.ndarray) -> float:
-    """Summed increases ``sum max(0, v[i+1] - v[i])`` (0 for a monotone decrease)."""
-    return float(np.sum(np.clip(np.diff(values), 0.0, None)))
+def rebound(values: np.ndarray, floor: float = FLOOR) -> float:
+    """Largest ``v[j] / min(v[:j+1])`` over the ``v[j] >= floor``: how far the error climbs
+    back above its running minimum (1 for a monotone decrease; an overshoot through zero
+    and back gives a large value)."""
+    v = np.asarray(values, float)
+    running = np.minimum.accumulate(v)
+    ok = v >= floor
+    if not ok.any():
+        return 1.0
+    return float(np.max(v[ok] / np.maximum(running[ok], floor * 1e-6)))
 
 
-def critical_ratio(ratios, slowdown, rises) -> tuple[float, str]:
+def critical_ratio(ratios, slowdown, rebounds) -> tuple[float, str]:
     """The smallest ratio past the quasi-static regime, and which criterion it met.
 
     A ratio is past when ``slowdown >= SLOWDOWN`` (learning time over its quasi-static
-    value; inf when the level is never reached) or ``rise >= OSCILLATION``. Between the
+    value; inf when the level is never reached) or ``rebound >= OSCILLATION``. Between the
     last ratio before and the first one past, the crossing of the criterion is
     interpolated in log-log (geometric mean when a value is inf or 0). Returns
     ``(ratios[0], ...)`` when the first ratio is already past and ``(inf, "none")`` when
@@ -89,7 +98,7 @@ def critical_ratio(ratios, slowdown, rises) -> tuple[float, str]:
     """
     r = np.asarray(ratios, float)
     s = np.asarray(slowdown, float)
-    q = np.asarray(rises, float)
+    q = np.asarray(rebounds, float)
     past = (s >= SLOWDOWN) | (q >= OSCILLATION)
     if not past.any():
         return math.inf, "none"
@@ -195,7 +204,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
                 "error_final": float(e[-1]),
                 "error_at_qs_end": at_t_learn,
                 "error_qs_end": float(e_qs[-1]),
-                "rise": rise(e),
+                "rebound": rebound(e),
                 "seconds": float(run.seconds[-1]),
                 "seconds_qs": float(qs.seconds[-1]),
                 "factorisations": run.factorisations,
@@ -222,7 +231,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
                 }
             )
     crit, which = critical_ratio(
-        spec.ratios, [r["slowdown"] for r in rows], [r["rise"] for r in rows]
+        spec.ratios, [r["slowdown"] for r in rows], [r["rebound"] for r in rows]
     )
     meta = {
         "critical_ratio": crit,
