@@ -11,6 +11,11 @@ the names below) needs only numpy and scipy; scikit-fem loads on the first mesh 
 - :mod:`.transmission`: source patches, the Eshelby inclusion, strain against distance;
 - :mod:`.viscoelastic`: mass, damping and implicit time stepping, relaxation times;
 - :mod:`.maxwell`: the Maxwell arm of a standard linear solid (internal strains).
+- :mod:`.learnable`: a learning medium, element-wise eigenstrain and modulus fields
+  (:func:`learnable_body`), trained by the same rules and ``train`` as networks;
+- :mod:`.material_task`: material springs as sources and targets (:class:`MaterialTask`);
+- :mod:`.learning_states`: free, clamped and adjoint states from one factorisation;
+- :mod:`.learned_fields`: learned fields compared with a network's on its triangles.
 """
 
 from __future__ import annotations
@@ -29,6 +34,16 @@ from .body import (
     strain_energy,
     vertex_displacement,
 )
+from .learnable import LearnableBody, learnable_body
+from .learned_fields import (
+    coarse_average,
+    field_direction,
+    field_magnitude,
+    localisation,
+    network_rest_strain,
+)
+from .learning_states import MaterialState, effective_stiffness
+from .material_task import MaterialTask
 from .materials import (
     Material,
     NetworkModuli,
@@ -97,8 +112,11 @@ __all__ = [
     "Factorisation",
     "InclusionField",
     "InclusionSolution",
+    "LearnableBody",
     "LockingWarning",
     "Material",
+    "MaterialState",
+    "MaterialTask",
     "MeshQuality",
     "NetworkModuli",
     "Probe",
@@ -108,6 +126,7 @@ __all__ = [
     "annulus_mesh",
     "body_force_load",
     "chord_strain_probe",
+    "coarse_average",
     "continuum_transmission",
     "damping_matrix",
     "decay_exponent",
@@ -115,18 +134,23 @@ __all__ = [
     "disk_mesh",
     "displacement_probe",
     "dofs_where",
+    "effective_stiffness",
     "eigenstrain_load",
     "elastic_body",
     "eshelby_inclusion",
     "explicit_limit",
     "factorise",
+    "field_direction",
+    "field_magnitude",
     "fix",
     "lattice_area_per_node",
     "lattice_damping",
     "lattice_lame",
     "lattice_maxwell_arm",
     "lattice_viscous_lame",
+    "learnable_body",
     "linear_system",
+    "localisation",
     "locate",
     "mass_matrix",
     "mesh_quality",
@@ -136,6 +160,7 @@ __all__ = [
     "network_mesh",
     "network_moduli",
     "network_patch_source",
+    "network_rest_strain",
     "network_transmission",
     "node_drag_to_continuum",
     "patch_source",

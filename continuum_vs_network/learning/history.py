@@ -14,7 +14,10 @@ not produce (``energy_clamped`` of the exact gradient, which uses no clamped sta
 The task error is recorded in both strain conventions under explicit names,
 ``error_initial`` and ``error_current``; there is no convention-dependent ``error``
 (``history.task_error(strain_reference)`` picks one by name, and ``history.strain_reference``
-is the convention the rule trained in).
+is the convention the rule trained in). A :class:`~.node_tasks.NodeTask` measures no
+strain: both hold its error, and ``target_length`` / ``target_strain`` / ``desired_length``
+hold the target coordinates, their displacements and the desired coordinates
+(``target_rest_length`` stays NaN: there are no target springs).
 """
 
 from __future__ import annotations
@@ -204,16 +207,32 @@ _TASK_FIELDS = (
 
 
 def _net_arrays(prefix: str, net: SpringNetwork) -> dict[str, NDArray]:
+    if not isinstance(net, SpringNetwork):  # another learning medium (.medium)
+        from .medium import medium_arrays
+
+        return medium_arrays(prefix, net)
     return {f"{prefix}/{f}": getattr(net, f) for f in _NET_FIELDS}
 
 
 def _net_from(files: dict, prefix: str) -> SpringNetwork:
+    if f"{prefix}/__kind__" in files:
+        from .medium import medium_from_arrays
+
+        return medium_from_arrays(files, prefix)
     return SpringNetwork(*(files[f"{prefix}/{f}"] for f in _NET_FIELDS))
 
 
 def _task_arrays(prefix: str, task: AllosteryTask) -> dict[str, NDArray]:
+    if not isinstance(task, AllosteryTask):
+        from .medium import medium_arrays
+
+        return medium_arrays(prefix, task)
     return {f"{prefix}/{f}": getattr(task, f) for f in _TASK_FIELDS}
 
 
 def _task_from(files: dict, prefix: str) -> AllosteryTask:
+    if f"{prefix}/__kind__" in files:
+        from .medium import medium_from_arrays
+
+        return medium_from_arrays(files, prefix)
     return AllosteryTask(**{f: files[f"{prefix}/{f}"] for f in _TASK_FIELDS})

@@ -16,7 +16,15 @@ from numpy.typing import NDArray
 from .. import _validate as check
 from .model import SpringNetwork
 
-__all__ = ["RelaxArguments", "clamp_arrays", "network", "pin_mask_or_indices", "relax_arguments"]
+__all__ = [
+    "RelaxArguments",
+    "clamp_arrays",
+    "lone_nodes",
+    "network",
+    "pin_mask_or_indices",
+    "relax_arguments",
+    "solver_arguments",
+]
 
 
 def network(value: Any, name: str = "net") -> SpringNetwork:
@@ -52,22 +60,12 @@ def relax_arguments(
 ) -> RelaxArguments:
     """Check every scalar argument of ``relax`` and the network's fitness for a solve.
 
-    A network without springs, or with a node that no spring touches, has no equilibrium
-    to find (the lone node is free to sit anywhere): both are refused, naming the node.
+    A network without springs has no equilibrium to find and is refused here; a free node
+    that no spring touches is refused by :func:`lone_nodes` once the pins are known.
     """
     net = network(net)
     if net.n_springs == 0:
         raise check.ArgumentError("net", net, "a network with at least one spring")
-    touched = np.zeros(net.n_nodes, dtype=bool)
-    touched[net.springs.ravel()] = True
-    if not touched.all():
-        lone = np.flatnonzero(~touched)
-        raise check.ArgumentError(
-            "net",
-            net,
-            "a network whose every node has a spring",
-            detail=f"node {lone[0]} ({lone.size} node(s) in all) has none; remove it",
-        )
     method = check.choice("method", method, methods)
     check.choice("clamp", clamp, ("exact", "rod"))
     tol = check.real("tol", tol, low=0, low_open=True)
@@ -161,3 +159,21 @@ def solver_arguments(solver: Any, methods: tuple[str, ...]) -> tuple[int, ...]:
     check.boolean("trust_region", solver.trust_region)
     check.integer("trust_region_max_free", solver.trust_region_max_free, low=0)
     return ramps
+
+
+def lone_nodes(net: SpringNetwork, free: NDArray[np.bool_]) -> None:
+    """Refuse a network with a free coordinate on a node that no spring touches.
+
+    Such a node can sit anywhere (its equilibrium is not unique); the Maxwell count does
+    not always see it when the rest of the network has redundant springs.
+    """
+    touched = np.zeros(net.n_nodes, dtype=bool)
+    touched[net.springs.ravel()] = True
+    lone = np.flatnonzero(~touched & free.any(axis=1))
+    if lone.size:
+        raise check.ArgumentError(
+            "net",
+            net,
+            "a network whose every free node has a spring",
+            detail=f"node {lone[0]} ({lone.size} node(s) in all) has none; remove or pin it",
+        )

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from . import escape
 from .figures import Panel, plot_panels
 from .findings import Finding
 
@@ -56,6 +57,7 @@ class Document:
         self.lines: list[str] = []
         self.files: list[Path] = []
         self.findings: list[Finding] = []
+        self.summaries: dict[str, dict[str, Any]] = {}
         self._section = ""
 
     def add(self, *lines: str) -> None:
@@ -79,6 +81,19 @@ class Document:
             finding = replace(finding, section=self._section)
         self.findings.append(finding)
         return finding
+
+    def summary(
+        self, key: str, title: str, headers: Sequence[str], rows: Sequence[Sequence]
+    ) -> None:
+        """Keep a small table in ``report.json`` (key ``"summaries"``) for the README.
+
+        Cells are stored as text, as the report shows them. Not added to the report itself.
+        """
+        self.summaries[key] = {
+            "title": title,
+            "headers": [str(h) for h in headers],
+            "rows": [[str(c) for c in row] for row in rows],
+        }
 
     def findings_table(self, findings: Sequence[Finding]) -> None:
         """A claim / metric / measured / verdict / rule table of the given findings.
@@ -104,7 +119,7 @@ class Document:
         self.lines.append("| " + " | ".join(headers) + " |")
         self.lines.append("|" + "---|" * len(headers))
         for row in rows:
-            self.lines.append("| " + " | ".join(str(c).replace("|", "\\|") for c in row) + " |")
+            self.lines.append("| " + " | ".join(escape.cell(c) for c in row) + " |")
         self.lines.append("")
 
     def figure(self, name: str, panels: Sequence[Panel], caption: str, **kw: Any) -> None:

@@ -9,6 +9,9 @@ What is written (``meshes/<scene>/`` by default):
   learning steps; time = learning step);
 * transmission (largest lattice): ``network_n<n>.vtu`` and ``continuum_n<n>.vtu``
   (displacement, strain and stress tensors, largest principal strain);
+* continuum_learning: ``learned_<medium>_<rule>.vtu``, the learned rest strain as cell
+  data (tensor, magnitude, principal direction, dilation; ``frozen`` elements) on the
+  network's triangles (the network's rest-length changes) or the continuum's mesh;
 * relaxation (largest lattice): ``network_n<n>_final.vtu``, ``continuum_n<n>_final.vtu`` and,
   with ``series = true``, ``network_n<n>_relaxation.pvd`` (time = physical time);
 * physical_time (largest lattice, ``series = true``): ``<rule>_n<n>_physical_time.pvd``, the
@@ -37,6 +40,34 @@ def _net(a: dict, prefix: str):
         a[prefix + "stiffness"],
         a[prefix + "rest_length"],
     )
+
+
+def _tensor9(eps: np.ndarray) -> np.ndarray:
+    """(n, 3) rows ``(xx, yy, xy)`` -> (n, 9) ParaView tensors (out-of-plane entries 0)."""
+    out = np.zeros((eps.shape[0], 9))
+    out[:, 0], out[:, 4] = eps[:, 0], eps[:, 1]
+    out[:, 1] = out[:, 3] = eps[:, 2]
+    return out
+
+
+def _learned_field_mesh(key: str, a: dict, folder: Path) -> Path:
+    """A learned rest-strain field as cell data on its triangles (undeformed body)."""
+    from ..continuum.learned_fields import field_direction, field_magnitude
+    from ..io.export import continuum_mesh, write_mesh
+
+    eps = np.asarray(a["field"] if "field" in a else a["coarse"], dtype=float)
+    points = np.asarray(a["points"], dtype=float)
+    fields = {
+        "rest_strain": _tensor9(eps),
+        "rest_strain_magnitude": field_magnitude(eps),
+        "rest_strain_direction": field_direction(eps),
+        "dilation": 0.5 * (eps[:, 0] + eps[:, 1]),
+    }
+    if "frozen" in a:
+        fields["frozen"] = np.asarray(a["frozen"], dtype=bool)
+    mesh = continuum_mesh(points, a["triangles"], np.zeros_like(points), cell_fields=fields)
+    name = key.removeprefix("continuum_learning/").replace("/", "_")
+    return write_mesh(mesh, folder / f"learned_{name}.vtu")
 
 
 def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[Path]:
@@ -68,6 +99,9 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
                         targets=a["net/targets"],
                     )
                 )
+        if key.startswith("continuum_learning/"):
+            if export.continuum and "triangles" in a:
+                written.append(_learned_field_mesh(key, a, folder))
             continue
         if key.startswith("fields/"):
             _, solver, rule = key.split("/")

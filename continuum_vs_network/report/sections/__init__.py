@@ -11,7 +11,17 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from . import accuracy, learning, physical_time, relaxation, solvers, stability, transmission
+from . import (
+    accuracy,
+    beyond_paper,
+    continuum_learning,
+    learning,
+    physical_time,
+    relaxation,
+    solvers,
+    stability,
+    transmission,
+)
 
 __all__ = ["SECTIONS"]
 
@@ -24,4 +34,6 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "solvers": solvers.section,
     "accuracy": accuracy.section,
     "physical_time": physical_time.section,
+    "continuum_learning": continuum_learning.section,
+    "beyond_paper": beyond_paper.section,
 }

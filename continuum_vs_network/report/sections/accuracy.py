@@ -88,7 +88,7 @@ def _finite_elements(doc: Document, result, a) -> None:
         "solve), after a warm-up solve. P2 on straight-sided triangles sees a polygonal "
         "boundary, a geometric error of order h^2; isoparametric P2 follows the circles."
     )
-    rows, dof_s, time_s = [], [], []
+    rows, dof_s, time_s, summary = [], [], [], []
     for j, element in enumerate(a.elements):
         units = [result.units[f"accuracy/fe/{element}/h{h:g}"].meta for h in a.mesh_sizes]
         h = np.array([m["h"] for m in units])
@@ -110,6 +110,16 @@ def _finite_elements(doc: Document, result, a) -> None:
                     "yes" if m["warned"] else "no",
                 ]
             )
+        fine = int(np.argmin(h))
+        summary.append(
+            [
+                _ELEMENT_NAMES[element],
+                f"{rate:.2f}",
+                units[fine]["dofs"],
+                fmt(err[fine]),
+                fmt(secs[fine], 2),
+            ]
+        )
         expected = FE_ORDER[element]
         doc.finding(
             Finding(
@@ -145,6 +155,13 @@ def _finite_elements(doc: Document, result, a) -> None:
         "legend) and against the wall-clock seconds of the whole solve (right).",
     )
     doc.table(["element", "h", "DOFs", "L2 error", "seconds", "locking warning"], rows)
+    doc.summary(
+        "finite_elements",
+        "Finite elements on Lamé's cylinder: fitted order in h, error and seconds of the "
+        "finest mesh",
+        ["element", "order", "DOFs", "L2 error", "seconds"],
+        summary,
+    )
     doc.findings_table([f for f in doc.findings if f.section.startswith("Finite elements")])
 
 
@@ -163,7 +180,7 @@ def _integrators(doc: Document, result, a) -> None:
         "Dashed: the explicit scheme's stability limit (Gershgorin bound); an explicit step "
         "above it is refused with a ValueError."
     )
-    panels, rows, refused_ok = [], [], []
+    panels, rows, refused_ok, summary = [], [], [], []
     for medium in ("network", "continuum"):
         for problem in a.problems:
             dt_s, time_s = [], []
@@ -200,6 +217,17 @@ def _integrators(doc: Document, result, a) -> None:
                     if scheme == "explicit":
                         above = m["dt"] > m["dt_limit"]
                         refused_ok.append(above == bool(m["refused"]))
+                ok = np.isfinite(err)
+                best = int(np.flatnonzero(ok)[np.argmin(dt[ok])]) if ok.any() else 0
+                summary.append(
+                    [
+                        f"{medium}, {problem}",
+                        name,
+                        f"{rate:.2f}",
+                        fmt(err[best]),
+                        fmt(secs[best], 2),
+                    ]
+                )
                 expected = SCHEME_ORDER[scheme]
                 doc.finding(
                     Finding(
@@ -236,6 +264,12 @@ def _integrators(doc: Document, result, a) -> None:
         "Error of every time integrator against the time step (left; fitted order in the "
         "legend, over the three smallest steps) and against wall-clock seconds (right). "
         "Refused or failed runs have no point.",
+    )
+    doc.summary(
+        "time_integrators",
+        "Time integrators: fitted order in dt, error and seconds at the smallest step",
+        ["problem", "scheme", "order", "error", "seconds"],
+        summary,
     )
     doc.table(
         [

@@ -90,7 +90,7 @@ def section(doc: Document, result) -> None:
     )
     doc.figure("solvers_seconds", t_panels, "Residual against wall-clock seconds.", ncols=ncols)
     tols = np.logspace(-2, math.log10(scene.solver.tol), 9)
-    wp, scale = [], []
+    wp, scale, reached = [], [], {}
     n_last = sizes[-1]
     nodes = [result.units[f"solvers/n{n}/{methods[0]}"].meta["n_nodes"] for n in sizes]
     for j, method in enumerate(methods):
@@ -102,6 +102,7 @@ def section(doc: Document, result) -> None:
             b = result.units[f"solvers/n{n}/{method}"].arrays
             reach.append(time_to(b["residual"], b["seconds"], scene.solver.tol))
         scale.append(Series(nodes, reach, method, marker="o", color=COLORS[j]))
+        reached[method] = reach
     doc.figure(
         "work_precision",
         [
@@ -128,4 +129,12 @@ def section(doc: Document, result) -> None:
     )
     doc.table(
         ["n", "N", "method", "converged", "iterations", "seconds", "residual / F", "message"], rows
+    )
+    doc.summary(
+        "time_to_tolerance",
+        f"Seconds to a residual of {scene.solver.tol:g} (one clamped spring at strain "
+        f"{scene.task.strain:g}; '-': not reached within {scene.solver.max_seconds:g} s), "
+        "every method measured in the same run",
+        ["N", *methods],
+        [[N, *(fmt(reached[m][i], 2) for m in methods)] for i, N in enumerate(nodes)],
     )

@@ -1,0 +1,109 @@
+"""How a trained material relaxes in time when its sources are switched on.
+
+The body starts at rest with its source material springs held at zero strain ("sources
+off"); at ``t = 0`` they are stepped to the task's strains and held there exactly, and the
+body creeps, against a damping (substrate drag and/or Kelvin-Voigt viscosity,
+:class:`~.viscoelastic.Damping`), to the free state the learning rule trained::
+
+    C du/dt = f - K u - G_s^T lambda,     G_s u = S_sources
+
+Backward Euler: ``(C/dt + K) u' + G_s^T lambda = C/dt u + f`` with the clamps exact;
+``C/dt + K`` is factorised once and the clamp rows are eliminated through its Schur
+complement (as in :mod:`.learning_states`). Unconditionally stable, first order in ``dt``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["SourceStep", "source_step", "time_to_settle"]
+
+
+@dataclass(frozen=True, eq=False)
+class SourceStep:
+    """Target strains of a body after the sources are switched on.
+
+    Attributes
+    ----------
+    times : (T,) float array
+        Recorded times (0: the sources just switched on).
+    target_strain : (T, n_targets) float array
+    final : (n_targets,) float array
+        Target strains of the exact free state (the ``t -> infinity`` limit).
+    seconds : float
+        Wall-clock time of the integration.
+    """
+
+    times: NDArray[np.float64]
+    target_strain: NDArray[np.float64] = field(repr=False)
+    final: NDArray[np.float64]
+    seconds: float
+
+
+def time_to_settle(times, strain, final, *, fraction: float = 0.9) -> float:
+    """First time after which ``|S(t) - final| <= (1 - fraction) |S(0) - final|`` (norms over
+    the targets) holds for the rest of the record; NaN when it never does."""
+    s = np.asarray(strain, dtype=float)
+    d = np.linalg.norm(s - np.asarray(final, dtype=float), axis=1)
+    ok = d <= (1.0 - fraction) * d[0]
+    bad = np.flatnonzero(~ok)
+    if bad.size == 0:
+        return float(times[0])
+    if bad[-1] + 1 >= len(times):
+        return float("nan")
+    return float(times[bad[-1] + 1])
+
+
+def source_step(medium, task, *, damping, dt: float, t_end: float) -> SourceStep:
+    """Integrate a learnable body's response to switching its sources on.
+
+    Parameters
+    ----------
+    medium : LearnableBody
+    task : MaterialTask
+    damping : Damping
+        Drag and/or Kelvin-Voigt viscosity (at least one > 0).
+    dt, t_end : float
+        Time step and duration (> 0).
+    """
+    from .probes import chord_strain_probe
+    from .static import factorise
+    from .viscoelastic import damping_matrix
+
+    if not (np.isfinite(dt) and dt > 0 and np.isfinite(t_end) and t_end > 0):
+        raise ValueError(f"dt and t_end must be finite and > 0, got {dt}, {t_end}")
+    t0 = time.perf_counter()
+    off = dataclasses.replace(task, source_strain=np.zeros(task.n_sources))
+    u = medium.free_state(off).u
+    final = medium.free_state(task).target_strain
+    keep = np.ones(medium.n_dofs, dtype=bool)
+    keep[task.fixed] = False
+    free = np.flatnonzero(keep)
+    C = damping_matrix(medium.body, damping)[free][:, free]
+    if C.nnz == 0:
+        raise ValueError("damping must have a drag or a viscosity > 0")
+    K = medium.stiffness()[free][:, free]
+    A = factorise((C / dt + K).tocsc(), symmetric=True)
+    G = chord_strain_probe(medium.body, task.source_a, task.source_b).operator.tocsc()[:, free]
+    T = chord_strain_probe(medium.body, task.target_a, task.target_b).operator.tocsc()[:, free]
+    Z = A.solve(G.T.toarray())
+    S = G @ Z
+    f = medium.load()[free]
+    x = u[free]
+    n = int(np.ceil(t_end / dt))
+    times = dt * np.arange(n + 1)
+    out = np.empty((n + 1, task.n_targets))
+    out[0] = T @ x
+    for i in range(n):
+        y = A.solve(C @ x / dt + f)
+        lam = np.linalg.solve(S, G @ y - task.source_strain)
+        x = y - Z @ lam
+        out[i + 1] = T @ x
+    if not np.all(np.isfinite(out)):
+        raise FloatingPointError("the relaxation produced non-finite strains")
+    return SourceStep(times, out, final, time.perf_counter() - t0)
