@@ -6,6 +6,7 @@
     cvn run SCENE [--out DIR]     run one scene (a .toml file or a built-in name), write its report
     cvn export SCENE              write the scene's meshes (VTU, PVD series) for ParaView
     cvn scenes [--keys]           list the built-in scenes (--keys: every scene key)
+    cvn sweep SCENE [--set K=V,V] run a grid of scene variants on Dask, write its table and report
     cvn demo                      relax the paper's network with every method
 
 Outputs go under ``--out`` (default: the current folder): ``results/<scene>/`` (computed
@@ -22,6 +23,7 @@ environment variable ``CVN_DEBUG=1``) prints the traceback of every error.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import tempfile
@@ -98,15 +100,17 @@ def _scenes(args: argparse.Namespace) -> int:
         return EXIT["ok"]
     scenes = [load_scene(name) for name in builtin_names()]
     width = max(len(s.name) for s in scenes)
-    print(f"{'scene':{width}}  {'kind':12}  default  description")
+    print(f"{'scene':{width}}  {'kind':14}  default  description")
     for s in scenes:
         print(
-            f"{s.name:{width}}  {s.kind:12}  {'yes' if s.report.default else 'no':7}  "
+            f"{s.name:{width}}  {s.kind + (' sweep' if s.sweep else ''):14}  "
+            f"{'yes' if s.report.default else 'no':7}  "
             f"{s.description}"
         )
     print(
         "\n`cvn report` runs the default set; `cvn run NAME` or `cvn report NAME ...` any "
-        "scene; `cvn scenes --keys` lists every key a scene file may set."
+        "scene; `cvn sweep NAME` a sweep (also with --set KEY=V1,V2 on any learning scene); "
+        "`cvn scenes --keys` lists every key a scene file may set."
     )
     return EXIT["ok"]
 
@@ -125,7 +129,8 @@ def _default_scenes():
 
 def _process(args: argparse.Namespace, scene, *, report: bool, force_export: bool) -> int:
     """Run one scene, export its meshes and write its report; returns an exit code."""
-
+    if scene.sweep is not None and not force_export:
+        return _process_sweep(args, scene, report=report)
     out = Path(args.out)
     if force_export and scene.export is None:
         scene = scene.with_export()
@@ -197,6 +202,81 @@ def _process_locked(args: argparse.Namespace, scene, out: Path, *, report: bool)
     return EXIT["ok"]
 
 
+def _process_sweep(args: argparse.Namespace, scene, *, report: bool) -> int:
+    """Run a sweep (a scene with a [sweep] table), write its table and report."""
+    from .io.lock import FolderBusyError
+    from .scenes.executor import ExecutorUnavailable
+    from .scenes.sweep import SweepRunError, run_sweep
+
+    out = Path(args.out)
+    t0 = time.perf_counter()
+    try:
+        result = run_sweep(
+            scene,
+            out / "results" / scene.name,
+            workers=args.workers,
+            scheduler=getattr(args, "scheduler", None),
+            progress=not args.quiet,
+            fresh=getattr(args, "fresh", False),
+            dry_run=getattr(args, "dry_run", False),
+            log=lambda m: _info(args, m),
+        )
+    except SweepRunError as err:
+        if _debug():
+            traceback.print_exception(err.cause)
+        _err(f"{err} (completed points are kept; rerun to resume)")
+        return EXIT["run"]
+    except FolderBusyError as err:
+        _err(str(err))
+        return EXIT["busy"]
+    except (ImportError, ExecutorUnavailable) as err:  # no Dask/pandas; no scheduler there
+        _err(str(err))
+        return EXIT["usage"]
+    if result is None:  # --dry-run
+        return EXIT["ok"]
+    _info(args, f"{scene.name}: {len(result.points)} points in {time.perf_counter() - t0:.1f} s")
+    _info(args, f"{scene.name}: table {out / 'results' / scene.name / 'table.parquet'} (and .csv)")
+    if report:
+        from .report.writer import write_sweep_report
+
+        try:
+            path = write_sweep_report(
+                result, out / "reports" / scene.name, command=_sweep_command(args, scene)
+            )
+        except Exception as err:  # the exit code says which stage failed
+            _err(f"sweep {scene.name!r}: writing the report failed: {type(err).__name__}: {err}")
+            return EXIT["report"]
+        _info(args, f"{scene.name}: report {path}")
+    return EXIT["ok"]
+
+
+def _sweep_command(args: argparse.Namespace, scene) -> str:
+    """The command that regenerates a sweep (its scene, and any --set / --zip settings)."""
+    from .scenes.schema import builtin_names
+
+    name = scene.name.removesuffix("_sweep")
+    target = name if name in builtin_names() else scene.source
+    extra = [f"--set {s}" for s in getattr(args, "set", None) or []]
+    extra += [f"--zip {z}" for z in getattr(args, "zip", None) or []]
+    return " ".join(["cvn sweep", target, *extra])
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    from .scenes.grid import parse_set, with_overrides
+
+    (scene,) = _load([args.scene])
+    if scene.sweep is None:  # a sweep of a plain scene: its own folders, not the scene's
+        scene = dataclasses.replace(scene, name=f"{scene.name}_sweep")
+    zips = [[k.strip() for k in z.split(",")] for z in args.zip or []]
+    scene = with_overrides(
+        scene, parse_set(args.set or []), zip_groups=zips, threshold=args.threshold
+    )
+    code = _process_sweep(args, scene, report=not args.no_report)
+    if code == EXIT["ok"] and not args.no_report and not args.dry_run:
+        _index(args)
+    return code
+
+
 def _index(args: argparse.Namespace, note: str | None = None) -> None:
     from .report.readme import update_readme
     from .report.writer import write_index
@@ -235,7 +315,17 @@ def _report(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
+    from .scenes.schema import SceneError
+
     (scene,) = _load([args.scene])
+    if scene.sweep is not None:
+        raise SceneError(
+            scene.source,
+            "sweep",
+            "",
+            "a sweep has no meshes of its own (its points compute training runs only); "
+            "export one variant: a scene file without [sweep] and with its values",
+        )
     return _process(args, scene, report=False, force_export=True)
 
 
@@ -347,6 +437,57 @@ def build_parser() -> argparse.ArgumentParser:
     _common(export, report=False)
     export.set_defaults(func=_export)
 
+    sweep = sub.add_parser(
+        "sweep",
+        help="run a grid of scene variants (a [sweep] table and/or --set) on Dask",
+        description="Expand a scene into a grid of variants (cartesian product of the swept "
+        "keys), print its size and estimated cost, run every point not already stored "
+        "(on a local Dask cluster, or on a running scheduler), and write the tidy table "
+        "results/<scene>/table.parquet (and .csv) and reports/<scene>/report.md (<scene>_sweep "
+        "for a scene without a [sweep] table of its own).",
+        epilog=_EPILOG,
+    )
+    sweep.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    sweep.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=V1,V2",
+        help="sweep KEY (table.key, or seed) over the values (a..b: the integers a to b); "
+        "replaces the scene's own axis of that key; repeat for more keys",
+    )
+    sweep.add_argument(
+        "--zip",
+        action="append",
+        metavar="KEY,KEY",
+        help="vary these swept keys together (equal numbers of values) instead of crossing them",
+    )
+    sweep.add_argument(
+        "--threshold",
+        type=float,
+        default=None,
+        metavar="X",
+        help="steps_to_threshold counts steps until error <= X x initial error (default 0.1)",
+    )
+    sweep.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on an existing Dask cluster (tcp://host:8786); its workers must import "
+        "this package and see --out",
+    )
+    sweep.add_argument(
+        "--dry-run", action="store_true", help="print the grid and the estimated cost only"
+    )
+    sweep.add_argument("--no-report", action="store_true", help="compute the table only")
+    _common(sweep, report=False)
+    sweep.set_defaults(func=_sweep, workers=None)
+    for action in sweep._actions:
+        if action.dest == "workers":
+            action.default = None
+            action.help = (
+                "local Dask worker processes (default: this machine's cores; 1: serial, no Dask)"
+            )
+
     scenes = sub.add_parser("scenes", help="list the built-in scenes")
     scenes.add_argument("--keys", action="store_true", help="list every key a scene may set")
     scenes.set_defaults(func=_scenes)
@@ -364,7 +505,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.debug:
         os.environ[_DEBUG_ENV] = "1"
     top = _MAX_WORKERS_PER_CPU * (os.cpu_count() or 1)
-    if not 1 <= getattr(args, "workers", 1) <= top:
+    workers = getattr(args, "workers", 1)
+    if workers is not None and not 1 <= workers <= top:
         _err(f"--workers must be in 1..{top} ({_MAX_WORKERS_PER_CPU} per CPU), got {args.workers}")
         return EXIT["usage"]
     try:

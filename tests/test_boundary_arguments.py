@@ -302,3 +302,28 @@ def test_a_pinned_node_without_springs_is_allowed():
     net = cvn.SpringNetwork(np.vstack([P, [[9.0, 9.0]]]), S, K, L)
     eq = cvn.relax(net, pinned=[0, 3, 16])
     assert eq.converged and np.array_equal(eq.positions[16], [9.0, 9.0])
+
+
+@pytest.mark.parametrize(
+    ("make", "words"),
+    [
+        (lambda: cvn.energy(P + 1j, NET), ("x", "complex")),
+        (lambda: cvn.energy(P, {}), ("net", "dict")),
+        (lambda: cvn.forces(P[:3], NET), ("x", "shape")),
+        (lambda: cvn.hessian("x", NET), ("x",)),
+        (lambda: cvn.is_rigid({}), ("net",)),
+        (lambda: cvn.zero_modes(None), ("net",)),
+        (lambda: cvn.rigidity_matrix(NET, x=P + 1j), ("x",)),
+        (lambda: cvn.default_pins(NET, avoid=[2**70]), ("avoid[0]",)),
+        (lambda: cvn.simulate(NET, dt="0.1", t_end=1.0), ("dt", "'0.1'")),
+        (lambda: cvn.simulate(NET, dt=1e-6, t_end=1e12), ("t_end", "too large", "memory")),
+        (lambda: cvn.simulate(NET, dt=0.1, t_end=1.0, record_every=0), ("record_every",)),
+        (lambda: NET.clamp_length(1.7, 0.1), ("spring", "1.7")),
+        (lambda: NET.clamp_length(1, "a"), ("strain",)),
+        (lambda: NET.lengths(P + 1j), ("x",)),
+    ],
+)
+def test_physics_functions_refuse_bad_arguments(make, words):
+    with pytest.raises(ArgumentError) as info:
+        make()
+    _assert_named(info.value, *words)

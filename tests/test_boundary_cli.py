@@ -96,7 +96,7 @@ def test_scene_seed_beyond_int64_is_refused(tmp_path):
 def test_huge_network_is_refused_naming_n_nodes_and_the_estimate(tmp_path):
     text = LEARN.replace('builder = "paper"', 'builder = "triangular"\nn_nodes = 10000000')
     text = text.replace('kind = "paper"', 'kind = "stern"').replace(
-        'rules = ["gcl"]', 'rules = ["gcl"]\nreference = "initial"'
+        'rules = ["gcl"]', 'rules = ["gcl"]\nstrain_reference = "initial"'
     )
     with pytest.raises(SceneError) as info:
         load_scene(_write(tmp_path, text))

@@ -79,7 +79,7 @@ def test_task_validation_and_conventions():
         AllosteryTask.create(net, [3], [0.5], [9], [-1.5])
     with pytest.raises(ValueError, match=r"sources\[0\] must be spring indices in 0\.\."):
         AllosteryTask.create(net, [30], [0.5], [9], [0.2])
-    with pytest.raises(ValueError, match="strain_reference must be 'initial' or 'current'"):
+    with pytest.raises(ValueError, match="strain_reference must be one of 'initial', 'current'"):
         task.source_lengths(net, "final")
 
 

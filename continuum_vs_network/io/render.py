@@ -40,8 +40,10 @@ __all__ = [
     "SOURCE_COLOR",
     "TARGET_COLOR",
     "diverging_colors",
+    "nice_length",
     "render_continuum",
     "render_network",
+    "render_networks",
     "render_side_by_side",
     "rendering_available",
 ]
@@ -259,7 +261,9 @@ def _draw_network(
     bar_title: str,
     line_width: float,
     font_scale: float,
-    columns: int = 1,
+    bounds: NDArray[np.float64] | None = None,
+    scale_length: float | None = None,
+    show_bar: bool = True,
 ) -> None:
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (net.n_nodes, 2):
@@ -286,25 +290,61 @@ def _draw_network(
         clim=(lo, hi),
         line_width=line_width,
         lighting=False,
+        show_scalar_bar=show_bar,
         scalar_bar_args=_scalar_bar(bar_title, font_scale),
     )
-    _labels_below(plotter, bar_title)
-    if src.size or tgt.size:
-        plotter.add_legend(
-            bcolor=BACKGROUND,
-            # the legend's size is a fraction of the whole window, its place is the
-            # subplot's corner: in one of several columns it must be narrower to fit
-            size=(0.16 / columns, 0.06 * (bool(src.size) + bool(tgt.size))),
-            loc="upper right",
-            face="rectangle",
-            font_family="arial",
-        )
+    if show_bar:
+        _labels_below(plotter, bar_title)
+    # the key of the halos as coloured words in this panel's corner (a pyvista legend is
+    # sized and placed against the whole window and floats between side-by-side panels)
+    row = 0
+    for idx, color, name in ((src, SOURCE_COLOR, "source"), (tgt, TARGET_COLOR, "target")):
+        if idx.size:
+            plotter.add_text(
+                name,
+                position=(0.02, 0.86 - 0.06 * row),
+                viewport=True,
+                font_size=round(10 * font_scale),
+                color=color,
+            )
+            row += 1
     if title:
         plotter.add_text(
             title, position="upper_left", font_size=round(11 * font_scale), color=_TEXT_COLOR
         )
-    bounds = np.array([x[:, 0].min(), x[:, 0].max(), x[:, 1].min(), x[:, 1].max()])
+    if bounds is None:
+        bounds = np.array([x[:, 0].min(), x[:, 0].max(), x[:, 1].min(), x[:, 1].max()])
+    if scale_length is not None:
+        _scale_bar(pv, plotter, bounds, scale_length, font_scale)
     _finish_view(plotter, bounds)
+
+
+def nice_length(span: float) -> float:
+    """A 1-2-5 length near a fifth of ``span`` (> 0), for a scale bar."""
+    target = max(float(span), 1e-300) / 5
+    exp = np.floor(np.log10(target))
+    for m in (5.0, 2.0, 1.0):
+        if m * 10**exp <= target:
+            return float(m * 10**exp)
+    return float(10**exp)
+
+
+def _scale_bar(pv: Any, plotter: Any, bounds: NDArray, length: float, font_scale: float) -> None:
+    """A black bar of ``length`` (length units) under the lower left of ``bounds``, labelled."""
+    xmin, xmax, ymin, ymax = bounds
+    extent = max(xmax - xmin, ymax - ymin, length)
+    y = ymin - 0.06 * extent
+    bar = pv.Line((xmin, y, 0.0), (xmin + length, y, 0.0))
+    plotter.add_mesh(bar, color=_TEXT_COLOR, line_width=4.0, lighting=False)
+    plotter.add_point_labels(
+        [(xmin + length + 0.03 * extent, y, 0.0)],
+        [f"{length:g} (length units)"],
+        font_size=round(11 * font_scale),
+        text_color=_TEXT_COLOR,
+        shape_opacity=0.0,
+        show_points=False,
+        always_visible=True,
+    )
 
 
 def _continuum_arrays(
@@ -468,6 +508,71 @@ def render_network(
         plotter.close()
 
 
+def render_networks(
+    panels: Sequence[tuple[SpringNetwork, ArrayLike, str]],
+    path: str | os.PathLike[str],
+    *,
+    sources: ArrayLike = (),
+    targets: ArrayLike = (),
+    clim: float | Sequence[float] | None = None,
+    window_size: Sequence[int] = (1400, 700),
+    scalar_bar_title: str = "spring strain",
+    line_width: float = 3.0,
+) -> Path:
+    """Several networks in one row, same view and a length scale; write a PNG.
+
+    Parameters
+    ----------
+    panels : sequence of (SpringNetwork, (n_nodes, 2) positions, title)
+        Drawn left to right in one frame (the union of their extents), so that a network
+        that shrank or collapsed looks so beside the others.
+    sources, targets : sequence of int
+        Spring indices marked in every panel (the same task).
+    clim : float or (float, float), optional
+        Colour limits of every panel (default: from the first panel's strains).
+    window_size, scalar_bar_title, line_width
+        As in :func:`render_network`; one colour bar, under the first panel.
+    """
+    if not panels:
+        raise ValueError("panels must name at least one network")
+    pv = _pyvista()
+    size = _window(window_size)
+    cols = len(panels)
+    xs = [np.asarray(x, dtype=np.float64) for _, x, _ in panels]
+    for (net, _, _), x in zip(panels, xs, strict=True):
+        if x.shape != (net.n_nodes, 2) or not np.all(np.isfinite(x)):
+            raise ValueError(f"positions must be finite with shape ({net.n_nodes}, 2)")
+    allx = np.concatenate(xs)
+    bounds = np.array([allx[:, 0].min(), allx[:, 0].max(), allx[:, 1].min(), allx[:, 1].max()])
+    if clim is None:
+        clim = float(np.max(np.abs(panels[0][0].strains(xs[0])))) or 1.0
+    length = nice_length(max(bounds[1] - bounds[0], bounds[3] - bounds[2]))
+    plotter = _new_plotter(pv, size, shape=(1, cols))
+    fs = _font_scale(size, columns=cols)
+    try:
+        for j, ((net, _, title), x) in enumerate(zip(panels, xs, strict=True)):
+            plotter.subplot(0, j)
+            _draw_network(
+                pv,
+                plotter,
+                net,
+                x,
+                sources=sources,
+                targets=targets,
+                clim=clim,
+                title=title,
+                bar_title=scalar_bar_title,
+                line_width=line_width,
+                font_scale=fs,
+                bounds=bounds,
+                scale_length=length,
+                show_bar=j == 0,
+            )
+        return _save(plotter, path)
+    finally:
+        plotter.close()
+
+
 def render_continuum(
     points: ArrayLike,
     triangles: ArrayLike,
@@ -580,7 +685,6 @@ def render_side_by_side(
             bar_title=network_bar_title,
             line_width=line_width,
             font_scale=fs,
-            columns=2,
         )
         plotter.subplot(0, 1)
         _draw_continuum(

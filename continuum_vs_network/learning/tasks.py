@@ -46,10 +46,7 @@ STRAIN_REFERENCES = ("initial", "current")
 
 def check_strain_reference(strain_reference: object) -> None:
     """Raise ``ValueError`` unless ``strain_reference`` is ``"initial"`` or ``"current"``."""
-    if strain_reference not in STRAIN_REFERENCES:
-        raise ValueError(
-            f"strain_reference must be 'initial' or 'current', got {strain_reference!r}"
-        )
+    check.choice("strain_reference", strain_reference, STRAIN_REFERENCES)
 
 
 def _frozen(value: ArrayLike, dtype: type, name: str) -> NDArray:

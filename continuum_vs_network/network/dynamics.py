@@ -56,6 +56,7 @@ k ~ 1) that must rotate during a step make Newton zig-zag along a curved valley
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -64,6 +65,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
 from .constraints import Pins, pin_mask
 from .energy import (
     hessian_norm_bound,
@@ -333,10 +335,7 @@ class _ProximalSolver:
 
 # -- the run ----------------------------------------------------------------------------------
 def _check_number(name: str, value: float, *, positive: bool = False) -> float:
-    v = float(value)
-    if not np.isfinite(v) or v < 0 or (positive and v == 0):
-        raise ValueError(f"{name} must be finite and {'> 0' if positive else '>= 0'}, got {value}")
-    return v
+    return check.real(name, value, low=0, low_open=positive)
 
 
 def simulate(
@@ -415,10 +414,13 @@ def simulate(
     t_end = _check_number("t_end", t_end, positive=True)
     c = _check_number("damping", damping, positive=not inertia)
     tol = _check_number("tol", tol, positive=True)
-    if int(record_every) != record_every or record_every < 1:
-        raise ValueError(f"record_every must be an integer >= 1, got {record_every}")
-    if int(max_newton) != max_newton or max_newton < 1:
-        raise ValueError(f"max_newton must be an integer >= 1, got {max_newton}")
+    record_every = check.integer("record_every", record_every, low=1)
+    max_newton = check.integer("max_newton", max_newton, low=1)
+    if not isinstance(net, SpringNetwork):
+        raise check.ArgumentError("net", net, "a SpringNetwork")
+    frames = math.ceil(t_end / dt) // record_every + 2
+    # every frame keeps positions, velocities and forces, (n_nodes, 2) each, and 4 scalars
+    check.memory("t_end", t_end, frames * (48 * net.n_nodes + 32), f"{frames} recorded frames")
     inertia = bool(inertia)
     t0 = time.perf_counter()
 

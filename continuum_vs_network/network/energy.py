@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from .. import _validate as check
 from .model import SpringNetwork
 
 __all__ = [
@@ -159,14 +160,21 @@ class HessianPattern:
         return mat
 
 
+def _state(x: NDArray, net: SpringNetwork) -> NDArray:
+    """``x`` checked against ``net`` (the public functions' arguments)."""
+    if not isinstance(net, SpringNetwork):
+        raise check.ArgumentError("net", net, "a SpringNetwork")
+    return check.float_array("x", x, (net.n_nodes, 2))
+
+
 def energy(x: NDArray, net: SpringNetwork) -> float:
     """Elastic energy of ``net`` at positions ``x`` (n_nodes, 2) (Eq. 11)."""
-    return spring_energy(np.asarray(x, np.float64), net.springs, net.stiffness, net.rest_length)
+    return spring_energy(_state(x, net), net.springs, net.stiffness, net.rest_length)
 
 
 def gradient(x: NDArray, net: SpringNetwork) -> NDArray:
     """``dE/dx`` of ``net`` at ``x``: (n_nodes, 2) float array."""
-    return spring_gradient(np.asarray(x, np.float64), net.springs, net.stiffness, net.rest_length)
+    return spring_gradient(_state(x, net), net.springs, net.stiffness, net.rest_length)
 
 
 def forces(x: NDArray, net: SpringNetwork) -> NDArray:
@@ -179,10 +187,9 @@ def hessian(x: NDArray, net: SpringNetwork, pattern: HessianPattern | None = Non
 
     Pass a ``pattern`` built once for the topology to skip the symbolic work.
     """
+    x = _state(x, net)
     pattern = pattern or HessianPattern(net.springs, net.n_nodes)
-    blocks = spring_hessian_blocks(
-        np.asarray(x, np.float64), net.springs, net.stiffness, net.rest_length
-    )
+    blocks = spring_hessian_blocks(x, net.springs, net.stiffness, net.rest_length)
     return pattern.assemble(blocks)
 
 

@@ -146,9 +146,15 @@ class SpringNetwork:
 
         Returns a (n_springs,) float array.
         """
-        x = self.positions if x is None else np.asarray(x, dtype=np.float64)
+        x = self.positions if x is None else self._positions_like(x)
         d = x[self.springs[:, 1]] - x[self.springs[:, 0]]
         return np.hypot(d[:, 0], d[:, 1])
+
+    def _positions_like(self, x: ArrayLike) -> NDArray[np.float64]:
+        """``x`` as (n_nodes, 2) float64 positions: arrays already so pass without a copy."""
+        if isinstance(x, np.ndarray) and x.dtype == np.float64 and x.shape == (self.n_nodes, 2):
+            return x
+        return check.float_array("x", x, (self.n_nodes, 2), finite=False)
 
     def strains(self, x: ArrayLike | None = None) -> NDArray[np.float64]:
         """Spring strains ``S_j = r_j / L_j - 1`` (Eq. 24), (n_springs,) float array."""
@@ -156,10 +162,15 @@ class SpringNetwork:
 
     def clamp_length(self, spring: ArrayLike, strain: ArrayLike) -> NDArray[np.float64]:
         """Length ``L_j (S + 1)`` at which spring(s) ``spring`` have strain ``strain`` (Eq. 25)."""
-        idx = np.asarray(spring, dtype=np.int64)
-        if np.any((idx < 0) | (idx >= self.n_springs)):
-            raise ValueError(f"spring index out of range 0..{self.n_springs - 1}: {spring}")
-        length = self.rest_length[idx] * (np.asarray(strain, dtype=np.float64) + 1.0)
+        top = self.n_springs - 1
+        if np.ndim(spring) == 0:
+            idx = check.integer(
+                "spring", spring, low=0, high=top, what=f"a spring index in 0..{top}"
+            )
+        else:
+            idx = check.index_array("spring", spring, self.n_springs, what="spring indices")
+        strain = check.float_array("strain", strain)
+        length = self.rest_length[idx] * (strain + 1.0)
         if np.any(length <= 0):
             raise ValueError(f"strain must be > -1 so that the clamp length is positive: {strain}")
         return length

@@ -33,6 +33,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
 from .constraints import default_pins, pin_mask
 from .model import SpringNetwork
 
@@ -54,14 +55,11 @@ _SPARSE_RTOL = 1e-6  # singular-value tolerance of the sparse eigenvalue path (e
 
 
 def _positions(net: SpringNetwork, x: ArrayLike | None) -> NDArray:
+    if not isinstance(net, SpringNetwork):
+        raise check.ArgumentError("net", net, "a SpringNetwork")
     if x is None:
         return net.positions
-    arr = np.asarray(x, dtype=np.float64)
-    if arr.shape != (net.n_nodes, 2):
-        raise ValueError(f"x must have shape ({net.n_nodes}, 2), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError("x must be finite")
-    return arr
+    return check.float_array("x", x, (net.n_nodes, 2))
 
 
 def rigidity_matrix(net: SpringNetwork, x: ArrayLike | None = None) -> sp.csr_matrix:
@@ -183,6 +181,7 @@ def zero_modes(
     """
     _check_method(method)
     _check_rtol(rtol)
+    _positions(net, None)  # checks net
     free = np.ones((net.n_nodes, 2), bool) if pinned is None else ~pin_mask(net, pinned)
     rows = net.stiffness > 0
     rows[_clamp_indices(net, clamped)] = True
@@ -202,6 +201,7 @@ def is_rigid(
 
     A single node is rigid. ``method`` and ``rtol`` are those of :func:`zero_modes`.
     """
+    _positions(net, None)  # checks net
     if net.n_nodes <= 1:
         return True
     return zero_modes(net, x=x, method=method, rtol=rtol) == 3

@@ -117,6 +117,7 @@ def _clean(x: NDArray, y: NDArray, xlog: bool, ylog: bool) -> NDArray[np.bool_]:
 def _draw(ax, panel: Panel) -> None:
     xlog, ylog = panel.xscale == "log", panel.yscale == "log"
     drawn = False
+    line_y: list[NDArray] = []
     for i, s in enumerate(panel.series):
         x = np.asarray(s.x, dtype=float).ravel()
         y = np.asarray(s.y, dtype=float).ravel()
@@ -131,6 +132,7 @@ def _draw(ax, panel: Panel) -> None:
             if band.any():
                 ax.fill_between(x[band], lo[band], hi[band], color=color, alpha=0.18, lw=0)
         if ok.any():
+            line_y.append(y[ok])
             ax.plot(
                 x[ok],
                 y[ok],
@@ -153,10 +155,16 @@ def _draw(ax, panel: Panel) -> None:
         ax.plot([lo, hi], [lo, hi], color="0.4", lw=0.8, ls="--", label="y = x")
     ax.set_xscale(panel.xscale)
     ax.set_yscale(panel.yscale)
-    if xlog:
-        _log_ticks(ax.xaxis, ax.get_xlim())
-    if ylog:
-        _log_ticks(ax.yaxis, ax.get_ylim())
+    if ylog and line_y:
+        _limit_bands(ax, np.concatenate(line_y), panel.hlines)
+    for axis, scale, lim in (
+        (ax.xaxis, panel.xscale, ax.get_xlim()),
+        (ax.yaxis, panel.yscale, ax.get_ylim()),
+    ):
+        if scale == "log":
+            _log_ticks(axis, lim)
+        elif scale == "linear":
+            axis.set_major_formatter(_ShortFormatter())
     ax.set_title(panel.title, fontsize=10)
     ax.set_xlabel(panel.xlabel, fontsize=9)
     ax.set_ylabel(panel.ylabel, fontsize=9)
@@ -176,6 +184,55 @@ def _draw(ax, panel: Panel) -> None:
         ax.legend(fontsize=7, frameon=False)
 
 
+def _limit_bands(ax, y: NDArray, hlines: Sequence[float]) -> None:
+    """On a log y axis, let bands (quartiles, +-std) reach at most one decade beyond the
+    lines and reference lines, so a band down to 1e-24 does not flatten every curve."""
+    y = y[np.isfinite(y) & (y > 0)]
+    refs = [h for h in hlines if h > 0]
+    if not y.size:
+        return
+    lo = min(float(y.min()), *refs) if refs else float(y.min())
+    hi = max(float(y.max()), *refs) if refs else float(y.max())
+    cur_lo, cur_hi = ax.get_ylim()
+    ax.set_ylim(max(cur_lo, lo / 10), min(cur_hi, hi * 10))
+
+
+def _tick_label(v: float, digits: int) -> str:
+    """``v`` to ``digits`` significant digits: positional between 1e-3 and 1e5 (1250, not
+    1.25e+03), scientific outside."""
+    if v == 0 or not np.isfinite(v):
+        return f"{v:g}"
+    rounded = float(f"{v:.{digits}g}")
+    if 1e-3 <= abs(rounded) < 1e5:
+        return np.format_float_positional(rounded, trim="-")
+    return f"{v:.{digits}g}"
+
+
+def _short_formatter_labels(values: Sequence[float]) -> list[str]:
+    """Tick labels with the fewest significant digits (3 or more) that keep them distinct."""
+    values = list(values)
+    for digits in range(3, 11):
+        labels = [_tick_label(v, digits) for v in values]
+        if len(set(labels)) == len(labels):
+            return labels
+    return labels
+
+
+def _ShortFormatter():
+    """A tick formatter without matplotlib's offset text (the "1e11" over a panel's title):
+    every label is a plain number, with as many digits as distinct ticks need."""
+    from matplotlib.ticker import Formatter
+
+    class ShortFormatter(Formatter):
+        def __call__(self, x, pos=None):
+            return _tick_label(x, 3)
+
+        def format_ticks(self, values):
+            return _short_formatter_labels(values)
+
+    return ShortFormatter()
+
+
 def _log_ticks(axis, limits: tuple[float, float]) -> None:
     """Labelled ticks on a log axis: decades, or 1-2-5 steps when the range spans less
     than two decades (where decades alone would leave one label or none); minor tick
@@ -185,7 +242,9 @@ def _log_ticks(axis, limits: tuple[float, float]) -> None:
     lo, hi = sorted(limits)
     if lo > 0 and math.log10(hi / lo) < 2:
         axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-        axis.set_major_formatter(LogFormatterSciNotation(labelOnlyBase=False))
+        axis.set_major_formatter(
+            LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(3, 3))
+        )
     axis.set_minor_formatter(NullFormatter())
 
 
@@ -205,7 +264,11 @@ def plot_panels(
     ncols = max(1, min(int(ncols), len(panels)))
     nrows = math.ceil(len(panels) / ncols)
     fig, axes = plt.subplots(
-        nrows, ncols, squeeze=False, figsize=(panel_size[0] * ncols, panel_size[1] * nrows)
+        nrows,
+        ncols,
+        squeeze=False,
+        figsize=(panel_size[0] * ncols, panel_size[1] * nrows),
+        layout="constrained",  # room for every label: nothing clipped, nothing overlapping
     )
     try:
         for ax, panel in zip(axes.flat, panels):
@@ -214,25 +277,9 @@ def plot_panels(
             ax.set_visible(False)
         if title:
             fig.suptitle(title, fontsize=11)
-        _layout(fig, nrows, ncols, panel_size, bool(title))
         return _save(fig, path, dpi)
     finally:
         plt.close(fig)
-
-
-def _layout(fig, nrows: int, ncols: int, size: tuple[float, float], title: bool) -> None:
-    """Fixed margins in inches (``tight_layout`` measures every label: slow and no better
-    for these uniform panels)."""
-    w, h = size[0] * ncols, size[1] * nrows
-    left, right, bottom, top = 0.72, 0.12, 0.5, 0.32 + (0.3 if title else 0.0)
-    fig.subplots_adjust(
-        left=left / w,
-        right=1 - right / w,
-        bottom=bottom / h,
-        top=1 - top / h,
-        wspace=0.9 / (size[0] - 0.84),
-        hspace=0.95 / (size[1] - 0.82),
-    )
 
 
 def heatmap(

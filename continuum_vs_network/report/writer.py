@@ -26,7 +26,7 @@ from .sections import SECTIONS
 from .sections.provenance import scene_toml, short_source
 from .sections.provenance import section as provenance
 
-__all__ = ["scene_toml", "write_index", "write_report"]
+__all__ = ["scene_toml", "write_index", "write_report", "write_sweep_report"]
 
 _META = "report.json"
 
@@ -112,6 +112,59 @@ def write_report(
         "figures": sorted(keep),
         "findings": [f.to_dict() for f in doc.findings],
         "summaries": doc.summaries,
+    }
+    # not sorted: a finding's measured values keep the order its section gave
+    write_text_atomic(folder / _META, json.dumps(meta, indent=1))
+    return report
+
+
+def write_sweep_report(result, folder: str | os.PathLike[str], *, command: str = "") -> Path:
+    """Write ``<folder>/report.md`` (and its figures) for a sweep; return its path.
+
+    Parameters
+    ----------
+    result : SweepResult
+        From :func:`~continuum_vs_network.scenes.sweep.run_sweep` or ``load_sweep``.
+    folder : path
+        Destination, e.g. ``reports/<scene>``; created.
+    command : str
+        The command that regenerates the sweep (shown in the report).
+    """
+    from .sections.sweep import section as sweep_section
+
+    t0 = time.perf_counter()
+    scene, info = result.scene, result.info
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    doc = Document(folder, scene.report.dpi)
+    doc.add(
+        f"# {scene.name}",
+        "",
+        scene.description,
+        "",
+        f"A sweep of a `{scene.kind}` scene."
+        + (f" Regenerate with `{command}`." if command else ""),
+    )
+    sweep_section(doc, result)
+    doc.heading("Settings")
+    doc.add("```toml", scene_toml(scene.to_dict()), "```")
+    report = write_text_atomic(folder / "report.md", "\n".join(doc.lines).rstrip() + "\n")
+    keep = {p.name for p in doc.files}
+    for old in folder.glob("*.png"):
+        if old.name not in keep:
+            old.unlink(missing_ok=True)
+    meta = {
+        "name": scene.name,
+        "kind": f"{scene.kind} sweep",
+        "description": scene.description,
+        "default": scene.report.default,
+        "wall_seconds": info["wall_seconds"],
+        "compute_seconds": float(sum(r["wall_seconds"] for r in result.rows)),
+        "report_seconds": time.perf_counter() - t0,
+        "started": info["started"],
+        "commit": info.get("commit", "unknown"),
+        "figures": sorted(keep),
+        "findings": [f.to_dict() for f in doc.findings],
     }
     write_text_atomic(folder / _META, json.dumps(meta, indent=1, sort_keys=True))
     return report

@@ -2,12 +2,17 @@
 
 * :mod:`.schema`: the file format, validated into frozen dataclasses
   (:func:`load_scene`, :class:`Scene`, :class:`SceneError`);
-* :mod:`.runner`: :func:`run_scene` computes only what a scene names, in units that are
-  checkpointed and resumed, optionally in parallel processes; :class:`SceneResult`;
+* :mod:`.runner`: :func:`run_scene` computes only what a scene names, in units
+  (:mod:`.units`) that are checkpointed and resumed, optionally in parallel; :class:`SceneResult`;
+* :mod:`.executor`: where parallel work runs (serial, a local Dask cluster, a running Dask
+  scheduler);
+* :mod:`.grid` and :mod:`.sweep`: a scene's ``[sweep]`` expanded into a grid of variants and
+  run point by point into one tidy table (``cvn sweep``);
 * :mod:`.meshes`: the meshes of a result (:func:`export_meshes`);
 * ``builtin/*.toml``: the built-in scenes (:func:`builtin_names`).
 
-Importing this package needs only numpy and scipy.
+Importing this package needs only numpy and scipy; Dask and pandas are imported only by
+parallel runs and sweeps.
 """
 
 from __future__ import annotations

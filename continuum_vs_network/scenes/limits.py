@@ -67,7 +67,9 @@ def estimate(scene: Scene) -> Estimate:
         n_targets = 1 if scene.task.kind == "paper" else scene.task.n_targets
         n_sources = 1 if scene.task.kind == "paper" else scene.task.n_sources
         methods = len(scene.solver.methods) if scene.solver is not None else 1
-        runs = methods * len(L.rules) * len(L.noise)
+        # a GCL rule runs once per nudge when etas lists several
+        rules = sum(len(L.etas) if r.startswith("gcl") and L.etas else 1 for r in L.rules)
+        runs = methods * rules * len(L.noise)
         units = runs * L.trials
         est.add("network", "n_nodes", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
         # every trial's history and its initial and final networks are merged in memory
@@ -85,6 +87,20 @@ def estimate(scene: Scene) -> Estimate:
                 L.trials * L.sweep_points * per_point,
                 f"sweeps of {L.sweep_points} points",
             )
+        return est
+    if scene.kind == "continuum_learning" and net is not None and L is not None:
+        nodes = net.size**2
+        c = scene.continuum
+        refine, order = (c.refine, c.order) if c is not None else (0, 1)
+        dofs = 2 * nodes * 4**refine * (4 if order == 2 else 1)
+        est.add("network", "size", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
+        what = f"{dofs} finite-element unknowns (refine {refine}, order {order})"
+        est.add("network", "size", dofs * FE_BYTES_PER_DOF, what)
+        n_targets = scene.task.n_targets if scene.task is not None else 1
+        runs = len(L.rules) * L.trials * (refine + 2)  # the network and every refinement
+        key = "steps" if L.steps / 300 > L.trials / 10 else "trials"
+        est.add("learning", key, 2 * runs * _history_bytes(L.steps, n_targets),
+                f"{runs} histories of {L.steps} steps")  # fmt: skip
         return est
     if scene.kind == "accuracy":
         a = scene.accuracy
@@ -104,6 +120,16 @@ def estimate(scene: Scene) -> Estimate:
         est.add("network", "size", nodes * SOLVE_BYTES_PER_NODE, f"{nodes} lattice nodes")
         # element operators (~ 600 bytes per DOF for P1) next to the factorisation
         est.add("continuum", "refine", dofs * FE_BYTES_PER_DOF, f"{dofs} FE unknowns")
+        return est
+    if net is not None and scene.kind == "beyond_paper":
+        n = max(net.sizes)
+        nodes = n * n
+        est.add("network", "sizes", nodes * SOLVE_BYTES_PER_NODE, f"solving a {n} x {n} lattice")
+        runs = len(net.sizes) * len(L.examples) + 2 * len(L.rules) + 1
+        est.add(
+            "learning", "steps", runs * _history_bytes(L.steps, 2 * max(L.examples)),
+            f"{runs} histories of {L.steps} steps",
+        )  # fmt: skip
         return est
     if net is None or scene.kind not in ("transmission", "relaxation", "stability", "solvers"):
         return est  # a kind without an estimate yet

@@ -9,12 +9,11 @@ Learning trials also checkpoint inside the trial (``train(..., checkpoint=...)``
 killed trial resumes at its last checkpoint; a resumed run returns the same numbers as an
 uninterrupted one (wall-clock columns aside).
 
-Units of a phase run in parallel processes with ``workers > 1`` (learning trials,
-transmission and relaxation sizes); timing scenes (stability, solvers) always run serially
-so their wall-clock times are not measured under load. Results agree with a serial run:
-every unit draws its randomness from its own seed. (They agree to solver round-off, not bit
-for bit: Newton sizes its reuse of a factorisation from measured solve times, so iterates and
-iteration counts can differ slightly between runs; the same holds for a resumed run.)
+Units of a phase run in parallel with ``workers > 1`` or a Dask ``scheduler`` (learning
+trials, transmission and relaxation sizes), through the executor of :mod:`.executor`;
+timing scenes (stability, solvers) always run serially so their wall-clock times are not
+measured under load. Results agree with a serial run: every unit draws its randomness from
+its own seed, and its solver makes the same decisions wherever it runs.
 
 Testing hook: the environment variable ``CVN_TEST_KILL_AFTER`` (``"units:N"`` or
 ``"steps:N"``) makes the process kill itself with SIGKILL after ``N`` completed units or
@@ -24,7 +23,7 @@ learning steps, to test resuming.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
+import functools
 import json
 import os
 import shutil
@@ -32,17 +31,18 @@ import signal
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ..io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
 from ..io.lock import folder_lock
+from .executor import Executor, TaskError, open_executor
 from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
+from .units import Unit, UnitContext, UnitResult
 
 __all__ = [
     "Provenance",
@@ -65,75 +65,6 @@ class SceneRunError(RuntimeError):
     def __init__(self, scene: str, unit: str, cause: BaseException) -> None:
         self.scene, self.unit, self.cause = scene, unit, cause
         super().__init__(f"scene {scene!r}, unit {unit!r}: {type(cause).__name__}: {cause}")
-
-
-@dataclass(frozen=True, eq=False)
-class Unit:
-    """One piece of a scene's work.
-
-    Attributes
-    ----------
-    key : str
-        Unique within the scene, ``/``-separated (``"train/newton/gcl/noise0/trial3"``).
-    func : callable ``f(scene, params, ctx) -> (arrays, meta)`` or ``-> History``
-        A module-level function (it is sent to worker processes by reference).
-    params : dict
-        JSON-able parameters of this unit.
-    depends : dict
-        JSON-able settings the result depends on besides ``params`` (fingerprinted).
-    phase : int
-        Units of phase ``p`` run after every unit of the phases before.
-    weight : int
-        Progress-bar weight (learning steps of a trial, 1 otherwise).
-    parallel : bool
-        May run in a worker process (False for timed units).
-    """
-
-    key: str
-    func: Callable[..., Any]
-    params: Mapping[str, Any]
-    depends: Mapping[str, Any] = field(default_factory=dict)
-    phase: int = 0
-    weight: int = 1
-    parallel: bool = True
-
-    @property
-    def fingerprint(self) -> str:
-        text = json.dumps(
-            {
-                "func": f"{self.func.__module__}.{self.func.__qualname__}",
-                "params": self.params,
-                "depends": self.depends,
-            },
-            sort_keys=True,
-            default=str,
-        )
-        return hashlib.sha256(text.encode()).hexdigest()[:20]
-
-    @property
-    def stem(self) -> str:
-        return self.key.replace("/", "__")
-
-
-@dataclass(frozen=True, eq=False)
-class UnitResult:
-    """The stored result of one unit.
-
-    Attributes
-    ----------
-    key : str
-    arrays : dict of str -> array
-        Empty for units that return a history (see :attr:`SceneResult.histories`).
-    meta : dict
-        Plain values (numbers, strings, lists).
-    seconds : float
-        Wall-clock time of the unit when it was computed.
-    """
-
-    key: str
-    arrays: Mapping[str, NDArray]
-    meta: Mapping[str, Any]
-    seconds: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,36 +93,6 @@ class SceneResult:
         return {k: u for k, u in self.units.items() if k.startswith(prefix)}
 
 
-@dataclass
-class UnitContext:
-    """What a unit function may use besides its scene and parameters.
-
-    Attributes
-    ----------
-    key : str
-        The unit's key.
-    directory : pathlib.Path
-        The scene's result directory.
-    checkpoint : pathlib.Path
-        A file the unit may use to checkpoint itself (removed when the unit completes).
-    on_step : callable or None
-        Call once per learning step (progress bar, kill hook).
-    """
-
-    key: str
-    directory: Path
-    checkpoint: Path
-    on_step: Callable[[], None] | None = None
-
-    def history(self, group: str):
-        """The merged history of the learning group ``"<solver>/<rule>/noise<i>"``."""
-        return _merged_history(self.directory, group)
-
-    def unit(self, key: str) -> UnitResult:
-        """The stored result of an earlier unit."""
-        return _read_unit(self.directory, key)
-
-
 # -- planning --------------------------------------------------------------------------------
 def plan(scene: Scene) -> list[Unit]:
     """The units of ``scene``, in order (only what the scene names)."""
@@ -203,6 +104,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_continuum_learning import plan_continuum_learning
 
         return plan_continuum_learning(scene)
+    if scene.kind == "beyond_paper":
+        from .units_beyond import plan_beyond_paper
+
+        return plan_beyond_paper(scene)
     if scene.kind in ("transmission", "relaxation"):
         from .units_physics import plan_physics
 
@@ -357,7 +262,14 @@ def _compute(scene: Scene, unit: Unit, directory: Path, on_step: Callable | None
     """Run one unit and store its result; returns its wall-clock seconds."""
     ckpt = directory / "checkpoints" / f"{unit.stem}-{unit.fingerprint[:12]}.npz"
     ckpt.parent.mkdir(parents=True, exist_ok=True)
-    ctx = UnitContext(key=unit.key, directory=directory, checkpoint=ckpt, on_step=on_step)
+    ctx = UnitContext(
+        key=unit.key,
+        directory=directory,
+        checkpoint=ckpt,
+        on_step=on_step,
+        read_unit=functools.partial(_read_unit, directory),
+        read_history=functools.partial(_merged_history, directory),
+    )
     t0 = time.perf_counter()
     output = unit.func(scene, dict(unit.params), ctx)
     seconds = time.perf_counter() - t0
@@ -388,7 +300,8 @@ def run_scene(scene: Scene, directory: str | os.PathLike[str], **options: Any) -
     second run on it raises :class:`~continuum_vs_network.io.lock.FolderBusyError` at once.
     Temporaries that killed runs left in it are removed first, and a unit whose stored
     payload does not read back is computed again. The keyword options (``workers``,
-    ``progress``, ``fresh``, ``command``, ``log``) are described at :func:`_run_scene`.
+    ``scheduler``, ``progress``, ``fresh``, ``command``, ``log``) are described at
+    :func:`_run_scene`.
     """
     with folder_lock(directory):
         remove_stale_temporaries(directory, locked=True)
@@ -400,6 +313,7 @@ def _run_scene(
     directory: str | os.PathLike[str],
     *,
     workers: int = 1,
+    scheduler: str | None = None,
     progress: bool = True,
     fresh: bool = False,
     command: str | None = None,
@@ -413,7 +327,11 @@ def _run_scene(
     directory : path
         The scene's result folder (created), e.g. ``results/<scene>``.
     workers : int
-        Processes for the parallel units (1: everything in this process).
+        Worker processes for the parallel units (1: everything in this process; N > 1: a
+        local Dask cluster of N workers, see :func:`.executor.open_executor`).
+    scheduler : str, optional
+        Address of a running Dask scheduler to run the parallel units on instead (its
+        workers must see ``directory``).
     progress : bool
         Show a tqdm progress bar (tqdm is imported only then).
     fresh : bool
@@ -453,20 +371,21 @@ def _run_scene(
         log(f"{scene.name}: resuming, {len(done)} of {len(units)} units already computed")
     bar = _bar(progress, scene.name, units, done)
     killer = _Killer()
-    pool = None
+    executor = None
     try:
         for phase in sorted({u.phase for u in units}):
             todo = [u for u in units if u.phase == phase and u.key not in done]
-            serial = [u for u in todo if workers == 1 or not u.parallel]
-            pooled = [u for u in todo if workers > 1 and u.parallel]
+            parallel = workers > 1 or scheduler is not None
+            serial = [u for u in todo if not (parallel and u.parallel)]
+            pooled = [u for u in todo if parallel and u.parallel]
             if pooled:
-                pool = pool or _new_pool(workers)
-                _run_pool(pool, scene, pooled, directory, bar)
+                executor = executor or open_executor(workers=workers, scheduler=scheduler)
+                _run_parallel(executor, scene, pooled, directory, bar)
             for unit in serial:
                 _run_serial(scene, unit, directory, bar, killer)
     finally:
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
+        if executor is not None:
+            executor.close()
         if bar is not None:
             bar.close()
     _clean(directory, units)
@@ -488,7 +407,7 @@ def _run_scene(
         compute_seconds=compute,
         units=len(units),
         reused=reused,
-        workers=int(workers),
+        workers=int(workers) if executor is None else executor.workers,
         libraries=dict(env["libraries"]),
         cpu=env["cpu"],
         threads=blas_threads(),
@@ -518,30 +437,24 @@ def _run_serial(scene: Scene, unit: Unit, directory: Path, bar, killer: _Killer)
     killer.tick("units")
 
 
-def _new_pool(workers: int):
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+def _run_parallel(
+    executor: Executor, scene: Scene, units: list[Unit], directory: Path, bar
+) -> None:
+    """Units on ``executor`` (each stores its own result); the first failure stops the rest."""
 
-    # spawn, not fork: a forked child would inherit this process's threads and locks
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"))
+    def done(i: int, _value: Any) -> None:
+        if bar is not None:
+            bar.update(units[i].weight)
 
-
-def _run_pool(pool, scene: Scene, units: list[Unit], directory: Path, bar) -> None:
-    from concurrent.futures import FIRST_EXCEPTION, wait
-
-    futures = {pool.submit(_worker, scene, u, str(directory)): u for u in units}
-    pending = set(futures)
-    while pending:
-        finished, pending = wait(pending, return_when=FIRST_EXCEPTION)
-        for fut in finished:
-            unit = futures[fut]
-            err = fut.exception()
-            if err is not None:
-                for other in pending:
-                    other.cancel()
-                raise SceneRunError(scene.name, unit.key, err) from err
-            if bar is not None:
-                bar.update(unit.weight)
+    try:
+        executor.run(
+            _worker,
+            [(scene, u, str(directory)) for u in units],
+            on_result=done,
+            label=f"{scene.name}-unit",
+        )
+    except TaskError as err:
+        raise SceneRunError(scene.name, units[err.index].key, err.cause) from err.cause
 
 
 def _bar(progress: bool, name: str, units: list[Unit], done: set[str]):

@@ -6,14 +6,15 @@ A scene is data only (no code is executed from it). Top-level keys::
     description = "one line"  # shown by ``cvn scenes`` and in the report
     seed = 0                  # first seed; trial i uses seed + i
     kind = "learning"         # learning | transmission | relaxation | stability | solvers
-                              # | accuracy
+                              # | accuracy | continuum_learning | beyond_paper
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
-``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[export]``, ``[report]``.
-Which tables a kind needs and which it accepts is in :data:`KIND_TABLES`; a table a kind
-does not use is an error (a scene never carries settings that are silently ignored). Every key
-of every table is listed, with its type, default and meaning, in the dataclasses below
-(``cvn scenes --keys`` prints them).
+``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[export]``, ``[report]``,
+and ``[sweep]`` (the scene as a grid of variants, :class:`SweepSpec`). Which tables a kind
+needs and which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an error
+(a scene never carries settings that are silently ignored). Every key of every table is
+listed, with its type, default and meaning, in the dataclasses below (``cvn scenes --keys``
+prints them).
 
 Unknown keys, wrong types and impossible values raise :class:`SceneError`, a ``ValueError``
 whose message and attributes name the file, the table and the key.
@@ -48,12 +49,15 @@ __all__ = [
     "SceneError",
     "SolverSpec",
     "StabilitySpec",
+    "SweepSpec",
     "TaskSpec",
     "builtin_names",
     "builtin_path",
     "key_reference",
     "load_scene",
     "parse_scene",
+    "parse_sweep",
+    "sweep_values",
 ]
 
 KINDS = (
@@ -64,6 +68,7 @@ KINDS = (
     "solvers",
     "accuracy",
     "continuum_learning",
+    "beyond_paper",
 )
 
 #: For each kind: (tables it needs, tables it also accepts).
@@ -87,17 +92,35 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
         frozenset({"network", "task", "learning", "continuum"}),
         frozenset({"export", "report"}),
     ),
+    "beyond_paper": (frozenset({"network", "task", "learning"}), frozenset({"report"})),
 }
 
 #: Learning runs a scene can name. Paper task: the paper's experiments (see
 #: :func:`continuum_vs_network.learning.replication.paper_experiments`; ``gcl``, ``gpc`` and
 #: ``exact`` let every spring learn, as the paper does). Stern-scale tasks: ``gcl``, ``gpc``
 #: and ``exact`` learn in the bulk only (sources and targets frozen), ``gcl_all`` and
-#: ``gpc_all`` let every spring learn (a target can then meet the task alone).
-RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact", "gcl_all", "gpc_all")
+#: ``gpc_all`` let every spring learn (a target can then meet the task alone); ``aging`` and
+#: ``aging_k`` are directed aging of rest lengths and of stiffnesses
+#: (:class:`~continuum_vs_network.learning.aging.DirectedAging`, in the bulk).
+RULES = (
+    "gcl",
+    "gcl_floor",
+    "gcl_frozen",
+    "gpc",
+    "gpc_frozen",
+    "exact",
+    "gcl_all",
+    "gpc_all",
+    "aging",
+    "aging_k",
+    "gcl_both",
+)
 #: Rules only the paper task knows, and only Stern-scale tasks know.
 PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
-STERN_RULES = ("gcl_all", "gpc_all")
+STERN_RULES = ("gcl_all", "gpc_all", "aging", "aging_k", "gcl_both")
+#: The rules a ``beyond_paper`` scene compares (in the bulk, on the paper's and Stern's task;
+#: ``gcl_both`` learns rest lengths and stiffnesses together).
+BEYOND_RULES = ("aging", "aging_k", "gpc", "gcl", "gcl_both", "exact")
 #: The rules a ``continuum_learning`` scene trains both media with (Stern-scale meaning:
 #: ``gcl``, ``gpc``, ``exact`` in the bulk, sources' and targets' material frozen).
 CONTINUUM_RULES = ("gcl", "gpc", "exact", "gcl_all", "gpc_all")
@@ -268,9 +291,10 @@ class NetworkSpec:
     sizes: tuple[int, ...] | None = _key(
         "list[int]",
         None,
-        "n x n triangular lattices, one per entry (transmission, relaxation, solvers)",
+        "n x n triangular lattices, one per entry (transmission, relaxation, solvers; "
+        "beyond_paper: the first hosts Stern's task, all the capacity study)",
         check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
-        used=_kinds("transmission", "relaxation", "solvers"),
+        used=_kinds("transmission", "relaxation", "solvers", "beyond_paper"),
     )
     noise: float | None = _key(
         "float",
@@ -385,10 +409,36 @@ class LearningSpec:
         (),
         "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
         check=_each(_positive),
-        used=_kinds("learning"),
+        used=_when(
+            lambda s: s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules),
+            "by learning scenes with a GCL rule",
+        ),
     )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
-    alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
+    alpha_exact: float = _key(
+        "float",
+        1.0,
+        "exact-gradient learning rate",
+        check=_positive,
+        used=_kinds("learning", "continuum_learning"),
+    )
+    alpha_aging: float = _key(
+        "float",
+        0.5,
+        "directed-aging rate (aging, aging_k)",
+        check=_positive,
+        used=_when(
+            lambda s: any(r.startswith("aging") for r in s.learning.rules),
+            "with rules aging or aging_k",
+        ),
+    )
+    examples: tuple[int, ...] = _key(
+        "list[int]",
+        (1, 2, 4, 8),
+        "numbers of examples trained together, one capacity run per entry and lattice size",
+        check=_all(_unique_nonempty, _each(_at_least(1)), _increasing),
+        used=_kinds("beyond_paper"),
+    )
     floor: float = _key(
         "float",
         0.1,
@@ -419,14 +469,20 @@ class LearningSpec:
         5.0,
         "sweep source strains S +- span",
         check=_positive,
-        used=_when(lambda s: s.learning.sweeps, "with sweeps = true"),
+        used=_when(
+            lambda s: s.kind == "learning" and s.learning.sweeps,
+            "by learning scenes with sweeps = true",
+        ),
     )
     sweep_points: int = _key(
         "int",
         11,
         "points per sweep",
         check=_at_least(2),
-        used=_when(lambda s: s.learning.sweeps, "with sweeps = true"),
+        used=_when(
+            lambda s: s.kind == "learning" and s.learning.sweeps,
+            "by learning scenes with sweeps = true",
+        ),
     )
     compare_gradient: bool = _key(
         "bool",
@@ -741,6 +797,8 @@ class Scene:
         The tables given (None when absent).
     report : ReportSpec
         Always present (defaults when the table is absent).
+    sweep : SweepSpec or None
+        The ``[sweep]`` table: the scene is a grid of variants (see :mod:`.grid`).
     source : str
         The file the scene was read from.
     """
@@ -759,6 +817,7 @@ class Scene:
     accuracy: AccuracySpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
+    sweep: SweepSpec | None = None
     source: str = field(default="", compare=False)
 
     def to_dict(self) -> dict[str, Any]:
@@ -779,6 +838,8 @@ class Scene:
                     for k, v in dataclasses.asdict(spec).items()
                     if v is not None and _uses(self, table, k)
                 }
+        if self.sweep is not None:
+            out["sweep"] = self.sweep.to_dict()
         return out
 
     def with_export(self, export: ExportSpec | None = None) -> Scene:
@@ -832,6 +893,26 @@ def _convert(value: Any, type_: str, where: tuple[str, str, str]) -> Any:
     raise AssertionError(type_)  # pragma: no cover
 
 
+def _value(f: dataclasses.Field, value: Any, where: tuple[str, str, str]) -> Any:
+    """One key's value converted to its type and checked against its choices and rules."""
+    file, table, key = where
+    meta = f.metadata
+    converted = _convert(value, meta["type"], where)
+    choices = meta["choices"]
+    if choices is not None:
+        items = converted if isinstance(converted, tuple) else (converted,)
+        for item in items:
+            if item not in choices:
+                raise SceneError(
+                    file, table, key, f"{item!r} is not one of {', '.join(map(repr, choices))}"
+                )
+    if meta["check"] is not None:
+        msg = meta["check"](converted)
+        if msg:
+            raise SceneError(file, table, key, f"{msg} (got {value!r})")
+    return converted
+
+
 def _parse_table(cls: type, data: Any, file: str, table: str) -> Any:
     if not isinstance(data, Mapping):
         raise SceneError(
@@ -846,21 +927,7 @@ def _parse_table(cls: type, data: Any, file: str, table: str) -> Any:
             raise SceneError(
                 file, table, key, f"unknown key; [{table}] accepts {', '.join(sorted(fields))}"
             )
-        meta = fields[key].metadata
-        converted = _convert(value, meta["type"], (file, table, key))
-        choices = meta["choices"]
-        if choices is not None:
-            items = converted if isinstance(converted, tuple) else (converted,)
-            for item in items:
-                if item not in choices:
-                    raise SceneError(
-                        file, table, key, f"{item!r} is not one of {', '.join(map(repr, choices))}"
-                    )
-        if meta["check"] is not None:
-            msg = meta["check"](converted)
-            if msg:
-                raise SceneError(file, table, key, f"{msg} (got {value!r})")
-        kwargs[key] = converted
+        kwargs[key] = _value(fields[key], value, (file, table, key))
     for name, f in fields.items():
         if (
             name not in kwargs
@@ -884,10 +951,12 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
     for key, value in data.items():
         if key in _TABLES:
             tables[key] = _parse_table(_TABLES[key], value, file, key)
+        elif key == "sweep":
+            tables[key] = parse_sweep(value, file)
         elif key in _TOP:
             top[key] = _convert(value, _TOP[key][0], (file, "(top level)", key))
         else:
-            known = sorted([*_TOP, *_TABLES])
+            known = sorted([*_TOP, *_TABLES, "sweep"])
             raise SceneError(
                 file, "(top level)", key, f"unknown key or table; a scene has {', '.join(known)}"
             )
@@ -981,6 +1050,9 @@ def _check_kind(scene: Scene, file: str) -> None:
     if kind == "continuum_learning":
         _check_continuum_learning(scene, file, need_key)
         return
+    if kind == "beyond_paper":
+        _check_beyond_paper(scene, file, need_key)
+        return
     if kind == "accuracy":
         return
     if kind == "learning":
@@ -1021,7 +1093,8 @@ def _check_kind(scene: Scene, file: str) -> None:
                     "learning",
                     "rules",
                     f"{bad[0]!r} exists for Stern-scale tasks only (the paper's 'gcl' and "
-                    "'gpc' already let every spring learn)",
+                    "'gpc' already let every spring learn; directed aging of the paper task "
+                    "is in the beyond_paper scene)",
                 )
         if scene.solver is not None:
             bad = [m for m in scene.solver.methods if m not in ("newton", "paper")]
@@ -1101,6 +1174,178 @@ def _check_continuum_learning(scene: Scene, file: str, need_key) -> None:
         )
 
 
+def _check_beyond_paper(scene: Scene, file: str, need_key) -> None:
+    if scene.network.builder != "triangular":
+        raise SceneError(file, "network", "builder", "beyond_paper runs on triangular lattices")
+    need_key("network", "sizes", "for a beyond_paper scene (the capacity study's lattices)")
+    if scene.task.kind != "stern":
+        raise SceneError(
+            file, "task", "kind", "beyond_paper takes kind = 'stern' (the paper's task is added)"
+        )
+    bad = [r for r in scene.learning.rules if r not in BEYOND_RULES]
+    if bad:
+        raise SceneError(
+            file,
+            "learning",
+            "rules",
+            f"{bad[0]!r} is not a beyond_paper rule ({', '.join(BEYOND_RULES)})",
+        )
+    if scene.learning.strain_reference != "initial":
+        raise SceneError(
+            file,
+            "learning",
+            "strain_reference",
+            "beyond_paper learns fixed target geometries; set strain_reference = 'initial'",
+        )
+
+
+# -- sweeps ----------------------------------------------------------------------------------
+#: Tables whose keys a sweep may vary (besides the top-level ``seed``).
+_SWEEPABLE = tuple(t for t in _TABLES if t not in ("export", "report"))
+_RANGE = re.compile(r"^\s*(-?\d+)\s*\.\.\s*(-?\d+)\s*$")
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """``[sweep]``: the scene as a grid of variants (expanded by :func:`.grid.expand`).
+
+    In the file, each key names a scene key (``learning.eta = [0.03, 0.1]``, or quoted
+    ``"learning.eta"``, or ``seed = "0..9"`` for the integers 0 to 9) and lists its values;
+    a single value sets the key for every point. Keys that take a list (``learning.noise``)
+    take one list per value, or plain values that each become a one-entry list.
+
+    Attributes
+    ----------
+    axes : tuple of (key, values)
+        In the order given; the grid is their cartesian product, first key slowest.
+    zip : tuple of tuple of str
+        Groups of axes varied together instead (equal lengths): one grid dimension each.
+    threshold : float
+        ``steps_to_threshold`` in the sweep table is the first step whose error is at most
+        ``threshold`` times the trial's initial error.
+    """
+
+    axes: tuple[tuple[str, tuple[Any, ...]], ...]
+    zip: tuple[tuple[str, ...], ...] = ()
+    threshold: float = 0.1
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain (TOML-like) dict of the table."""
+        out: dict[str, Any] = {
+            k: [list(v) if isinstance(v, tuple) else v for v in vals] for k, vals in self.axes
+        }
+        if self.zip:
+            out["zip"] = [list(g) for g in self.zip]
+        out["threshold"] = self.threshold
+        return out
+
+
+def sweep_values(key: str, raw: Any, file: str) -> tuple[Any, ...]:
+    """The values of sweep axis ``key``, each converted and checked like the key itself.
+
+    ``raw``: a list of values, one value, or ``"a..b"`` (the integers a to b) for an
+    integer key. Raises :class:`SceneError` naming ``file``, ``[sweep]`` and the key.
+    """
+    where = (file, "sweep", key)
+    if key == "seed":
+        f = dataclasses.field(
+            metadata={"type": "int", "choices": None, "check": _non_negative_int, "doc": ""}
+        )
+    else:
+        table, _, name = key.partition(".")
+        if table not in _SWEEPABLE:
+            allowed = ", ".join(["seed", *(f"{t}.<key>" for t in _SWEEPABLE)])
+            raise SceneError(file, "sweep", key, f"unknown sweep key; a sweep varies {allowed}")
+        fields = {f.name: f for f in dataclasses.fields(_TABLES[table])}
+        if (table, name) in RENAMED:
+            new_key = f"{table}.{RENAMED[table, name]}"
+            raise SceneError(file, "sweep", key, f"renamed; use {new_key}")
+        if name not in fields:
+            raise SceneError(
+                file,
+                "sweep",
+                key,
+                f"unknown key; [{table}] accepts {', '.join(sorted(fields))}",
+            )
+        f = fields[name]
+    type_ = f.metadata["type"]
+    match = _RANGE.match(raw) if isinstance(raw, str) else None
+    if match and type_ == "int":
+        lo, hi = int(match[1]), int(match[2])
+        if hi < lo or hi - lo >= 100_000:
+            raise SceneError(*where, f"range {raw!r} must run upwards, at most 100000 values")
+        items: list[Any] = list(range(lo, hi + 1))
+    elif isinstance(raw, list):
+        items = raw
+    else:
+        items = [raw]
+    if not items:
+        raise SceneError(*where, "must list at least one value")
+    out = []
+    for i, item in enumerate(items):
+        if type_.startswith("list[") and not isinstance(item, list):
+            item = [item]
+        label = key if len(items) == 1 else f"{key}[{i}]"
+        out.append(_value(f, item, (file, "sweep", label)))
+    if len(set(map(repr, out))) != len(out):
+        raise SceneError(*where, f"must not repeat values (got {raw!r})")
+    return tuple(out)
+
+
+def _non_negative_int(v: int) -> str | None:
+    return None if v >= 0 else "must be >= 0"
+
+
+def parse_sweep(data: Any, file: str) -> SweepSpec:
+    """Validate a ``[sweep]`` table (see :class:`SweepSpec`)."""
+    if not isinstance(data, Mapping):
+        raise SceneError(file, "(top level)", "sweep", "must be a table [sweep]")
+    axes: dict[str, tuple] = {}
+    zip_groups: Any = []
+    threshold: Any = 0.1
+    for key, value in data.items():
+        if key == "zip":
+            zip_groups = value
+        elif key == "threshold":
+            threshold = value
+        elif isinstance(value, Mapping):  # learning.eta = [...] is {"learning": {"eta": ...}}
+            for sub, v in value.items():
+                axes[f"{key}.{sub}"] = sweep_values(f"{key}.{sub}", v, file)
+        else:
+            axes[key] = sweep_values(key, value, file)
+    threshold = _convert(threshold, "float", (file, "sweep", "threshold"))
+    if not 0 < threshold < 1:
+        raise SceneError(file, "sweep", "threshold", "must lie strictly between 0 and 1")
+    if not axes:
+        raise SceneError(file, "sweep", "", "names no key to vary")
+    groups = check_zip(zip_groups, axes, file)
+    return SweepSpec(axes=tuple(axes.items()), zip=groups, threshold=threshold)
+
+
+def check_zip(groups: Any, axes: Mapping[str, tuple], file: str) -> tuple[tuple[str, ...], ...]:
+    """Validated zip groups: lists of two or more axes of equal length, each in one group."""
+    where = (file, "sweep", "zip")
+    if not isinstance(groups, list) or not all(isinstance(g, list) for g in groups):
+        raise SceneError(*where, "must be a list of lists of sweep keys")
+    seen: set[str] = set()
+    out = []
+    for g in groups:
+        if len(g) < 2:
+            raise SceneError(*where, f"a group needs two or more keys, got {g!r}")
+        for k in g:
+            if k not in axes:
+                raise SceneError(*where, f"{k!r} is not a key of the sweep")
+            if k in seen:
+                raise SceneError(*where, f"{k!r} is in two groups")
+            seen.add(k)
+        lengths = {len(axes[k]) for k in g}
+        if len(lengths) != 1:
+            sizes = ", ".join(f"{k}: {len(axes[k])}" for k in g)
+            raise SceneError(*where, f"zipped keys need equally many values ({sizes})")
+        out.append(tuple(g))
+    return tuple(out)
+
+
 # -- files ---------------------------------------------------------------------------------
 def builtin_names() -> list[str]:
     """Names of the built-in scenes (files ``scenes/builtin/<name>.toml``), sorted."""
@@ -1176,6 +1421,11 @@ def key_reference() -> str:
             default = "required" if f.default is dataclasses.MISSING else repr(f.default)
             choices = f" one of {', '.join(map(repr, meta['choices']))};" if meta["choices"] else ""
             lines.append(f"  {f.name} ({meta['type']}, {default}):{choices} {meta['doc']}")
+    lines.append(
+        "\n[sweep] (any kind; run with `cvn sweep`): <table>.<key> = [values] or seed = 'a..b' "
+        "(a grid: cartesian product, first key slowest); zip = [[keys varied together]]; "
+        "threshold (float, 0.1): steps_to_threshold counts steps to error <= threshold x initial"
+    )
     lines.append("\nTables by kind (needed; also accepted):")
     for kind, (need, accept) in KIND_TABLES.items():
         lines.append(f"  {kind}: {', '.join(sorted(need))}; {', '.join(sorted(accept))}")

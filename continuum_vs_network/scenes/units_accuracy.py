@@ -37,8 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
 __all__ = ["lame_error", "plan_accuracy"]
 

@@ -44,8 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import CONTINUUM_RULES, Scene
+from .units import Unit, UnitContext
 
 __all__ = ["continuum_rule", "plan_continuum_learning"]
 

@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
 __all__ = ["centre_spring", "lattice", "plan_physics", "principal_strain"]
 

@@ -13,8 +13,8 @@ centre clamped:
   length 1.2): a nearly singular tangent stiffness; closed form: the apex rises to
   ``sqrt(1.2^2 - 1)``;
 * ``float32``: the lattice given as float32 arrays, against the same lattice in float64;
-* ``floppy``: the lattice with 12 springs removed (every node keeps two); must raise
-  ``ValueError``.
+* ``floppy``: the lattice with springs removed until three fewer than ``2 N - 3`` remain
+  (every node keeps two); must raise ``ValueError``.
 
 Each records converged, the error raised, time, iterations and, independently of the
 solver, the *local imbalance* at the returned positions: the largest net force on a free
@@ -42,14 +42,14 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 from .units_physics import centre_spring, lattice
 from .units_solvers import warm_up
 
 __all__ = ["case_name", "cases", "local_imbalance", "plan_stability"]
 
-_FLOPPY_REMOVED = 12
+_FLOPPY_MODES = 3  # zero modes by counting in the floppy case
 
 
 def cases(scene: Scene) -> list[tuple[str, float]]:
@@ -160,18 +160,20 @@ def local_imbalance(
 
 # -- equilibrium cases ---------------------------------------------------------------------
 def _floppy_springs(net) -> np.ndarray:
-    """Mask keeping all but ``_FLOPPY_REMOVED`` springs, every node left with two or more."""
+    """Mask of the springs kept in the floppy case: springs are removed (in index order,
+    each only if both its nodes keep two or more) until the network has ``_FLOPPY_MODES``
+    fewer springs than the ``2 N - 3`` a rigid one needs at least."""
     keep = np.ones(net.n_springs, dtype=bool)
     degree = np.bincount(net.springs.ravel(), minlength=net.n_nodes)
-    removed = 0
+    excess = net.n_springs - (2 * net.n_nodes - 3 - _FLOPPY_MODES)
     for j, (a, b) in enumerate(net.springs):
-        if removed == _FLOPPY_REMOVED:
+        if excess <= 0:
             break
         if degree[a] > 2 and degree[b] > 2:
             keep[j] = False
             degree[a] -= 1
             degree[b] -= 1
-            removed += 1
+            excess -= 1
     return keep
 
 

@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 from . import (
     accuracy,
+    beyond_paper,
     continuum_learning,
     learning,
     relaxation,
@@ -32,4 +33,5 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "solvers": solvers.section,
     "accuracy": accuracy.section,
     "continuum_learning": continuum_learning.section,
+    "beyond_paper": beyond_paper.section,
 }

@@ -140,9 +140,28 @@ def section(doc: Document, result) -> None:
         learning_renders(doc, result)
 
 
+def _common_steps(hist) -> int:
+    """Last measurement index every trial reached (curves over trials stop there)."""
+    return int(np.min(hist.completed)) if len(hist.completed) else 0
+
+
+def _ends_note(hist) -> str:
+    """Caption sentence when trials stopped early (else empty)."""
+    last = _common_steps(hist)
+    if last >= hist.steps:
+        return ""
+    return (
+        f" The curves end at step {last}, where the first trial stopped: a mean over the "
+        "trials still running would jump."
+    )
+
+
 def _mean_panel(hist, title: str, values: NDArray, ylabel: str) -> Panel:
     st = stats(normalised(values))
     steps = np.arange(values.shape[1])
+    beyond = steps > _common_steps(hist)  # fewer trials there: another population
+    for v in st.values():
+        v[beyond[: v.shape[0]]] = np.nan
     return Panel(
         [
             Series(
@@ -188,7 +207,7 @@ def _paper_figures(doc: Document, scene, h, solver: str, length_error, rest_leng
                     )
                 ],
                 f"{fig}: normalised error of {rule}, {error_label(hist.strain_reference)} "
-                f"({hist.trials} trials).",
+                f"({hist.trials} trials).{_ends_note(hist)}",
                 ncols=1,
             )
     if "gpc" in rules:
@@ -235,7 +254,7 @@ def _paper_figures(doc: Document, scene, h, solver: str, length_error, rest_leng
                 ),
             ],
             "Fig. 8-9: distance of the target's free length (8) and rest length (9) from the "
-            "length that gives the desired strain, normalised.",
+            "length that gives the desired strain, normalised." + _ends_note(hist),
         )
         trials = [
             Series(steps, hist.energy_clamped[i], f"trial {i}", width=1.0)

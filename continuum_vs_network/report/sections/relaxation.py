@@ -103,6 +103,9 @@ def section(doc: Document, result) -> None:
                     color=COLORS[j % 10],
                 )
             )
+    # model units: spacing 1, k = 1, drag c; unit node masses when inertial
+    unit = "units of sqrt(m / k)" if dyn.inertia else f"units of c / k, c = {dyn.damping:g}"
+    unit = unit if not dyn.inertia else unit + f", c = {dyn.damping:g}"
     doc.figure(
         "relaxation",
         [
@@ -110,14 +113,14 @@ def section(doc: Document, result) -> None:
                 series,
                 "relaxation time against size",
                 "n (lattice side)",
-                "time",
+                f"time ({unit})",
                 xscale="log",
                 yscale="log",
             ),
             Panel(
                 curves,
                 "displacement to the final state",
-                "time",
+                f"time ({unit})",
                 "max |u(t) - u(end)| / start",
                 yscale="log",
                 hlines=(dyn.fraction,),

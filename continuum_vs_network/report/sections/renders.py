@@ -19,61 +19,55 @@ def learning_renders(doc: Document, result) -> None:
     if not render:
         doc.add(f"Renders skipped: {reason}.")
         return
-    from ...io.render import render_network
+    from ...io.render import render_networks
     from ...network.model import SpringNetwork
 
-    # one trial (the first exported) per rule; every rule starts from the same network, so
-    # the initial state is drawn once; one colour scale for every image
+    def state(a, k: int, stage: str):
+        p = f"t{k}/{stage}/"
+        if p + "x" not in a:
+            return None
+        net = SpringNetwork(
+            a[p + "positions"], a[p + "springs"], a[p + "stiffness"], a[p + "rest_length"]
+        )
+        return net, a[p + "x"]
+
+    # one trial (the first exported) per rule, initial and trained side by side in one
+    # frame with a length scale; every rule starts from the same network; one colour scale
     todo = []
-    for j, (key, u) in enumerate(units.items()):
+    initial = None
+    for key, u in units.items():
         a = u.arrays
         if not u.meta["trials"]:
             continue
         k = u.meta["trials"][0]
-        for stage in ("initial", "final") if j == 0 else ("final",):
-            p = f"t{k}/{stage}/"
-            if p + "x" in a:
-                net = SpringNetwork(
-                    a[p + "positions"], a[p + "springs"], a[p + "stiffness"], a[p + "rest_length"]
-                )
-                todo.append(
-                    (
-                        key.split("/")[-1],
-                        k,
-                        stage,
-                        net,
-                        a[p + "x"],
-                        np.asarray(a[f"t{k}/sources"], dtype=int),
-                        a[f"t{k}/targets"],
-                    )
-                )
-    if not todo:
+        initial = initial or state(a, k, "initial")
+        final = state(a, k, "final")
+        if final is not None:
+            src = np.asarray(a[f"t{k}/sources"], dtype=int)
+            todo.append((key.split("/")[-1], k, final, src, a[f"t{k}/targets"]))
+    if not todo or initial is None:
         return
-    # colour limits from the first image (the initial network when drawn), every spring but
-    # the sources (clamped, they would dominate); a trained network may strain far more
-    _, _, _, net0, x0, src0, _ = todo[0]
-    clim = float(np.max(np.abs(np.delete(net0.strains(x0), src0)))) or 1.0
-    for rule, k, stage, net, x, src, tgt in todo:
-        label = rule if stage == "final" else "every rule"
-        name = f"render_{rule}_t{k}_final.png" if stage == "final" else f"render_t{k}_initial.png"
-        path = doc.folder / name
-        render_network(
-            net,
-            x,
+    # colour limits from the initial network, every spring but the sources (clamped, they
+    # would dominate); a trained network may strain far more (it saturates)
+    net0, x0 = initial
+    clim = float(np.max(np.abs(np.delete(net0.strains(x0), todo[0][3])))) or 1.0
+    for rule, k, (net, x), src, tgt in todo:
+        path = doc.folder / f"render_{rule}_t{k}.png"
+        render_networks(
+            [(net0, x0, f"initial, trial {k}"), (net, x, f"{rule} trained, trial {k}")],
             path,
             sources=src,
             targets=tgt,
             clim=clim,
-            window_size=(560, 560),
+            window_size=(1120, 560),
             line_width=3.0 if net.n_springs < 200 else 1.5,
-            title=f"{label}, trial {k}, {stage} free state",
         )
         doc.image(
             path,
-            f"{label}, trial {k}: {stage} network in its free state, springs "
-            f"coloured by strain (limits +-{clim:.3g} in every image: the largest strain of "
-            f"the {todo[0][2]} network but its sources; larger strains saturate); green: "
-            "source, orange: target.",
+            f"{rule}, trial {k}: the initial (left) and trained (right) networks in their free "
+            "states, in one frame with a length scale; springs coloured by strain (limits "
+            f"+-{clim:.3g} in both: the largest strain of the initial network but its sources; "
+            "larger strains saturate); green halo: source, orange halo: target.",
         )
 
 
@@ -119,12 +113,13 @@ def side_by_side(doc: Document, result, prefix: str, what: str) -> None:
             window_size=(1100, 560),
             titles=(f"network n = {n}", "continuum"),
             network_bar_title="spring strain",
-            continuum_bar_title="principal strain",
+            continuum_bar_title="principal strain (largest magnitude)",
         )
         doc.image(
             path,
-            f"n = {n}: spring strain of the network (left) and the largest "
-            f"principal strain of the continuum (right), same colour limits +-{clim:.3g} "
+            f"n = {n}: spring strain of the network (left) and the signed principal strain "
+            "of largest magnitude of the continuum (right), same colour limits "
+            f"+-{clim:.3g} "
             + (
                 "(0.3 of the largest spring strain, source excluded; the near field saturates)."
                 if len(sources)
