@@ -36,8 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
 __all__ = ["beyond_rules", "plan_beyond_paper"]
 
