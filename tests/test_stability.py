@@ -11,7 +11,7 @@ from continuum_vs_network.network.builders import paper_network, strain_tunable,
 
 def _converged(eq, net, tol=1e-10):
     assert eq.converged
-    assert eq.residual <= tol * net.force_scale
+    assert eq.relative_residual <= tol
     assert np.all(np.isfinite(eq.positions))
     return eq
 
@@ -30,15 +30,42 @@ def test_stiffness_ratio_up_to_1e12(ratio):
     assert eq.clamp_error <= 1e-10 * np.mean(net.rest_length)
 
 
-def test_stiff_clusters_converge_or_raise_a_clear_error():
-    """20 % of springs 1e9 times stiffer: rotating stiff clusters is strongly nonlinear and
-    Newton may need more than its budget; it then says so, with a finite last state."""
-    net, soft = _stiff_lattice(1e9, 0)
-    try:
-        _converged(cvn.relax(net, clamped={soft: net.clamp_length(soft, 0.2)}), net)
-    except cvn.EquilibriumError as err:
-        assert "no convergence" in str(err) and "residual=" in str(err)
-        assert np.all(np.isfinite(err.state.positions)) and np.isfinite(err.state.residual)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_stiff_clusters_converge_within_a_few_dozen_iterations(seed):
+    """20 % of springs 1e9 times stiffer (the former known weakness): rotating stiff
+    clusters lengthens them to second order, which Newton's line search must not mistake
+    for a bad step. Judged locally, the soft clamped spring's nodes balance too."""
+    net, soft = _stiff_lattice(1e9, seed)
+    eq = _converged(cvn.relax(net, clamped={soft: net.clamp_length(soft, 0.2)}), net)
+    assert eq.iterations <= 40
+    # the soft clamp's own nodes, at the local scale of their soft springs
+    force = cvn.forces(eq.positions, net)
+    clamp_nodes = net.springs[soft]
+    u = np.diff(eq.positions[clamp_nodes], axis=0)[0]
+    u /= np.linalg.norm(u)
+    off_axis = force[clamp_nodes] - np.outer(force[clamp_nodes] @ u, u)
+    local = [
+        net.stiffness[(net.springs == n).any(1)] @ net.rest_length[(net.springs == n).any(1)]
+        for n in clamp_nodes
+    ]
+    assert np.all(np.abs(off_axis).max(axis=1) <= 1e-10 * np.asarray(local))
+
+
+def test_local_residual_is_relative_to_each_nodes_own_springs():
+    """A soft spring hanging off a very stiff lattice: the old global scale
+    (mean(k) mean(L) ~ 1e11) would accept an imbalance of ~1e1 at the soft node."""
+    net = triangular_lattice(4, 4)
+    k = np.full(net.n_springs, 1e12)
+    # a soft pendant: node 0 attached by its springs only, made soft
+    soft_springs = np.flatnonzero((net.springs == 0).any(1))
+    k[soft_springs] = 1.0
+    net = net.with_stiffness(k).with_rest_length(net.rest_length * 1.05)
+    pins = np.zeros((net.n_nodes, 2), bool)
+    pins[net.n_nodes - 1] = True
+    pins[net.n_nodes - 2, 1] = True
+    eq = _converged(cvn.relax(net, pinned=pins), net)
+    scale = net.stiffness[soft_springs] @ net.rest_length[soft_springs]
+    assert np.abs(cvn.forces(eq.positions, net)[0]).max() <= 1e-10 * scale
 
 
 @pytest.mark.parametrize("rod_stiffness", [1e6, 1e10, 1e12])
@@ -48,8 +75,11 @@ def test_paper_rods_of_extreme_stiffness(rod_stiffness):
         net, clamped={30: net.clamp_length(30, 0.5)}, clamp="rod", rod_stiffness=rod_stiffness
     )
     _converged(eq, net)
-    # the rod yields by tension / stiffness and no more
-    assert eq.clamp_error <= 2 * abs(eq.clamp_force[0]) / rod_stiffness + 1e-12
+    # the rod yields by tension / stiffness and no more (to tol of the spring's length)
+    tension = abs(eq.clamp_force[0])
+    assert eq.clamp_error <= tension / rod_stiffness + 1e-10 * net.rest_length[30]
+    if rod_stiffness <= 1e6:  # a visible yield: it is the tension over the stiffness
+        assert eq.clamp_error == pytest.approx(tension / rod_stiffness, rel=1e-3)
 
 
 @pytest.mark.parametrize("strain", [-0.9, -0.5, 0.5, 2.0, 5.0, 10.0])

@@ -29,8 +29,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..network.constraints import Problem
 from ..network.equilibrium import Equilibrium
+from ..network.lagrangian import Frame, lagrangian_hessian
 from ..network.model import SpringNetwork
-from .states import Frame, lagrangian_hessian
 from .tasks import AllosteryTask, StrainReference
 
 __all__ = ["Cost", "Sensitivity", "cost_gradient", "gcl_limit", "length_jacobian_rows"]

@@ -20,14 +20,16 @@ the iteration contracts slowly (ratio > ``refactor_ratio``) and, if that fails t
 state is found by :func:`~continuum_vs_network.relax`. The chord iteration is accelerated
 by Anderson mixing (GMRES-like on its linear error) and starts from a guess extrapolated
 from the previous steps (the free state linearly, the nudged state by last step's nudge
-displacement). Convergence is judged as ``relax`` judges it (the largest net force on a
-free coordinate with the least-squares clamp tensions removed, relative ``tol``; clamp
-lengths to ``tol mean(L)``), so reuse changes the cost, never the tolerance.
+displacement). Convergence is judged by ``relax``'s own local stop rule
+(:mod:`~continuum_vs_network.network.stopping`), so reuse changes the cost, never the
+tolerance. The Lagrangian Hessian, the row order and the trust region are the engine's
+(:mod:`~continuum_vs_network.network.lagrangian`); this module keeps only what is reused.
 
 When ``relax`` itself stalls (learning drives paper networks through snap-through
 instabilities, where the core Newton's positive-definite model creeps), the tracker
 continues from the stalled point with a dense trust-region Newton that follows negative
-curvature (:func:`trust_region`, small problems) and polishes with ``relax``; then it
+curvature (:func:`~continuum_vs_network.network.lagrangian.trust_region`, small problems)
+and polishes with ``relax``; then it
 retries with strain continuation (``retry_ramps``).
 
 Any other solver setting (``method="paper"``, ``"fire"``, rods, ``reuse=False``) calls
@@ -41,15 +43,15 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from ..network.arguments import solver_arguments
-from ..network.constraints import Problem
+from ..network.constraints import Problem, clamp_tensions
 from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
+from ..network.lagrangian import Frame, lagrangian_hessian, trust_region
 from ..network.model import SpringNetwork
 
-__all__ = ["Frame", "Solver", "Tracker", "lagrangian_hessian", "trust_region"]
+__all__ = ["Solver", "Tracker"]
 
 _MAX_REFACTORS = 3  # per chord solve; then relax (with its line search) takes over
 
@@ -66,7 +68,7 @@ class Solver:
         ``max_iter`` budget and ``accept_unconverged=True`` (then the last iterate,
         ``EquilibriumError.state``, is used as the paper's code used it).
     tol : float
-        Relative tolerance of ``relax`` (forces over ``mean(k) mean(L)``).
+        Relative tolerance of ``relax`` (each net force over its node's ``sum k L``).
     clamp : {"exact", "rod"}
         Exact clamps (constraints) or the paper's stiff rods.
     rod_stiffness : float
@@ -119,227 +121,6 @@ class Solver:
     def fast(self) -> bool:
         """True when the chord iteration with reused factorisations is used."""
         return self.reuse and self.method == "newton" and self.clamp == "exact"
-
-
-class Frame:
-    """The order of the free coordinates in assembled matrices, for one topology and pins.
-
-    The core's :func:`~continuum_vs_network.network.newton.pattern_for` may order rows for
-    fill reduction (``pattern.coords``); every vector and matrix this module builds uses
-    the same order, so factorisations match the ones ``relax`` makes.
-
-    Attributes
-    ----------
-    pattern : HessianPattern
-    coords : (n,) int array
-        Flat coordinate (index into ``x.ravel()``) of each row.
-    index : (2 n_nodes,) int array
-        Row of each flat coordinate, -1 for pinned ones.
-    ordered : bool
-        Rows are already in a fill-reducing order.
-    """
-
-    def __init__(self, net: SpringNetwork, free: NDArray) -> None:
-        from ..network import newton
-
-        free = np.asarray(free, dtype=bool)
-        try:
-            pattern = newton.pattern_for(net.springs, net.n_nodes, free, net.positions)
-        except TypeError:  # older signature without positions
-            pattern = newton.pattern_for(net.springs, net.n_nodes, free)
-        self.pattern = pattern
-        coords = getattr(pattern, "coords", None)
-        self.coords = np.flatnonzero(free.ravel()) if coords is None else np.asarray(coords)
-        self.ordered = bool(getattr(pattern, "ordered", False))
-        self.n_nodes = net.n_nodes
-        self.n = int(self.coords.size)
-        self.index = np.full(2 * net.n_nodes, -1, dtype=np.int64)
-        self.index[self.coords] = np.arange(self.n)
-        self._incidence: tuple[sp.csr_matrix, sp.csr_matrix] | None = None
-
-    def take(self, full: NDArray) -> NDArray:
-        """Free entries of a (n_nodes, 2) array, in row order, (n,)."""
-        return np.asarray(full).reshape(-1)[self.coords]
-
-    def put(self, vec: NDArray) -> NDArray:
-        """A (n_nodes, 2) array that is ``vec`` on free coordinates and 0 elsewhere."""
-        out = np.zeros(2 * self.n_nodes)
-        out[self.coords] = vec
-        return out.reshape(self.n_nodes, 2)
-
-    def rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> sp.csr_matrix:
-        """Length gradients ``dr_j/dx`` of ``springs`` as a sparse (len(springs), n)."""
-        springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
-        pairs = net.springs[springs]
-        d = x[pairs[:, 1]] - x[pairs[:, 0]]
-        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
-        flat = np.stack(
-            [2 * pairs[:, 0], 2 * pairs[:, 0] + 1, 2 * pairs[:, 1], 2 * pairs[:, 1] + 1], 1
-        )
-        vals = np.stack([-u[:, 0], -u[:, 1], u[:, 0], u[:, 1]], 1)
-        cols = self.index[flat]
-        keep = cols >= 0
-        rows = np.repeat(np.arange(springs.size), 4).reshape(-1, 4)
-        return sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(springs.size, self.n))
-
-    def gradient(self, net: SpringNetwork, x: NDArray) -> NDArray:
-        """``dE/dx`` on free coordinates in row order, (n,), by two sparse products.
-
-        Same values as :func:`~continuum_vs_network.network.energy.spring_gradient`
-        (round-off aside); the incidence matrices are built once per frame.
-        """
-        return self.gradient_and_lengths(net, x)[0]
-
-    def gradient_and_lengths(self, net: SpringNetwork, x: NDArray) -> tuple[NDArray, NDArray]:
-        """:meth:`gradient` and the spring lengths ``r`` (n_springs,) it used."""
-        if self._incidence is None:
-            s = net.n_springs
-            rows = np.concatenate([np.arange(s), np.arange(s)])
-            cols = np.concatenate([net.springs[:, 0], net.springs[:, 1]])
-            vals = np.concatenate([-np.ones(s), np.ones(s)])
-            D = sp.csr_matrix((vals, (rows, cols)), shape=(s, net.n_nodes))
-            self._incidence = (D, D.T.tocsr())
-        D, Dt = self._incidence
-        d = D @ x
-        r = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)
-        t = (net.stiffness * (r - net.rest_length) / np.maximum(r, 1e-300))[:, None] * d
-        return (Dt @ t).reshape(-1)[self.coords], r
-
-    def dense_rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> NDArray:
-        """Length gradients ``dr_j/dx`` of ``springs`` as a dense (len(springs), n) array."""
-        springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
-        pairs = net.springs[springs]
-        d = x[pairs[:, 1]] - x[pairs[:, 0]]
-        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
-        out = np.zeros((springs.size, self.n + 1))  # column n collects pinned entries
-        rows = np.arange(springs.size)
-        for k, (node, c, sign) in enumerate(((0, 0, -1), (0, 1, -1), (1, 0, 1), (1, 1, 1))):
-            del k
-            out[rows, self.index[2 * pairs[:, node] + c]] = sign * u[:, c]
-        return out[:, : self.n]
-
-    def factor(self, W: sp.csr_matrix):
-        """Positive-definite factorisation of ``W`` (None when it is not)."""
-        from ..network.newton import factor_pd
-
-        return factor_pd(W, ordered=True) if self.ordered else factor_pd(W)
-
-
-def lagrangian_hessian(
-    problem: Problem,
-    x: NDArray,
-    multipliers: NDArray,
-    *,
-    rho: float | None = None,
-    frame: Frame | None = None,
-) -> sp.csr_matrix:
-    """Hessian of the (augmented) Lagrangian on free coordinates, (n, n) CSR.
-
-    ``W = H_E(x) + sum_c mu_c d^2 r_c / dx^2 + rho sum_c a_c a_c^T`` with ``a_c = dr_c/dx``
-    the clamp directions and ``mu`` the multipliers of ``grad E + A^T mu = 0`` (minus
-    ``Equilibrium.clamp_force``). ``rho`` (default ``max(k)`` when there are clamps) adds
-    a multiple of ``A^T A`` that leaves every KKT solution unchanged but makes ``W``
-    positive definite at a stable constrained minimum. Rows in ``frame`` order (default:
-    the frame of ``problem``). Exact clamps only.
-    """
-    net = problem.net
-    frame = frame or Frame(net, problem.free)
-    springs, clamps = net.springs, problem.clamp_springs
-    d = x[springs[:, 1]] - x[springs[:, 0]]
-    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
-    axial = net.stiffness.copy()
-    tangential = net.stiffness * (1.0 - net.rest_length / r)
-    if clamps.size:
-        rho = float(np.max(net.stiffness)) if rho is None else float(rho)
-        np.add.at(axial, clamps, rho)
-        np.add.at(tangential, clamps, np.asarray(multipliers, float) / r[clamps])
-    u = d / r[:, None]
-    uu = u[:, :, None] * u[:, None, :]
-    blocks = axial[:, None, None] * uu + tangential[:, None, None] * (np.eye(2) - uu)
-    return frame.pattern.assemble(blocks)
-
-
-def trust_region(
-    problem: Problem,
-    x: NDArray,
-    *,
-    force_tol: float,
-    max_iter: int = 200,
-) -> tuple[NDArray, bool]:
-    """Dense trust-region Newton on the clamp manifold, for small stalled problems.
-
-    Newton with a positive-definite model creeps where the equilibrium is nearly degenerate
-    (a soft mode whose curvature changes sign: the warm-started branch is about to vanish
-    or has just vanished). This method uses the exact reduced Hessian
-    ``Q^T W Q`` (``Q`` a basis of the null space of the clamp Jacobian) with a trust region
-    (eigen-decomposition, so negative curvature is followed, not clipped), restores the
-    clamp lengths after every step, and accepts steps that lower the energy (or, once the
-    energy change is at round-off, the residual). It stops when
-    the residual is ``<= force_tol`` (absolute); :func:`relax` then polishes. Dense:
-    O(n_free^3) per iteration.
-
-    Returns ``(x, reached)``.
-    """
-    net = problem.net
-    frame = Frame(net, problem.free)
-    clamps = problem.clamp_springs
-    m = problem.n_clamps
-    x = _restore(problem, np.array(x, dtype=np.float64))
-    scale = float(np.mean(net.rest_length))
-    radius = 0.1 * scale
-    energy = problem.energy(x)
-    for _ in range(max_iter):
-        residual, mu = problem.residual(x)
-        if residual <= force_tol:
-            return x, True
-        g = frame.take(problem.gradient(x))
-        if m:
-            vt = np.linalg.svd(frame.rows(net, x, clamps).toarray())[2]
-            Q = vt[m:].T
-        else:
-            Q = np.eye(frame.n)
-        W = lagrangian_hessian(problem, x, mu, rho=0.0, frame=frame).toarray()
-        H = Q.T @ W @ Q
-        gr = Q.T @ g
-        vals, vecs = np.linalg.eigh(H)
-        gt = vecs.T @ gr
-
-        low = max(0.0, -vals[0])
-        p = _tr_step(vals, vecs, gt, 0.0) if vals[0] > 0 else None
-        if p is None or np.linalg.norm(p) > radius:
-            lo, hi = low, low + np.linalg.norm(gr) / radius + abs(vals[-1])
-            for _ in range(80):  # bisection on the shift: |p(shift)| = radius
-                mid = 0.5 * (lo + hi)
-                long = np.linalg.norm(_tr_step(vals, vecs, gt, mid)) > radius
-                lo, hi = (mid, hi) if long else (lo, mid)
-            p = _tr_step(vals, vecs, gt, hi)
-        predicted = float(gr @ p + 0.5 * p @ H @ p)
-        y = x + frame.put(Q @ p)
-        y = _restore(problem, y)
-        e_y = problem.energy(y)
-        ratio = (e_y - energy) / predicted if predicted < 0 else -1.0
-        flat = abs(e_y - energy) <= 1e-12 * abs(energy)  # energy at round-off: use the force
-        if e_y < energy or (flat and problem.residual(y)[0] < residual):
-            x, energy = y, e_y
-        radius *= 2.0 if ratio > 0.75 else (0.25 if ratio < 0.25 else 1.0)
-        radius = max(radius, 1e-12 * scale)
-    return x, False
-
-
-def _tr_step(vals: NDArray, vecs: NDArray, gt: NDArray, shift: float) -> NDArray:
-    return -vecs @ (gt / (vals + shift))
-
-
-def _restore(problem: Problem, y: NDArray) -> NDArray:
-    """Minimum-norm correction of ``y`` back onto the clamp lengths (Gauss-Newton)."""
-    if not problem.n_clamps:
-        return y
-    target = 1e-13 * float(np.mean(problem.clamp_lengths))
-    for _ in range(20):
-        if np.max(np.abs(problem.clamp_violation(y))) <= target:
-            break
-        y = problem.toward_clamps(y)
-    return y
 
 
 class _Linearisation:
@@ -533,7 +314,7 @@ class Tracker:
         ):
             # a stall at a nearly degenerate equilibrium: follow the exact curvature, polish
             self.stats.trust_regions += 1
-            y, reached = trust_region(problem, x, force_tol=100 * s.tol * net.force_scale)
+            y, reached = trust_region(problem, x, force_tol=100 * s.tol)
             if reached:
                 try:
                     return self._relax_once(net, pinned, clamped, y, 1)
@@ -579,8 +360,7 @@ class Tracker:
             lin = None
         frame = lin.frame if lin is not None else Frame(net, problem.free)
         clamps = problem.clamp_springs
-        f_tol = s.tol * net.force_scale
-        l_tol = s.tol * float(np.mean(net.rest_length))
+        stop = problem.stop_rule(s.tol, max_iter=30, max_seconds=s.max_seconds)
         trace_r: list[float] = []
         trace_t: list[float] = []
         t0 = time.perf_counter()
@@ -596,18 +376,22 @@ class Tracker:
             if clamps.size:
                 A = frame.dense_rows(net, x, clamps)
                 viol = r[clamps] - problem.clamp_lengths
-                mu = _least_squares_multipliers(A, g)
+                mu = clamp_tensions(A, g, stop.scale[frame.coords])
                 force = g + A.T @ mu
             else:
                 viol, mu, force = np.empty(0), np.empty(0), g
-            residual = float(np.max(np.abs(force))) if force.size else 0.0
-            clamp_error = float(np.max(np.abs(viol))) if viol.size else 0.0
-            trace_r.append(residual)
+            relative = stop.imbalance(force, frame.coords)
+            clamp_relative = stop.clamp_error(viol)
+            trace_r.append(relative)
             trace_t.append(time.perf_counter() - t0)
-            if residual <= f_tol and clamp_error <= l_tol:
+            if stop.met(relative, clamp_relative):
                 self.stats.iterations += it
-                return _equilibrium(net, x, r, residual, clamp_error, mu, it, t0, trace_r, trace_t)
-            measure = max(residual / f_tol, clamp_error / l_tol)
+                residual = float(np.max(np.abs(force))) if force.size else 0.0
+                clamp_error = float(np.max(np.abs(viol))) if viol.size else 0.0
+                return _equilibrium(
+                    net, x, r, (residual, relative, clamp_error), mu, it, t0, trace_r, trace_t
+                )
+            measure = max(relative, clamp_relative) / s.tol
             if not np.isfinite(measure):
                 return None
             if lin is None or measure > s.refactor_ratio * previous:
@@ -650,32 +434,25 @@ class Tracker:
         return None
 
 
-def _least_squares_multipliers(A: NDArray, g: NDArray) -> NDArray:
-    """``mu`` minimising ``|g + A^T mu|`` (normal equations; lstsq if they are singular)."""
-    try:
-        return -np.linalg.solve(A @ A.T, A @ g)
-    except np.linalg.LinAlgError:
-        return -np.linalg.lstsq(A @ A.T, A @ g, rcond=None)[0]
-
-
 def _equilibrium(
     net: SpringNetwork,
     x: NDArray,
     r: NDArray,
-    residual: float,
-    clamp_error: float,
+    residuals: tuple[float, float, float],
     mu: NDArray,
     iterations: int,
     t0: float,
     trace_r: list[float],
     trace_t: list[float],
 ) -> Equilibrium:
+    residual, relative, clamp_error = residuals
     x = x.copy()
     x.setflags(write=False)
     return Equilibrium(
         positions=x,
         energy=float(0.5 * np.dot(net.stiffness, (r - net.rest_length) ** 2)),
         residual=residual,
+        relative_residual=relative,
         clamp_error=clamp_error,
         clamp_force=-np.asarray(mu, dtype=np.float64),  # dE/dl_c, as relax reports it
         converged=True,

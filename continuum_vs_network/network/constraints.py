@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -23,8 +23,9 @@ from .._validate import index_array
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .model import SpringNetwork
+from .stopping import StopRule, coordinate_scale
 
-__all__ = ["Problem", "default_pins", "pin_mask"]
+__all__ = ["Problem", "Residual", "clamp_tensions", "default_pins", "pin_mask"]
 
 ClampMode = Literal["exact", "rod"]
 Pins = Sequence[int] | NDArray | None
@@ -80,6 +81,53 @@ def _clamp_arrays(
     return clamp_arrays(net, clamped)
 
 
+def clamp_tensions(A: sp.spmatrix | NDArray, g: NDArray, scale: NDArray) -> NDArray:
+    """Clamp tensions ``mu`` (m,) minimising ``sum_k ((g + A^T mu)_k / scale_k)^2``.
+
+    ``A`` (m, n) clamp Jacobian, ``g`` (n,) gradient, ``scale`` (n,) local force scale of
+    each coordinate. Weighting by the local scale keeps the round-off of the forces at a
+    stiff end of a clamp (``eps k r``) out of the balance judged at its soft end.
+    """
+    w2 = 1.0 / np.asarray(scale, dtype=np.float64) ** 2
+    if sp.issparse(A):
+        Aw = A.multiply(w2[None, :]).tocsr()
+        G = (Aw @ A.T).toarray()
+    else:
+        Aw = A * w2[None, :]
+        G = Aw @ A.T
+    b = Aw @ g
+    # normalise so that the Gram matrix has a unit diagonal where possible
+    d = np.sqrt(np.maximum(np.abs(np.diag(G)), 1e-300))
+    Gn = G / d[:, None] / d[None, :]
+    try:
+        y = np.linalg.solve(Gn, b / d)
+    except np.linalg.LinAlgError:
+        y = np.linalg.lstsq(Gn, b / d, rcond=None)[0]
+    return -y / d
+
+
+class Residual(NamedTuple):
+    """How far a state is from equilibrium (see :mod:`.stopping` for the definitions).
+
+    Attributes
+    ----------
+    imbalance : float
+        Largest relative imbalance ``max |F_ic| / f_i`` over free coordinates.
+    force : float
+        Largest absolute net force ``max |F_ic|`` (force units).
+    clamp : float
+        Largest relative clamp error ``max |b_c| / L_c`` (0 without clamps), with ``b_c``
+        from :meth:`Problem.clamp_balance` and ``L_c`` the clamped spring's rest length.
+    multipliers : (m,) float array
+        Least-squares clamp tensions ``mu`` of ``grad E + A^T mu``.
+    """
+
+    imbalance: float
+    force: float
+    clamp: float
+    multipliers: NDArray
+
+
 @dataclass(frozen=True, eq=False)
 class Problem:
     """A network with pins and clamps: what every equilibrium method minimises.
@@ -103,9 +151,35 @@ class Problem:
     clamp: ClampMode = "exact"
     rod_stiffness: float = 1e10
     free_flat: NDArray[np.int64] = field(init=False)
+    scale: NDArray[np.float64] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "free_flat", np.flatnonzero(self.free.ravel()))
+        net = self.net
+        scale = coordinate_scale(net.springs, net.stiffness, net.rest_length, net.n_nodes)
+        object.__setattr__(self, "scale", scale)
+
+    def with_clamp_lengths(self, lengths: NDArray) -> Problem:
+        """The same problem with other clamp lengths (strain continuation)."""
+        return Problem(
+            self.net, self.free, self.clamp_springs, lengths, self.clamp, self.rod_stiffness
+        )
+
+    def with_free(self, free: NDArray) -> Problem:
+        """The same problem with another pin mask."""
+        return Problem(
+            self.net, free, self.clamp_springs, self.clamp_lengths, self.clamp, self.rod_stiffness
+        )
+
+    def stop_rule(self, tol: float, *, max_iter: int, max_seconds: float) -> StopRule:
+        """The local stop rule of this problem at relative tolerance ``tol``."""
+        return StopRule(
+            tol=float(tol),
+            scale=self.scale,
+            clamp_scale=self.net.rest_length[self.clamp_springs],
+            max_iter=int(max_iter),
+            max_seconds=float(max_seconds),
+        )
 
     @classmethod
     def build(
@@ -188,22 +262,44 @@ class Problem:
         return sp.csr_matrix((vals[keep], (rows[keep], column[flat][keep])), shape=(m, coords.size))
 
     # -- the one residual used by every method ----------------------------------------
-    def residual(self, x: NDArray) -> tuple[float, NDArray]:
-        """Largest net force on a free coordinate after removing clamp-normal forces.
+    def residual(self, x: NDArray) -> Residual:
+        """Net force on free coordinates after removing clamp-normal forces, judged locally.
 
-        Returns ``(residual, multipliers)``: the multipliers ``mu`` (the clamp tensions,
-        (m,) float array) minimise ``|grad E + A^T mu|_2`` over free coordinates; pin
-        reactions are removed by looking at free coordinates only. The same definition
-        holds for exact clamps and rods (whose axial force is a clamp-normal component).
+        The multipliers ``mu`` (the clamp tensions) minimise ``|grad E + A^T mu|_2`` over
+        free coordinates; pin reactions are removed by looking at free coordinates only.
+        The same definition holds for exact clamps and rods (whose axial force is a
+        clamp-normal component). Returns a :class:`Residual`.
         """
         r, mu = self.unbalanced_force(x, self.free_flat)
-        return float(np.max(np.abs(r))) if r.size else 0.0, mu
+        if r.size:
+            imbalance = float(np.max(np.abs(r) / self.scale[self.free_flat]))
+            force = float(np.max(np.abs(r)))
+        else:
+            imbalance = force = 0.0
+        clamp = 0.0
+        if self.n_clamps:
+            lc = self.net.rest_length[self.clamp_springs]
+            clamp = float(np.max(np.abs(self.clamp_balance(x, mu)) / lc))
+        return Residual(imbalance, force, clamp, mu)
+
+    def clamp_balance(self, x: NDArray, multipliers: NDArray) -> NDArray:
+        """What the clamp length test measures, (m,) float array (length units).
+
+        Exact clamps: ``r_c - l_c``. Rods: ``r_c - l_c - mu_c / k_rod``, the rod's length
+        minus the length at which its own force balances the clamp tension ``mu_c``
+        (a rod yields by tension / stiffness, and no more).
+        """
+        viol = self.clamp_violation(x)
+        if self.clamp == "rod":
+            viol = viol - np.asarray(multipliers) / self.rod_stiffness
+        return viol
 
     def unbalanced_force(self, x: NDArray, coords: NDArray) -> tuple[NDArray, NDArray]:
         """``grad E + A^T mu`` at flat coordinates ``coords``, with least-squares ``mu``.
 
         Uses the network's springs only: a rod's force lies along its clamp normal and is
-        projected out anyway, so ``mu`` holds the clamp forces in both clamp modes.
+        projected out anyway, so ``mu`` holds the clamp forces in both clamp modes. The
+        least squares are weighted by the local force scale (:func:`clamp_tensions`).
         Returns ``((len(coords),) array, (m,) multipliers)``.
         """
         net = self.net
@@ -212,8 +308,7 @@ class Problem:
             return g, np.empty(0)
         dense = coords.size <= 400
         A = self.clamp_jacobian(x, coords, dense=dense)
-        AAt = A @ A.T if dense else (A @ A.T).toarray()
-        mu = -np.linalg.lstsq(AAt, A @ g, rcond=None)[0]
+        mu = clamp_tensions(A, g, self.scale[coords])
         return g + A.T @ mu, mu
 
     def toward_clamps(

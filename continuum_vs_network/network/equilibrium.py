@@ -1,15 +1,14 @@
 """Mechanical equilibrium of a pinned, clamped spring network: ``cvn.relax``.
 
 Every method minimises the same :class:`~.constraints.Problem` and is judged by the same
-residual (:meth:`Problem.residual`): the largest net force on a free coordinate after the
-clamp-normal components (the Lagrange multipliers) are removed. ``tol`` is relative to the
-network's force scale ``F = mean(k) mean(L)`` for forces and to ``mean(L)`` for clamp
-lengths; the reported residual is in absolute force units.
+local stop rule (:mod:`.stopping`): the net force on each free coordinate, clamp-normal
+components (the Lagrange multipliers) removed, relative to the force scale of that node's
+own springs ``f_i = sum_j k_j L_j``; clamp lengths relative to the clamped spring's rest
+length.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -18,9 +17,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
 from .arguments import lone_nodes, relax_arguments
+from .checks import collapsed_springs, escape_direction, floppy_modes, lowest_curvature
 from .constraints import ClampMode, Pins, Problem, default_pins
 from .energy import spring_energy
+from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
+from .newton import newton
+from .stopping import Outcome, StopRule, Trace
 
 __all__ = ["METHODS", "Equilibrium", "EquilibriumError", "StopRule", "Trace", "relax"]
 
@@ -35,7 +38,11 @@ class Equilibrium:
     energy : float
         Elastic energy of the network's springs (Eq. 11), rods excluded.
     residual : float
-        Largest net force on a free coordinate, clamp-normal forces removed (force units).
+        Largest absolute net force on a free coordinate, clamp-normal forces removed
+        (force units).
+    relative_residual : float
+        Largest relative imbalance ``max_ic |F_ic| / f_i`` with ``f_i = sum_j k_j L_j``
+        over node ``i``'s springs: the quantity ``tol`` bounds (see :func:`relax`).
     clamp_error : float
         Largest ``|r_c - l_c|`` over clamped springs (length units; 0 without clamps).
     clamp_force : (m,) float array
@@ -48,8 +55,8 @@ class Equilibrium:
         Wall-clock time of the solve.
     method : str
     residual_trace, seconds_trace : (n_records,) float arrays
-        Residual at each recorded iteration and the wall-clock time at which it was
-        reached, for error-against-run-time plots.
+        Relative residual (as ``relative_residual``) at each recorded iteration and the
+        wall-clock time at which it was reached, for error-against-run-time plots.
     iteration_trace : (n_records,) int array
         The iteration (counted over every stage of the solve) of each record: Newton
         records every iteration, FIRE, L-BFGS and Adagrad every tenth and the last.
@@ -59,6 +66,7 @@ class Equilibrium:
     positions: NDArray[np.float64]
     energy: float
     residual: float
+    relative_residual: float
     clamp_error: float
     clamp_force: NDArray[np.float64]
     converged: bool
@@ -93,88 +101,23 @@ class EquilibriumError(RuntimeError):
         if state is not None:
             detail = (
                 f" (method={state.method}, iterations={state.iterations}, "
-                f"residual={state.residual:.3e}, clamp_error={state.clamp_error:.3e}, "
+                f"residual={state.residual:.3e}, relative_residual="
+                f"{state.relative_residual:.3e}, clamp_error={state.clamp_error:.3e}, "
                 f"seconds={state.seconds:.3g})"
             )
         super().__init__(reason + detail)
 
 
-class Trace:
-    """Residual against wall-clock time and iteration, recorded by a solver as it iterates.
-
-    A solver records ``record(residual, it)`` with its own iteration count ``it``; the
-    caller that chains solves (stages, inner loops) sets ``base`` to the iterations done
-    before, so the recorded iteration is the count over the whole solve.
-    """
-
-    def __init__(self) -> None:
-        self.t0 = time.perf_counter()
-        self.base = 0
-        self.residual: list[float] = []
-        self.seconds: list[float] = []
-        self.iteration: list[int] = []
-
-    def record(self, residual: float, it: int) -> None:
-        self.residual.append(float(residual))
-        self.seconds.append(time.perf_counter() - self.t0)
-        self.iteration.append(self.base + int(it))
-
-    def elapsed(self) -> float:
-        return time.perf_counter() - self.t0
-
-
-@dataclass(frozen=True)
-class StopRule:
-    """When a solver stops: absolute force and length tolerances and budgets."""
-
-    force: float
-    length: float
-    max_iter: int
-    max_seconds: float
-
-    def met(self, residual: float, clamp_error: float) -> bool:
-        return residual <= self.force and clamp_error <= self.length
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """What a method returns to :func:`relax`."""
-
-    x: NDArray[np.float64]
-    iterations: int
-    converged: bool
-    message: str = ""
-
-
 Method = Callable[[Problem, NDArray, StopRule, Trace], Outcome]
 
 
-def _newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
-    from .newton import newton
-
-    return newton(problem, x, stop, trace)
-
-
-def _fire(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
-    from .minimizers import fire
-
-    return fire(problem, x, stop, trace)
-
-
-def _lbfgs(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
-    from .minimizers import lbfgs
-
-    return lbfgs(problem, x, stop, trace)
-
-
-def _paper(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
-    from .minimizers import paper_adagrad
-
-    return paper_adagrad(problem, x, stop, trace)
-
-
-METHODS: dict[str, Method] = {"newton": _newton, "fire": _fire, "lbfgs": _lbfgs, "paper": _paper}
-_DEFAULT_MAX_ITER = {"newton": 200, "fire": 200_000, "lbfgs": 50_000, "paper": 20_000}
+METHODS: dict[str, Method] = {
+    "newton": newton,
+    "fire": fire,
+    "lbfgs": lbfgs,
+    "paper": paper_adagrad,
+}
+_DEFAULT_MAX_ITER = {"newton": 2000, "fire": 200_000, "lbfgs": 50_000, "paper": 20_000}
 
 
 def relax(
@@ -209,8 +152,16 @@ def relax(
         seed paper's PyTorch Adagrad (learning rate 0.1) with rod clamps; it stalls and is
         kept as a baseline.
     tol : float
-        Relative tolerance: converged when the residual is ``<= tol * F`` with
-        ``F = mean(k) mean(L)`` and every clamp within ``tol * mean(L)`` of its length.
+        Relative tolerance, judged locally. With ``F = grad E + A^T mu`` the net force on
+        the free coordinates (clamp-normal components removed: ``mu`` are the
+        least-squares clamp tensions, a rod's axial force counts as one), the state is an
+        equilibrium when for every free coordinate ``(i, c)`` of every node ``i``
+        ``|F_ic| <= tol * f_i`` with ``f_i = sum_j k_j L_j`` over the springs at node
+        ``i`` (rods and clamps excluded; ``mean(k) mean(L)`` where that sum is 0), and
+        every exact clamp ``c`` has ``|r_c - l_c| <= tol * L_c`` (``L_c`` the clamped
+        spring's rest length); a rod is held to the length at which its own force
+        balances the clamp tension, ``|r_c - l_c - mu_c / k_rod| <= tol * L_c``. Every
+        method uses this rule.
     clamp : {"exact", "rod"}
         Exact equality constraints, or the paper's stiff rods of ``rod_stiffness``.
         ``method="paper"`` always uses rods.
@@ -218,7 +169,17 @@ def relax(
         Strain continuation: approach the clamp lengths in ``ramp`` equal steps from the
         starting lengths, each relaxed in turn. At large strains the energy has several
         local minima and the one found depends on this path.
-    max_iter, max_seconds : budgets; exceeding either raises :class:`EquilibriumError`.
+    max_iter, max_seconds : budgets; exceeding either raises :class:`EquilibriumError`
+        (Newton's default of 2000 iterations is a safety net, not a working limit: on the
+        500-network family of ``benchmarks/bench_family.py`` no converging case needs it).
+
+    A converged state is also checked to second order: a saddle (the reduced Hessian of
+    the Lagrangian, scaled by node stiffness, with an eigenvalue below ``-1e-8``) or a
+    state with a collapsed spring (``k > 0``, length ``<= 1e-9 L``) is escaped (a step
+    along the lowest eigenvector, or the collapsed springs unfolded) and relaxed again, at
+    most three times, else :class:`EquilibriumError`. Networks whose rigidity matrix is
+    rank deficient at a generic configuration (a dangling node, a hinge) are refused with a
+    ``ValueError`` even when Maxwell's count passes.
 
     Returns
     -------
@@ -251,11 +212,9 @@ def relax(
             f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
         )
     lone_nodes(net, problem.free)
-    stop = StopRule(
-        force=tol * net.force_scale,
-        length=tol * float(np.mean(net.rest_length)),
-        max_iter=max_iter or _DEFAULT_MAX_ITER[method],
-        max_seconds=float(max_seconds),
+    _check_rank(problem)
+    stop = problem.stop_rule(
+        tol, max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]), max_seconds=max_seconds
     )
     x = _start(problem, x0)
     trace = Trace()
@@ -266,9 +225,7 @@ def relax(
     for step in range(1, int(ramp) + 1):
         frac = step / ramp
         lengths = start_lengths + frac * (problem.clamp_lengths - start_lengths)
-        stage = Problem(
-            net, problem.free, problem.clamp_springs, lengths, problem.clamp, problem.rod_stiffness
-        )
+        stage = problem.with_clamp_lengths(lengths)
         trace.base = iterations
         outcome = solve(stage, stage.start(outcome.x), stop, trace)
         iterations += outcome.iterations
@@ -280,32 +237,99 @@ def relax(
     for _ in range(3):
         if pinned is not None or not outcome.converged:
             break
-        if _pin_reaction(problem, outcome.x) <= stop.force:
+        if _pin_reaction(problem, outcome.x) <= stop.tol:
             break
         avoid = problem.clamp_springs
-        free = ~default_pins(net.with_positions(outcome.x), avoid)
-        problem = Problem(
-            net,
-            free,
-            problem.clamp_springs,
-            problem.clamp_lengths,
-            problem.clamp,
-            problem.rod_stiffness,
-        )
+        problem = problem.with_free(~default_pins(net.with_positions(outcome.x), avoid))
         trace.base = iterations
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
-    return _finish(problem, outcome, iterations, method, stop, trace)
+    outcome, extra = _second_order(problem, outcome, solve, stop, trace, iterations)
+    return _finish(problem, outcome, iterations + extra, method, stop, trace)
+
+
+def _check_rank(problem: Problem) -> None:
+    """Raise a clear error when the rigidity matrix is rank deficient (generic positions)."""
+    modes = floppy_modes(problem) - max(0, 3 - int((~problem.free).sum()))
+    if modes <= 0:
+        return
+    net = problem.net
+    stiff = net.stiffness > 0
+    degree = np.bincount(net.springs[stiff].ravel(), minlength=net.n_nodes)
+    degree += np.bincount(net.springs[problem.clamp_springs].ravel(), minlength=net.n_nodes)
+    free_nodes = problem.free.any(axis=1)
+    dangling = np.flatnonzero(free_nodes & (degree < 2))
+    where = (
+        f"; nodes with fewer than two springs: {dangling[:8].tolist()}"
+        if dangling.size
+        else " (a hinge or a floppy region: rigid parts joined by fewer than three springs)"
+    )
+    raise ValueError(
+        f"network is floppy: {modes} zero modes beyond rigid motion by the rank of the "
+        f"rigidity matrix, though Maxwell's count passes{where}; add springs or pins"
+    )
+
+
+_ESCAPES = 3
+_CURVATURE_TOL = 1e-8  # smallest scaled reduced-Hessian eigenvalue accepted as >= 0
+
+
+def _second_order(
+    problem: Problem, outcome: Outcome, solve: Method, stop: StopRule, trace: Trace, done: int
+) -> tuple[Outcome, int]:
+    """No saddle and no collapsed spring returned as an equilibrium: escape, or fail.
+
+    A converged state with a spring of ``k > 0`` collapsed to (almost) zero length is
+    unfolded (each collapsed spring's second node moved by 1e-3 of its rest length in a
+    fixed direction) and relaxed again; one whose scaled reduced Hessian has an eigenvalue
+    below ``-1e-8`` is moved by 1 % of the mean rest length along that eigenvector (the
+    side of lower energy) and relaxed again. After three escapes the outcome is a failure.
+    Returns the outcome and the iterations spent.
+    """
+    extra = 0
+    for _ in range(_ESCAPES):
+        if not outcome.converged:
+            return outcome, extra
+        x = outcome.x
+        collapsed = collapsed_springs(problem, x)
+        if collapsed.size:
+            y = np.array(x, dtype=np.float64, copy=True)
+            angle = 2.399963229728653 * np.arange(collapsed.size)
+            b = problem.net.springs[collapsed, 1]
+            move = 1e-3 * problem.net.rest_length[collapsed, None]
+            move = move * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+            np.add.at(y, b, move * problem.free[b])
+        elif outcome.certified:
+            return outcome, extra
+        else:
+            lowest = lowest_curvature(problem, x)
+            if lowest is not None and lowest >= -_CURVATURE_TOL:
+                return outcome, extra
+            direction = escape_direction(problem, x)
+            if direction is None:
+                return Outcome(
+                    x, outcome.iterations, False, "saddle: the reduced Hessian is indefinite"
+                ), extra
+            trials = [problem.start(x + s * 1e-2 * direction) for s in (1.0, -1.0)]
+            y = min(trials, key=problem.energy)
+        trace.base = done + extra
+        outcome = solve(problem, problem.start(y), stop, trace)
+        extra += outcome.iterations
+    if outcome.converged:
+        reason = "a saddle or a collapsed spring persists after 3 escapes"
+        return Outcome(outcome.x, outcome.iterations, False, reason), extra
+    return outcome, extra
 
 
 def _pin_reaction(problem: Problem, x: NDArray) -> float:
-    """Largest force the pins exert on the network at ``x``, clamp forces removed."""
+    """Largest force the pins exert on the network at ``x``, clamp forces removed,
+    relative to the pinned coordinates' local force scale."""
     pinned = np.flatnonzero(~problem.free.ravel())
     if not pinned.size:
         return 0.0
     everywhere = np.arange(problem.free.size)
     force, _ = problem.unbalanced_force(x, everywhere)
-    return float(np.max(np.abs(force[pinned])))
+    return float(np.max(np.abs(force[pinned]) / problem.scale[pinned]))
 
 
 def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
@@ -320,25 +344,23 @@ def _finish(
     x, net = outcome.x, problem.net
     finite = bool(np.all(np.isfinite(x)))
     if finite:
-        residual, mu = problem.residual(x)
+        res = problem.residual(x)
+        residual, relative, mu = res.force, res.imbalance, res.multipliers
         violation = problem.clamp_violation(x)
         clamp_error = float(np.max(np.abs(violation))) if violation.size else 0.0
+        clamp_relative = res.clamp
         energy = spring_energy(x, net.springs, net.stiffness, net.rest_length)
     else:
-        residual, clamp_error, energy = np.inf, np.inf, np.inf
+        residual = relative = clamp_error = clamp_relative = energy = np.inf
         mu = np.full(problem.n_clamps, np.inf)
-    # a rod yields by its tension / rod_stiffness: only exact clamps are held to tol
-    converged = (
-        finite
-        and outcome.converged
-        and stop.met(residual, clamp_error if problem.clamp == "exact" else 0.0)
-    )
+    converged = finite and outcome.converged and stop.met(relative, clamp_relative)
     x = x.copy()
     x.setflags(write=False)
     state = Equilibrium(
         positions=x,
         energy=energy,
         residual=residual,
+        relative_residual=relative,
         clamp_error=clamp_error,
         clamp_force=-np.asarray(mu, dtype=np.float64),
         converged=converged,
@@ -354,8 +376,8 @@ def _finish(
         if not finite:
             reason = "iterate became non-finite; " + reason
         raise EquilibriumError(
-            f"{method}: {reason} (wanted residual <= {stop.force:.3e}, "
-            f"clamp error <= {stop.length:.3e})",
+            f"{method}: {reason} (wanted every net force <= {stop.tol:.1e} of its node's "
+            f"sum k L, got {relative:.3e}; relative clamp error {clamp_relative:.3e})",
             state,
         )
     return state

@@ -1,9 +1,10 @@
 """First-order equilibrium methods: FIRE, L-BFGS and the seed paper's Adagrad.
 
 Each method has the signature of :data:`~.equilibrium.METHODS`:
-``f(problem, x, stop, trace) -> Outcome`` and is judged by the same residual as Newton
-(:meth:`~.constraints.Problem.residual`, the largest net force on a free coordinate after the
-clamp-normal components are removed) and the same clamp error ``max |r_c - l_c|``.
+``f(problem, x, stop, trace) -> Outcome`` and is judged by the same local stop rule as
+Newton (:mod:`.stopping`: the net force on each free coordinate after the clamp-normal
+components are removed, relative to its node's ``sum k L``; clamp errors relative to the
+clamped spring's rest length).
 
 Exact clamps (``problem.exact``) are handled by FIRE and L-BFGS with an augmented
 Lagrangian outer loop: the inner method minimises, over the free coordinates,
@@ -13,11 +14,12 @@ Lagrangian outer loop: the inner method minimises, over the free coordinates,
 and then the multipliers are updated, ``lam += rho (r - l)``. ``rho = 10 max(k)``: the clamp
 is stiffer than any spring, so each outer step cuts the clamp error ~5-fold, while FIRE's
 stable step shrinks only ~1.5-fold. ``lam`` starts at the least-squares clamp tension of
-the starting point. Each inner solve stops at ``max |grad L| <= 1e-3 rho max|r - l|``
-(an inner gradient error well below the coming multiplier change; looser inner solves let
-the clamp error stall), tightened to half the force tolerance once the clamp error is
-met. ``rho`` grows 4-fold only when tight inner solves still halve the clamp error no
-faster. With rods (``problem.clamp == "rod"``) or no clamps the methods minimise
+the starting point. Each inner solve stops at ``max |grad L| / f_i <= 1e-3 rho
+max|r - l| / F`` (``f_i`` the local force scale, ``F = mean(k) mean(L)``: an inner gradient
+error well below the coming multiplier change; looser inner solves let the clamp error
+stall), tightened to half the tolerance once the clamp error is met. ``rho`` grows
+4-fold only when tight inner solves still halve the clamp error no faster. With rods
+(``problem.clamp == "rod"``) or no clamps the methods minimise
 ``problem.energy`` directly.
 
 ``paper_adagrad`` is the seed paper's method (PyTorch Adagrad, learning rate 0.1, rod
@@ -33,9 +35,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .constraints import Problem
+from .constraints import Problem, clamp_tensions
 from .energy import node_stiffness, spring_energy_change, spring_gradient
-from .equilibrium import Outcome, StopRule, Trace
+from .stopping import Outcome, StopRule, Trace
 
 __all__ = ["fire", "lbfgs", "paper_adagrad"]
 
@@ -62,13 +64,16 @@ class _Objective:
 
     ``grad(x)`` takes full (n_nodes, 2) positions and returns the full (n_nodes, 2)
     gradient (pinned entries are not zeroed; callers read free coordinates).
-    ``check(x, G)`` returns ``(residual, clamp_error)`` exactly as
+    ``check(x, G)`` returns the relative ``(imbalance, clamp_error)`` exactly as
     :meth:`Problem.residual` defines them, from any gradient ``G`` that differs from
     ``grad E`` by clamp-normal terms only (the projection removes them), at O(n) cost.
     """
 
     def __init__(self, problem: Problem) -> None:
         self.problem = problem
+        self.scale = problem.scale  # (2 n_nodes,) local force scale of every coordinate
+        self.free_scale = problem.scale[problem.free_flat]
+        self.clamp_scale = problem.net.rest_length[problem.clamp_springs]
         self.springs, self.k, self.L = problem.all_springs()
         self.a = np.ascontiguousarray(self.springs[:, 0])
         self.b = np.ascontiguousarray(self.springs[:, 1])
@@ -167,23 +172,36 @@ class _Objective:
         return change, G
 
     def check(self, x: NDArray, G: NDArray) -> tuple[float, float]:
-        """``(residual, clamp_error)`` of ``x`` given its gradient ``G`` (n_nodes, 2)."""
+        """Relative ``(imbalance, clamp_error)`` of ``x`` given its gradient ``G``."""
         g = G.ravel()
-        rest = float(np.max(np.abs(g[self.other]))) if self.other.size else 0.0
+        rest = (
+            float(np.max(np.abs(g[self.other]) / self.scale[self.other]))
+            if self.other.size
+            else 0.0
+        )
         if not self.ends.size:
             return rest, 0.0
         u, r = self._clamp_geometry(x)
         near = 0.0
+        mu = np.zeros(self.ends.shape[0])
         if self.touched.size:
             # dense clamp Jacobian on the touched free coordinates: rows [-u, +u]
             A = np.zeros((self.ends.shape[0], self.touched.size))
             vals = np.concatenate([-u, u], axis=1)  # (m, 4), order ax, ay, bx, by
             np.add.at(A, (self._jac_rows, self._jac_cols), vals[self._jac_hit])
             gs = g[self.touched]
-            mu = -np.linalg.lstsq(A @ A.T, A @ gs, rcond=None)[0]
-            near = float(np.max(np.abs(gs + A.T @ mu)))
-        clamp_error = float(np.max(np.abs(r - self.problem.clamp_lengths)))
+            mu = clamp_tensions(A, gs, self.scale[self.touched])
+            near = float(np.max(np.abs(gs + A.T @ mu) / self.scale[self.touched]))
+        viol = r - self.problem.clamp_lengths
+        if self.problem.clamp == "rod":
+            # Problem.clamp_balance; G holds the rods' forces, so mu is the total tension
+            viol = -mu / self.problem.rod_stiffness
+        clamp_error = float(np.max(np.abs(viol) / self.clamp_scale))
         return max(rest, near), clamp_error
+
+    def inner_met(self, g: NDArray, tol: float) -> bool:
+        """The augmented inner problem's test: ``max |g| / f_i <= tol`` on free coordinates."""
+        return tol > 0 and float(np.max(np.abs(g) / self.free_scale)) <= tol
 
     def multipliers(self, x: NDArray, G: NDArray) -> NDArray:
         """Least-squares clamp tensions ``mu`` at ``x`` (the sign convention of ``lam``)."""
@@ -232,7 +250,7 @@ def _minimise(problem: Problem, x: NDArray, stop: StopRule, trace: Trace, inner:
     obj.rho = _RHO_FACTOR * kmax
     obj.lam = obj.multipliers(x, spring_gradient(x, obj.springs, obj.k, obj.L))
     force_scale = problem.net.force_scale
-    inner_tol = max(0.5 * stop.force, 1e-3 * force_scale)
+    inner_tol = max(0.5 * stop.tol, 1e-3)
     iterations = 0
     base = trace.base
     c_prev = np.inf
@@ -247,14 +265,16 @@ def _minimise(problem: Problem, x: NDArray, stop: StopRule, trace: Trace, inner:
         c = obj.violation(x)
         c_err = float(np.max(np.abs(c)))
         obj.lam = obj.lam + obj.rho * c
-        tight = inner_tol <= 0.5 * stop.force
+        tight = inner_tol <= 0.5 * stop.tol
         if tight and c_err > 0.5 * c_prev and obj.rho < _RHO_MAX_FACTOR * kmax:
             obj.rho *= _RHO_GROWTH  # exact inner solves and still slow: stiffen the clamp
         c_prev = c_err
         # the inner gradient error must be well below the coming multiplier change rho c
-        inner_tol = max(0.5 * stop.force, min(inner_tol, _INNER_FRACTION * obj.rho * c_err))
-        if c_err <= stop.length:
-            inner_tol = 0.5 * stop.force
+        inner_tol = max(
+            0.5 * stop.tol, min(inner_tol, _INNER_FRACTION * obj.rho * c_err / force_scale)
+        )
+        if stop.clamp_error(c) <= stop.tol:
+            inner_tol = 0.5 * stop.tol
     message = f"augmented Lagrangian: no convergence in {_MAX_OUTER} outer steps"
     return Outcome(x, iterations, False, message)
 
@@ -319,7 +339,7 @@ def _fire_inner(
         if stop.met(residual, clamp_error):
             trace.record(residual, it)
             return _Inner(x, it, "stop")
-        if tol > 0 and float(np.max(np.abs(g))) <= tol:
+        if obj.inner_met(g, tol):
             trace.record(residual, it)
             return _Inner(x, it, "tol")
         if it % _RECORD_EVERY == 0:
@@ -412,7 +432,7 @@ def _lbfgs_inner(
         elif stop.met(residual, clamp_error):
             done["status"] = "stop"
             final = True
-        elif tol > 0 and float(np.max(np.abs(cache["G"].ravel()[free]))) <= tol:
+        elif obj.inner_met(cache["G"].ravel()[free], tol):
             done["status"] = "tol"
             final = True
         elif trace.elapsed() > stop.max_seconds:

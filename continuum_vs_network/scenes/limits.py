@@ -67,7 +67,9 @@ def estimate(scene: Scene) -> Estimate:
         n_targets = 1 if scene.task.kind == "paper" else scene.task.n_targets
         n_sources = 1 if scene.task.kind == "paper" else scene.task.n_sources
         methods = len(scene.solver.methods) if scene.solver is not None else 1
-        runs = methods * len(L.rules) * len(L.noise)
+        # a GCL rule runs once per nudge when etas lists several
+        rules = sum(len(L.etas) if r.startswith("gcl") and L.etas else 1 for r in L.rules)
+        runs = methods * rules * len(L.noise)
         units = runs * L.trials
         est.add("network", "n_nodes", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
         # every trial's history and its initial and final networks are merged in memory

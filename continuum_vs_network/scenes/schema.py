@@ -410,7 +410,13 @@ class LearningSpec:
         "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta "
         "(beyond_paper: the thermal study's nudges)",
         check=_each(_positive),
-        used=_kinds("learning", "beyond_paper"),
+        used=_when(
+            lambda s: (
+                s.kind == "beyond_paper"
+                or (s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules))
+            ),
+            "by learning scenes with a GCL rule and beyond_paper scenes",
+        ),
     )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
     alpha_exact: float = _key(

@@ -78,9 +78,8 @@ def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
     except EquilibriumError as err:
         eq = err.state
         error = err.reason
-    F = net.force_scale
-    arrays = {
-        "residual": np.asarray(eq.residual_trace) / F,
+    arrays = {  # relative residuals: each net force over its node's sum k L
+        "residual": np.asarray(eq.residual_trace),
         "seconds": np.asarray(eq.seconds_trace),
         "iteration": np.asarray(eq.iteration_trace),
     }
@@ -90,7 +89,7 @@ def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
         "n_nodes": net.n_nodes,
         "n_springs": net.n_springs,
         "converged": bool(eq.converged),
-        "residual": eq.residual / F,
+        "residual": eq.relative_residual,
         "iterations": int(eq.iterations),
         "seconds": eq.seconds,
         "error": error,

@@ -1,0 +1,125 @@
+"""Newton's robustness and iteration counts on a seeded family of random networks.
+
+The family (issue 10): noisy triangular lattices, random Delaunay meshes and the paper's
+10-node patches; stiffness ``k = 10^U(-3, 3)``; rest lengths within 10 % of the geometry
+or ``10^U(log 0.3, log 3)`` times it; 0-3 clamps at strains ``U(-0.9, 10)``; the default
+(two far) pins. Every network is relaxed with ``cvn.relax`` at its defaults; a failure is
+any ``EquilibriumError`` (or other exception). Prints failures and the median / p95 / max
+iterations, overall and for the strongly prestressed half (rest lengths 0.3-3x).
+
+    python benchmarks/bench_family.py            # 500 networks
+    python benchmarks/bench_family.py --count 100 --seed 1
+
+Targets: 0 failures, median <= 30, p95 <= 120 iterations.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+
+def _parse() -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--count", type=int, default=500)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--method", default="newton")
+    p.add_argument("--verbose", action="store_true", help="print every failure's reason")
+    return p.parse_args()
+
+
+def family_member(rng):
+    """One random network and its clamps: ``(kind, prestressed, net, clamped)``."""
+    import numpy as np
+    from scipy.spatial import Delaunay
+
+    import continuum_vs_network as cvn
+    from continuum_vs_network.network.builders import paper_network, triangular_lattice
+
+    kind = ("lattice", "delaunay", "paper")[rng.integers(3)]
+    if kind == "lattice":
+        side = int(rng.integers(5, 13))
+        net = triangular_lattice(side, side, noise=0.15, rng=rng)
+    elif kind == "delaunay":
+        n = int(rng.integers(20, 120))
+        pts = rng.random((n, 2)) * np.sqrt(n)
+        tri = Delaunay(pts).simplices
+        edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+        edges = np.unique(edges, axis=0)
+        d = np.linalg.norm(pts[edges[:, 1]] - pts[edges[:, 0]], axis=1)
+        net = cvn.SpringNetwork(pts, edges, np.ones(len(edges)), d)
+    else:
+        net = paper_network(rng)
+    s = net.n_springs
+    k = 10.0 ** rng.uniform(-3, 3, s)
+    prestressed = bool(rng.random() < 0.5)
+    geometry = net.lengths()
+    factor = 10.0 ** rng.uniform(np.log10(0.3), np.log10(3), s) if prestressed else None
+    if factor is None:
+        factor = rng.uniform(0.9, 1.1, s)
+    net = net.with_stiffness(k).with_rest_length(geometry * factor)
+    m = int(rng.integers(0, 4))
+    springs = rng.choice(s, size=m, replace=False)
+    strains = rng.uniform(-0.9, 10.0, m)
+    clamped = {int(j): float(geometry[j] * (1 + e)) for j, e in zip(springs, strains)}
+    return kind, prestressed, net, clamped
+
+
+def main() -> None:
+    args = _parse()
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    import numpy as np
+
+    import continuum_vs_network as cvn
+
+    rng = np.random.default_rng(args.seed)
+    rows = []
+    t0 = time.perf_counter()
+    for i in range(args.count):
+        kind, prestressed, net, clamped = family_member(rng)
+        try:
+            eq = cvn.relax(net, clamped=clamped, method=args.method)
+            rows.append((kind, prestressed, eq.iterations, True, ""))
+        except Exception as err:  # every failure counts, whatever it is
+            its = getattr(getattr(err, "state", None), "iterations", -1)
+            rows.append((kind, prestressed, its, False, f"{type(err).__name__}: {err}"))
+            if args.verbose:
+                print(f"#{i} {kind} prestressed={prestressed} clamps={len(clamped)}: {err}")
+        if args.verbose and (i + 1) % 50 == 0:
+            done = np.array([r[2] for r in rows if r[3]])
+            print(
+                f"# {i + 1} done, {sum(not r[3] for r in rows)} failures, median "
+                f"{np.median(done):.0f}, {time.perf_counter() - t0:.0f} s",
+                flush=True,
+            )
+    seconds = time.perf_counter() - t0
+
+    def line(name, sel):
+        its = np.array([r[2] for r in sel if r[3]])
+        fails = sum(not r[3] for r in sel)
+        if not its.size:
+            return f"{name:24s} n={len(sel):4d} failures={fails}"
+        return (
+            f"{name:24s} n={len(sel):4d} failures={fails:3d}  iterations median="
+            f"{np.median(its):5.1f} p95={np.percentile(its, 95):6.1f} max={its.max():5d}"
+        )
+
+    print(f"family of {args.count} networks, seed {args.seed}, method {args.method}")
+    print(line("all", rows))
+    print(line("prestressed (0.3-3x)", [r for r in rows if r[1]]))
+    print(line("near geometry (0.9-1.1x)", [r for r in rows if not r[1]]))
+    for kind in ("lattice", "delaunay", "paper"):
+        print(line(kind, [r for r in rows if r[0] == kind]))
+    print(f"total {seconds:.1f} s")
+    reasons: dict[str, int] = {}
+    for r in rows:
+        if not r[3]:
+            key = r[4].split(" (")[0][:100]
+            reasons[key] = reasons.get(key, 0) + 1
+    for reason, count in sorted(reasons.items(), key=lambda kv: -kv[1]):
+        print(f"  {count:4d} x {reason}")
+
+
+if __name__ == "__main__":
+    main()

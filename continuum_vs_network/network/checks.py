@@ -1,0 +1,140 @@
+"""What a state must satisfy besides zero net force to be returned as an equilibrium.
+
+* **Rigidity by rank** (:func:`floppy_modes`): the rank of the rigidity matrix restricted to
+  the free coordinates, evaluated at a *generic* configuration (the positions moved by a
+  fixed pseudo-random 10 % of the mean rest length), so that a dangling node or a hinge
+  that passes Maxwell's count is found, while an accidentally collinear start is not
+  mistaken for a mechanism. Cached per topology, stiffness pattern, pins and clamps.
+* **Second order** (:func:`lowest_curvature`): the smallest eigenvalue of the reduced
+  Hessian of the Lagrangian ``Q^T D^-1/2 W D^-1/2 Q`` (``Q`` a basis of the clamps'
+  tangent space, ``D`` the node stiffness ``sum k``): negative at a saddle.
+* **No collapsed spring** (:func:`collapsed_springs`): a spring with ``k > 0`` at length
+  ``<= 1e-9 L`` exerts a force whose direction is undefined (taken as zero), so a state
+  with one is not an equilibrium however small its residual.
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .constraints import Problem, clamp_tensions
+from .kkt import factor_spd
+from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
+from .model import SpringNetwork
+from .rigidity import zero_modes
+
+__all__ = [
+    "CURVATURE_DENSE_MAX",
+    "RANK_MAX",
+    "collapsed_springs",
+    "escape_direction",
+    "floppy_modes",
+    "lowest_curvature",
+]
+
+RANK_MAX = 20_000  # free coordinates up to which rigidity is checked by rank
+CURVATURE_DENSE_MAX = 1200  # dense eigenvalues of the reduced Hessian up to this size
+_CACHE: dict[int, dict] = {}
+
+
+def _generic(net: SpringNetwork) -> NDArray:
+    """``net.positions`` moved by a fixed pseudo-random 10 % of the mean rest length."""
+    i = np.arange(net.n_nodes)
+    angle = 2.399963229728653 * i  # golden angle: a deterministic, generic pattern
+    radius = 0.1 * float(np.mean(net.rest_length)) * np.sqrt(((i * 0.6180339887) % 1.0) + 0.1)
+    return net.positions + radius[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+
+
+def floppy_modes(problem: Problem) -> int:
+    """Internal zero modes of ``problem`` by rank at a generic configuration (0 when rigid).
+
+    Rows: springs with ``k > 0`` and clamped springs; columns: free coordinates. Above
+    :data:`RANK_MAX` free coordinates the check is skipped (returns 0): Maxwell's count and
+    the factorisations still catch most mechanisms there.
+    """
+    net = problem.net
+    n_free = int(problem.free_flat.size)
+    if n_free == 0 or n_free > RANK_MAX:
+        return 0
+    key_array = id(net.springs)
+    if key_array not in _CACHE:
+        _CACHE[key_array] = {}
+        weakref.finalize(net.springs, _CACHE.pop, key_array, None)
+    rows = net.stiffness > 0
+    rows[problem.clamp_springs] = True
+    key = (net.n_nodes, problem.free.tobytes(), rows.tobytes())
+    per = _CACHE[key_array]
+    if key not in per:
+        per[key] = zero_modes(
+            net, pinned=~problem.free, clamped=problem.clamp_springs, x=_generic(net), rtol=1e-9
+        )
+    return int(per[key])
+
+
+def collapsed_springs(problem: Problem, x: NDArray) -> NDArray[np.int64]:
+    """Springs with ``k > 0`` whose length at ``x`` is ``<= 1e-9`` of their rest length."""
+    net = problem.net
+    r = net.lengths(x)
+    return np.flatnonzero((net.stiffness > 0) & (r <= 1e-9 * net.rest_length))
+
+
+def _reduced(problem: Problem, x: NDArray) -> tuple[NDArray, NDArray, Frame, NDArray]:
+    """Scaled reduced Hessian ``H`` (dense), the basis ``Q``, the frame and ``D^-1/2``."""
+    net = problem.net
+    frame = Frame(net, problem.free)
+    coords = frame.coords
+    springs, k, _ = problem.all_springs()
+    kappa = np.bincount(springs[:, 0], k, net.n_nodes) + np.bincount(springs[:, 1], k, net.n_nodes)
+    kappa[kappa <= 0] = max(float(kappa.max(initial=0.0)), 1.0)
+    inv_root = 1.0 / np.sqrt(np.repeat(kappa, 2)[coords])
+    m = problem.n_clamps if problem.exact else 0
+    g = problem.gradient(x).ravel()[coords]
+    if m:
+        A = problem.clamp_jacobian(x, coords, dense=True)
+        mu = clamp_tensions(A, g, problem.scale[coords])
+        Q = np.linalg.svd(A * inv_root[None, :])[2][m:].T
+    else:
+        mu, Q = np.empty(0), np.eye(coords.size)
+    W = frame.pattern.assemble_dense(lagrangian_blocks(problem, x, mu, 0.0))
+    Ws = W * inv_root[:, None] * inv_root[None, :]
+    H = Q.T @ Ws @ Q
+    return 0.5 * (H + H.T), Q, frame, inv_root
+
+
+def lowest_curvature(problem: Problem, x: NDArray) -> float | None:
+    """Smallest eigenvalue of the scaled reduced Hessian at ``x`` (dimensionless: relative
+    to each node's stiffness). Dense up to :data:`CURVATURE_DENSE_MAX` free coordinates;
+    above, only the sign is found (a positive-definite factorisation of ``W + rho A^T A``
+    returns +inf, a failed one None)."""
+    if problem.free_flat.size == 0:
+        return np.inf
+    if problem.free_flat.size <= CURVATURE_DENSE_MAX:
+        H = _reduced(problem, x)[0]
+        return float(np.linalg.eigvalsh(H)[0]) if H.size else np.inf
+    net = problem.net
+    frame = Frame(net, problem.free)
+    coords = frame.coords
+    mu = np.empty(0)
+    if problem.exact:
+        g = problem.gradient(x).ravel()[coords]
+        A = problem.clamp_jacobian(x, coords)
+        mu = clamp_tensions(A, g, problem.scale[coords])
+    rho = 100.0 * float(np.max(net.stiffness)) if problem.exact else 0.0
+    W = lagrangian_hessian(problem, x, mu, rho=rho, frame=frame)
+    return np.inf if factor_spd(W, ordered=frame.ordered) is not None else None
+
+
+def escape_direction(problem: Problem, x: NDArray) -> NDArray | None:
+    """A unit move (n_nodes, 2) along the reduced Hessian's lowest eigenvector, in length
+    units of the mean rest length; None when the problem is too large for dense
+    eigenvectors."""
+    if problem.free_flat.size > CURVATURE_DENSE_MAX:
+        return None
+    H, Q, frame, inv_root = _reduced(problem, x)
+    vecs = np.linalg.eigh(H)[1]
+    move = (Q @ vecs[:, 0]) * inv_root
+    move /= max(float(np.max(np.abs(move))), 1e-300)
+    return frame.put(move) * float(np.mean(problem.net.rest_length))

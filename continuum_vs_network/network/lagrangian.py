@@ -1,0 +1,287 @@
+"""The Lagrangian of a clamped equilibrium: its Hessian, the row order, and a trust region.
+
+One implementation serves every solver of the package: :func:`~.newton.newton` (through
+:func:`lagrangian_blocks`), the learning tracker's chord iteration, sensitivities (exact
+gradients) and source sweeps.
+
+* :class:`Frame`: the order of the free coordinates in assembled matrices for one topology
+  and pin mask (fill-reducing above :data:`~.kkt.DENSE_MAX` rows), shared so that
+  factorisations made anywhere match.
+* :func:`lagrangian_blocks` / :func:`lagrangian_hessian`: ``W = H_E + sum_c mu_c d^2 r_c +
+  rho A^T A`` per spring block and assembled.
+* :func:`trust_region`: dense trust-region Newton on the clamp manifold that follows
+  negative curvature (eigen-decomposition of the reduced Hessian), for small problems that
+  stall at nearly degenerate equilibria.
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from .constraints import Problem
+from .energy import HessianPattern
+from .kkt import DENSE_MAX, factor_spd
+from .model import SpringNetwork
+from .ordering import coordinate_order, nested_dissection
+
+__all__ = ["Frame", "lagrangian_blocks", "lagrangian_hessian", "pattern_for", "trust_region"]
+
+_PATTERNS: dict[int, dict] = {}
+
+
+def pattern_for(
+    springs: NDArray, n_nodes: int, free: NDArray, positions: NDArray
+) -> HessianPattern:
+    """The Hessian pattern of a topology and pin mask, cached while the springs array lives.
+
+    Above ``DENSE_MAX`` free coordinates the rows follow a nested-dissection elimination
+    order computed from ``positions`` (n_nodes, 2); ``pattern.ordered`` says so. Networks
+    made with ``with_*`` share their read-only springs array, so a learning loop builds the
+    pattern once.
+    """
+    key_array = id(springs)
+    if key_array not in _PATTERNS:
+        _PATTERNS[key_array] = {}
+        weakref.finalize(springs, _PATTERNS.pop, key_array, None)
+    per_topology = _PATTERNS[key_array]
+    key = (n_nodes, free.tobytes())
+    if key not in per_topology:
+        coords = None
+        if int(free.sum()) > DENSE_MAX:
+            coords = coordinate_order(nested_dissection(positions, springs), free)
+        per_topology[key] = HessianPattern(springs, n_nodes, free, coords)
+        per_topology[key].ordered = coords is not None
+    return per_topology[key]
+
+
+def lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) -> NDArray:
+    """Per-spring 2x2 blocks of the augmented Lagrangian's Hessian, (n_springs, 2, 2).
+
+    Axial ``k (+ rho)`` along ``u u^T`` and tangential ``k (1 - L/r) (+ lam / r)`` along
+    ``I - u u^T``; rods add theirs on their spring's node pair.
+    """
+    net = problem.net
+    springs, clamps = net.springs, problem.clamp_springs
+    d = x[springs[:, 1]] - x[springs[:, 0]]
+    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
+    axial = net.stiffness.copy()
+    tangential = net.stiffness * (1.0 - net.rest_length / r)
+    if problem.clamp == "rod" and problem.n_clamps:
+        k_rod = problem.rod_stiffness
+        axial[clamps] += k_rod
+        tangential[clamps] += k_rod * (1.0 - problem.clamp_lengths / r[clamps])
+    elif lam.size:
+        axial[clamps] += rho
+        tangential[clamps] += lam / r[clamps]
+    u = d / r[:, None]
+    uu = u[:, :, None] * u[:, None, :]
+    return axial[:, None, None] * uu + tangential[:, None, None] * (np.eye(2) - uu)
+
+
+class Frame:
+    """The order of the free coordinates in assembled matrices, for one topology and pins.
+
+    The core's :func:`~.newton.pattern_for` may order rows for
+    fill reduction (``pattern.coords``); every vector and matrix this module builds uses
+    the same order, so factorisations match the ones ``relax`` makes.
+
+    Attributes
+    ----------
+    pattern : HessianPattern
+    coords : (n,) int array
+        Flat coordinate (index into ``x.ravel()``) of each row.
+    index : (2 n_nodes,) int array
+        Row of each flat coordinate, -1 for pinned ones.
+    ordered : bool
+        Rows are already in a fill-reducing order.
+    """
+
+    def __init__(self, net: SpringNetwork, free: NDArray) -> None:
+        free = np.asarray(free, dtype=bool)
+        pattern = pattern_for(net.springs, net.n_nodes, free, net.positions)
+        self.pattern = pattern
+        coords = getattr(pattern, "coords", None)
+        self.coords = np.flatnonzero(free.ravel()) if coords is None else np.asarray(coords)
+        self.ordered = bool(getattr(pattern, "ordered", False))
+        self.n_nodes = net.n_nodes
+        self.n = int(self.coords.size)
+        self.index = np.full(2 * net.n_nodes, -1, dtype=np.int64)
+        self.index[self.coords] = np.arange(self.n)
+        self._incidence: tuple[sp.csr_matrix, sp.csr_matrix] | None = None
+
+    def take(self, full: NDArray) -> NDArray:
+        """Free entries of a (n_nodes, 2) array, in row order, (n,)."""
+        return np.asarray(full).reshape(-1)[self.coords]
+
+    def put(self, vec: NDArray) -> NDArray:
+        """A (n_nodes, 2) array that is ``vec`` on free coordinates and 0 elsewhere."""
+        out = np.zeros(2 * self.n_nodes)
+        out[self.coords] = vec
+        return out.reshape(self.n_nodes, 2)
+
+    def rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> sp.csr_matrix:
+        """Length gradients ``dr_j/dx`` of ``springs`` as a sparse (len(springs), n)."""
+        springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
+        pairs = net.springs[springs]
+        d = x[pairs[:, 1]] - x[pairs[:, 0]]
+        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
+        flat = np.stack(
+            [2 * pairs[:, 0], 2 * pairs[:, 0] + 1, 2 * pairs[:, 1], 2 * pairs[:, 1] + 1], 1
+        )
+        vals = np.stack([-u[:, 0], -u[:, 1], u[:, 0], u[:, 1]], 1)
+        cols = self.index[flat]
+        keep = cols >= 0
+        rows = np.repeat(np.arange(springs.size), 4).reshape(-1, 4)
+        return sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(springs.size, self.n))
+
+    def gradient(self, net: SpringNetwork, x: NDArray) -> NDArray:
+        """``dE/dx`` on free coordinates in row order, (n,), by two sparse products.
+
+        Same values as :func:`~continuum_vs_network.network.energy.spring_gradient`
+        (round-off aside); the incidence matrices are built once per frame.
+        """
+        return self.gradient_and_lengths(net, x)[0]
+
+    def gradient_and_lengths(self, net: SpringNetwork, x: NDArray) -> tuple[NDArray, NDArray]:
+        """:meth:`gradient` and the spring lengths ``r`` (n_springs,) it used."""
+        if self._incidence is None:
+            s = net.n_springs
+            rows = np.concatenate([np.arange(s), np.arange(s)])
+            cols = np.concatenate([net.springs[:, 0], net.springs[:, 1]])
+            vals = np.concatenate([-np.ones(s), np.ones(s)])
+            D = sp.csr_matrix((vals, (rows, cols)), shape=(s, net.n_nodes))
+            self._incidence = (D, D.T.tocsr())
+        D, Dt = self._incidence
+        d = D @ x
+        r = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)
+        t = (net.stiffness * (r - net.rest_length) / np.maximum(r, 1e-300))[:, None] * d
+        return (Dt @ t).reshape(-1)[self.coords], r
+
+    def dense_rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> NDArray:
+        """Length gradients ``dr_j/dx`` of ``springs`` as a dense (len(springs), n) array."""
+        springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
+        pairs = net.springs[springs]
+        d = x[pairs[:, 1]] - x[pairs[:, 0]]
+        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
+        out = np.zeros((springs.size, self.n + 1))  # column n collects pinned entries
+        rows = np.arange(springs.size)
+        for k, (node, c, sign) in enumerate(((0, 0, -1), (0, 1, -1), (1, 0, 1), (1, 1, 1))):
+            del k
+            out[rows, self.index[2 * pairs[:, node] + c]] = sign * u[:, c]
+        return out[:, : self.n]
+
+    def factor(self, W: sp.csr_matrix):
+        """Positive-definite factorisation of ``W`` (None when it is not)."""
+        return factor_spd(W, ordered=self.ordered)
+
+
+def lagrangian_hessian(
+    problem: Problem,
+    x: NDArray,
+    multipliers: NDArray,
+    *,
+    rho: float | None = None,
+    frame: Frame | None = None,
+) -> sp.csr_matrix:
+    """Hessian of the (augmented) Lagrangian on free coordinates, (n, n) CSR.
+
+    ``W = H_E(x) + sum_c mu_c d^2 r_c / dx^2 + rho sum_c a_c a_c^T`` with ``a_c = dr_c/dx``
+    the clamp directions and ``mu`` the multipliers of ``grad E + A^T mu = 0`` (minus
+    ``Equilibrium.clamp_force``). ``rho`` (default ``max(k)`` when there are clamps) adds
+    a multiple of ``A^T A`` that leaves every KKT solution unchanged but makes ``W``
+    positive definite at a stable constrained minimum. Rows in ``frame`` order (default:
+    the frame of ``problem``). Exact clamps only.
+    """
+    frame = frame or Frame(problem.net, problem.free)
+    if rho is None:
+        rho = float(np.max(problem.net.stiffness)) if problem.n_clamps else 0.0
+    blocks = lagrangian_blocks(problem, x, np.asarray(multipliers, float), float(rho))
+    return frame.pattern.assemble(blocks)
+
+
+def trust_region(
+    problem: Problem,
+    x: NDArray,
+    *,
+    force_tol: float,
+    max_iter: int = 200,
+) -> tuple[NDArray, bool]:
+    """Dense trust-region Newton on the clamp manifold, for small stalled problems.
+
+    Newton with a positive-definite model creeps where the equilibrium is nearly degenerate
+    (a soft mode whose curvature changes sign: the warm-started branch is about to vanish
+    or has just vanished). This method uses the exact reduced Hessian
+    ``Q^T W Q`` (``Q`` a basis of the null space of the clamp Jacobian) with a trust region
+    (eigen-decomposition, so negative curvature is followed, not clipped), restores the
+    clamp lengths after every step, and accepts steps that lower the energy (or, once the
+    energy change is at round-off, the residual). It stops when
+    the residual is ``<= force_tol`` (absolute); :func:`relax` then polishes. Dense:
+    O(n_free^3) per iteration.
+
+    Returns ``(x, reached)``.
+    """
+    net = problem.net
+    frame = Frame(net, problem.free)
+    clamps = problem.clamp_springs
+    m = problem.n_clamps
+    x = _restore(problem, np.array(x, dtype=np.float64))
+    scale = float(np.mean(net.rest_length))
+    radius = 0.1 * scale
+    energy = problem.energy(x)
+    for _ in range(max_iter):
+        res = problem.residual(x)
+        residual, mu = res.imbalance, res.multipliers
+        if residual <= force_tol:
+            return x, True
+        g = frame.take(problem.gradient(x))
+        if m:
+            vt = np.linalg.svd(frame.rows(net, x, clamps).toarray())[2]
+            Q = vt[m:].T
+        else:
+            Q = np.eye(frame.n)
+        W = lagrangian_hessian(problem, x, mu, rho=0.0, frame=frame).toarray()
+        H = Q.T @ W @ Q
+        gr = Q.T @ g
+        vals, vecs = np.linalg.eigh(H)
+        gt = vecs.T @ gr
+
+        low = max(0.0, -vals[0])
+        p = _tr_step(vals, vecs, gt, 0.0) if vals[0] > 0 else None
+        if p is None or np.linalg.norm(p) > radius:
+            lo, hi = low, low + np.linalg.norm(gr) / radius + abs(vals[-1])
+            for _ in range(80):  # bisection on the shift: |p(shift)| = radius
+                mid = 0.5 * (lo + hi)
+                long = np.linalg.norm(_tr_step(vals, vecs, gt, mid)) > radius
+                lo, hi = (mid, hi) if long else (lo, mid)
+            p = _tr_step(vals, vecs, gt, hi)
+        predicted = float(gr @ p + 0.5 * p @ H @ p)
+        y = x + frame.put(Q @ p)
+        y = _restore(problem, y)
+        e_y = problem.energy(y)
+        ratio = (e_y - energy) / predicted if predicted < 0 else -1.0
+        flat = abs(e_y - energy) <= 1e-12 * abs(energy)  # energy at round-off: use the force
+        if e_y < energy or (flat and problem.residual(y).imbalance < residual):
+            x, energy = y, e_y
+        radius *= 2.0 if ratio > 0.75 else (0.25 if ratio < 0.25 else 1.0)
+        radius = max(radius, 1e-12 * scale)
+    return x, False
+
+
+def _tr_step(vals: NDArray, vecs: NDArray, gt: NDArray, shift: float) -> NDArray:
+    return -vecs @ (gt / (vals + shift))
+
+
+def _restore(problem: Problem, y: NDArray) -> NDArray:
+    """Minimum-norm correction of ``y`` back onto the clamp lengths (Gauss-Newton)."""
+    if not problem.n_clamps:
+        return y
+    target = 1e-13 * float(np.mean(problem.clamp_lengths))
+    for _ in range(20):
+        if np.max(np.abs(problem.clamp_violation(y))) <= target:
+            break
+        y = problem.toward_clamps(y)
+    return y

@@ -1,0 +1,92 @@
+"""The KKT module: solutions satisfy both block equations; inertia matches eigenvalues."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from continuum_vs_network.network.kkt import Inertia, factor_kkt, factor_spd
+
+
+def _laplacian_2d(side: int) -> sp.csr_matrix:
+    """SPD 5-point Laplacian on a side x side grid (Dirichlet), n = side^2."""
+    t = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(side, side))
+    eye = sp.identity(side)
+    return (sp.kron(t, eye) + sp.kron(eye, t)).tocsr()
+
+
+def _dense_inertia(W, A) -> Inertia:
+    n, m = W.shape[0], A.shape[0]
+    K = np.zeros((n + m, n + m))
+    K[:n, :n] = W.toarray() if sp.issparse(W) else W
+    K[n:, :n] = A.toarray() if sp.issparse(A) else A
+    K[:n, n:] = K[n:, :n].T
+    ev = np.linalg.eigvalsh(K)
+    tiny = 1e-10 * np.abs(ev).max()
+    return Inertia(int((ev > tiny).sum()), int((ev < -tiny).sum()), int((abs(ev) <= tiny).sum()))
+
+
+def _check_solution(kkt, W, A, rng):
+    n, m = W.shape[0], A.shape[0]
+    b, c = rng.standard_normal(n), rng.standard_normal(m)
+    x, y = kkt.solve(b, c)
+    scale = np.abs(b).max() + np.abs(c).max()
+    np.testing.assert_allclose(W @ x + A.T @ y, b, atol=1e-9 * scale * max(1, abs(y).max()))
+    np.testing.assert_allclose(A @ x, c, atol=1e-9 * scale * max(1, abs(x).max()))
+    # several right-hand sides at once give the same columns
+    B = rng.standard_normal((n, 3))
+    X, _ = kkt.solve(B, np.zeros((m, 3)))
+    np.testing.assert_allclose(X[:, 1], kkt.solve(B[:, 1])[0], rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("side", [6, 24])  # dense (36) and sparse (576) paths
+@pytest.mark.parametrize("sparse_a", [False, True])
+def test_positive_definite_w_range_space(side, sparse_a):
+    rng = np.random.default_rng(side)
+    W = _laplacian_2d(side)
+    A = rng.standard_normal((3, W.shape[0]))
+    A = sp.csr_matrix(A) if sparse_a else A
+    kkt = factor_kkt(W, A)
+    assert kkt.range_space and kkt.inertia == Inertia(W.shape[0], 3, 0) and kkt.is_minimum
+    _check_solution(kkt, W, A, rng)
+
+
+@pytest.mark.parametrize("side", [5, 22])
+def test_indefinite_w_with_positive_reduced_hessian_is_a_minimum(side):
+    """W has one negative eigenvalue along e_0; a constraint x_0 = 0 removes it."""
+    rng = np.random.default_rng(1)
+    W = _laplacian_2d(side).tolil()
+    W[0, 0] = -5.0
+    W = W.tocsr()
+    n = W.shape[0]
+    assert factor_spd(W) is None
+    A = sp.csr_matrix(([1.0], ([0], [0])), shape=(1, n))
+    kkt = factor_kkt(W, A)
+    assert not kkt.range_space
+    if kkt.inertia is not None:  # the sparse path may not reveal it
+        assert kkt.inertia == _dense_inertia(W, A) == Inertia(n, 1, 0)
+    _check_solution(kkt, W, A, rng)
+
+
+def test_saddle_is_reported_by_the_inertia():
+    rng = np.random.default_rng(2)
+    W = np.diag([1.0, -2.0, 3.0, 4.0])
+    A = np.array([[1.0, 0.0, 0.0, 1.0]])  # leaves the negative direction e_1 free
+    kkt = factor_kkt(W, A)
+    # a minimum would be (4, 1, 0); the free negative direction adds one negative
+    assert kkt.inertia == _dense_inertia(W, A) == Inertia(3, 2, 0)
+    assert kkt.is_minimum is False
+    _check_solution(kkt, W, A, rng)
+
+
+def test_without_constraints_and_singular_inputs():
+    W = _laplacian_2d(4)
+    x, y = factor_kkt(W).solve(np.ones(16))
+    np.testing.assert_allclose(W @ x, np.ones(16), atol=1e-12)
+    assert y.shape == (0,)
+    A = np.zeros((1, 16))  # a zero constraint row: rank deficient
+    with pytest.raises(np.linalg.LinAlgError):
+        factor_kkt(W, A)
+    with pytest.raises(ValueError, match="A must have 16 columns"):
+        factor_kkt(W, np.ones((1, 3)))

@@ -1,0 +1,117 @@
+"""Second-order check, collapsed springs and floppiness by rank: no saddle, no collapsed
+state and no mechanism is returned as an equilibrium."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import continuum_vs_network as cvn
+from continuum_vs_network.network.builders import triangular_lattice
+from continuum_vs_network.network.checks import lowest_curvature
+from continuum_vs_network.network.constraints import Problem
+
+
+def _collinear_clamped_triangle():
+    """Base 0-1 clamped at 2 between two pinned-ish nodes, apex 2 started on the base line.
+
+    Sides 1-2 and 2-0 have rest length 1.2: on the line the apex sits at a saddle (energy
+    0.167 with k = 1 at x = 1 where both sides are 1.0 long); the minima lift it to
+    height sqrt(1.2^2 - 1) where the energy is 0.
+    """
+    net = cvn.SpringNetwork(
+        [[0.0, 0.0], [2.0, 0.0], [1.0, 0.0]],
+        [[0, 1], [1, 2], [2, 0]],
+        [1.0, 1.0, 1.0],
+        [2.0, 1.2, 1.2],
+    )
+    pins = np.array([[True, True], [False, True], [False, False]])
+    return net, pins
+
+
+@pytest.mark.parametrize("method", ["newton", "fire", "lbfgs"])
+def test_collinear_clamped_triangle_is_not_left_at_the_saddle(method):
+    net, pins = _collinear_clamped_triangle()
+    problem = Problem.build(net, pinned=pins, clamped={0: 2.0})
+    assert lowest_curvature(problem, net.positions) < 0  # the start is a saddle
+    eq = cvn.relax(net, pinned=pins, clamped={0: 2.0}, method=method, tol=1e-10)
+    assert eq.energy == pytest.approx(0.0, abs=1e-15)
+    assert abs(eq.positions[2, 1]) == pytest.approx(np.sqrt(1.2**2 - 1), rel=1e-8)
+    assert lowest_curvature(problem, eq.positions) > 0
+
+
+@pytest.mark.parametrize("method", ["newton", "fire", "lbfgs"])
+def test_all_nodes_at_one_point_is_not_an_equilibrium(method):
+    net = triangular_lattice(4, 4)
+    start = np.zeros((net.n_nodes, 2)) + 0.5
+    try:
+        eq = cvn.relax(net, x0=start, method=method, max_seconds=60)
+    except cvn.EquilibriumError as err:  # a clear failure is allowed, a false success is not
+        assert err.state is not None and not err.state.converged
+        return
+    assert eq.iterations > 0
+    lengths = net.lengths(eq.positions)
+    assert lengths.min() > 1e-6 * net.rest_length.min()
+    # a local minimum (possibly folded), far below the collapsed state's energy 16.5
+    assert eq.energy < 0.1 * 0.5 * np.sum(net.stiffness * net.rest_length**2)
+    assert lowest_curvature(Problem.build(net), eq.positions) > -1e-8
+
+
+def test_dangling_node_passes_maxwell_but_is_floppy_by_rank():
+    base = triangular_lattice(4, 4)
+    # a dangling node hung on node 0 by one spring, and two extra braces elsewhere so that
+    # the Maxwell count still passes
+    pos = np.vstack([base.positions, base.positions[0] + [-0.8, -0.6]])
+    extra = np.array([[base.n_nodes, 0], [0, 5], [3, 12]])
+    springs = np.vstack([base.springs, extra])
+    n = len(springs)
+    net = cvn.SpringNetwork(pos, springs, np.ones(n), np.ones(n))
+    problem = Problem.build(net)
+    assert problem.maxwell_zero_modes() == 0
+    with pytest.raises(
+        ValueError, match=rf"floppy: 1 zero modes .* fewer than two springs: \[{base.n_nodes}\]"
+    ):
+        cvn.relax(net)
+
+
+def test_hinge_passes_maxwell_but_is_floppy_by_rank():
+    """Two rigid lattices sharing one node (a hinge), over-braced inside so that Maxwell's
+    count passes: one rotation is free."""
+    a = triangular_lattice(3, 3)
+    b_pos = a.positions + (a.positions[8] - a.positions[0])  # b's node 0 on a's node 8
+    pos = np.vstack([a.positions, b_pos[1:]])
+    b_index = np.concatenate([[8], np.arange(a.n_nodes, a.n_nodes + a.n_nodes - 1)])
+    springs = np.vstack([a.springs, b_index[a.springs]])
+    # redundant braces inside each body (self-stress, no new rigidity)
+    springs = np.vstack([springs, [[0, 8], [2, 6]], b_index[np.array([[0, 8], [2, 6]])]])
+    n = len(springs)
+    d = np.linalg.norm(pos[springs[:, 1]] - pos[springs[:, 0]], axis=1)
+    net = cvn.SpringNetwork(pos, springs, np.ones(n), d)
+    assert Problem.build(net).maxwell_zero_modes() == 0
+    with pytest.raises(ValueError, match=r"floppy: 1 zero modes .* hinge"):
+        cvn.relax(net)
+
+
+def test_rigid_networks_pass_the_rank_check_even_when_started_collinear():
+    # the nearly collinear triangle is rigid generically: the check must not refuse it
+    net = cvn.SpringNetwork(
+        [[0.0, 0.0], [2.0, 0.0], [1.0, 1e-9]],
+        [[0, 1], [1, 2], [2, 0]],
+        [1.0] * 3,
+        [2.0, 1.2, 1.2],
+    )
+    pins = np.array([[1, 1], [0, 1], [0, 0]], bool)
+    eq = cvn.relax(net, pinned=pins)
+    assert eq.converged and eq.energy < 1e-20
+
+
+def test_incompatible_clamps_fail_with_a_clear_reason():
+    """A triangle clamped to sides 1, 1, 3 cannot exist: a clear failure, not a creep."""
+    net = cvn.SpringNetwork(
+        [[0, 0], [1, 0], [0.5, 0.8], [1.5, 0.8]],
+        [[0, 1], [1, 2], [2, 0], [1, 3], [2, 3]],
+        [1.0] * 5,
+        [1.0] * 5,
+    )
+    with pytest.raises(cvn.EquilibriumError, match="clamp lengths cannot all be met"):
+        cvn.relax(net, pinned=(0,), clamped={0: 1.0, 1: 1.0, 2: 3.0})
