@@ -415,11 +415,15 @@ class LearningSpec:
     etas: tuple[float, ...] = _key(
         "list[float]",
         (),
-        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
+        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta "
+        "(beyond_paper: the thermal study's nudges)",
         check=_each(_positive),
         used=_when(
-            lambda s: s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules),
-            "by learning scenes with a GCL rule",
+            lambda s: (
+                s.kind == "beyond_paper"
+                or (s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules))
+            ),
+            "by learning scenes with a GCL rule and beyond_paper scenes",
         ),
     )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
@@ -439,6 +443,14 @@ class LearningSpec:
             lambda s: any(r.startswith("aging") for r in s.learning.rules),
             "with rules aging or aging_k",
         ),
+    )
+    temperatures: tuple[float, ...] = _key(
+        "list[float]",
+        (0.0, 1e-8, 1e-6),
+        "temperatures k_B T of the thermal study (every state read as a harmonic Boltzmann "
+        "draw), one GCL run per nudge of etas and one exact-gradient run per entry",
+        check=_all(_unique_nonempty, _each(_non_negative), _increasing),
+        used=_kinds("beyond_paper"),
     )
     examples: tuple[int, ...] = _key(
         "list[int]",
