@@ -149,14 +149,18 @@ def _history(error_current: np.ndarray, net, task) -> History:
 def test_a_trivially_met_gcl_claim_is_not_reproduced():
     net, task = _lattice_task()
     gcl = [e for e in paper_experiments(strain_reference="current") if e.name == "gcl"]
-    falls = _history(np.array([[1.0, 1e-3, 1e-7]] * 4), net, task)
+    falls = _history(np.array([np.geomspace(1.0, 1e-7, 101)] * 4), net, task)
     for coupling, verdict in (("coupled", "reproduced"), ("decoupled", "not reproduced")):
         checks = check_claims({"gcl": falls}, gcl, coupling={"gcl": [coupling] * 4})
         assert [c.verdict for c in checks] == [verdict, verdict]
         assert "learning L" in checks[0].metric
-    rises = _history(np.array([[1.0, 2.0, 3.0]] * 4), net, task)
+    rises = _history(np.array([np.linspace(1.0, 3.0, 101)] * 4), net, task)
     checks = check_claims({"gcl": rises}, gcl, coupling={"gcl": ["coupled"] * 4})
     assert [c.verdict for c in checks] == ["contradicted", "contradicted"]
+    # a size reached after the paper's 300 steps is not judged on a 2-step run
+    short = _history(np.array([[1.0, 1e-3, 1e-7]] * 4), net, task)
+    checks = check_claims({"gcl": short}, gcl, coupling={"gcl": ["coupled"] * 4})
+    assert {c.verdict for c in checks} == {"not comparable"}
     # the paper's GCL clamps in the "current" convention: another convention is another rule
     other = [e for e in paper_experiments(strain_reference="initial") if e.name == "gcl"]
     initial = History(**{**falls.__dict__, "settings": {"strain_reference": "initial"}})

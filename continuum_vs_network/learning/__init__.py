@@ -2,9 +2,12 @@
 
 Light to import (numpy and scipy only). The main names:
 
-* tasks: :class:`AllosteryTask`, :func:`paper_task`, :func:`stern_task`;
+* tasks: :class:`AllosteryTask`, :func:`paper_task`, :func:`stern_task`; several examples
+  at once: :class:`TaskSet`, :func:`examples_task`, :func:`symmetric`; node
+  displacements as outputs: :class:`NodeTask`, :func:`node_task`;
 * rules: :class:`CoupledLearning`, :class:`ProspectiveConfiguration`,
-  :class:`ExactGradient` (frozen dataclasses with ``update(net, task, ...) -> Step``);
+  :class:`ExactGradient`, :class:`DirectedAging` (frozen dataclasses with
+  ``update(net, task, ...) -> Step``);
 * equilibria for learning: :class:`Solver`, :class:`Tracker`;
 * exact gradients: :func:`cost_gradient`, :class:`Sensitivity`, :func:`gcl_limit`;
 * training: :func:`train` -> :class:`History` (``.save`` / ``History.load``);
@@ -13,8 +16,12 @@ Light to import (numpy and scipy only). The main names:
 
 from __future__ import annotations
 
+from .aging import DirectedAging
 from .coupling import Coupling, measure_coupling
+from .examples import TaskSet, examples_task, symmetric
 from .history import History
+from .node_tasks import NodeTask, node_cost_gradient, node_task
+from .physical_time import TimeHistory, learn_in_time, network_relaxation_time
 from .rules import (
     CoupledLearning,
     ExactGradient,
@@ -33,20 +40,30 @@ __all__ = [
     "AllosteryTask",
     "CoupledLearning",
     "Coupling",
+    "DirectedAging",
     "ExactGradient",
     "History",
     "LearningError",
+    "NodeTask",
     "ProspectiveConfiguration",
     "Rule",
     "Sensitivity",
     "Solver",
     "Step",
+    "TaskSet",
+    "TimeHistory",
     "Tracker",
     "Warm",
     "cost_gradient",
+    "examples_task",
     "gcl_limit",
+    "learn_in_time",
     "measure_coupling",
+    "network_relaxation_time",
+    "node_cost_gradient",
+    "node_task",
     "paper_task",
     "stern_task",
+    "symmetric",
     "train",
 ]

@@ -14,7 +14,12 @@ each on the histories of a run and gives a verdict by the rule printed next to i
     strain with the sources off), which is not the success the paper claims;
 ``not comparable``
     the run differs from the paper's in what the claim depends on (coupled learning in the
-    other strain convention is another algorithm), or nothing was measured.
+    other strain convention is another algorithm; a size reached after the paper's 300
+    steps judged on a run of fewer than :data:`MIN_STEPS`), or nothing was measured.
+
+Claims of a *direction* (rises, descends, lowers) are judged at any run length; claims of
+a *size* reached (orders of magnitude, C = 0, ~50 %, 33 %, converges to 0) need at least
+:data:`MIN_STEPS` steps, a third of the paper's 300.
 
 The metric: the paper's task error (Figs. 4, 6, 10) is Eq. 26 with strains against the
 learning rest length (Eq. 24 as printed), i.e. ``error_current``; claims about ``C`` are
@@ -35,9 +40,11 @@ from numpy.typing import NDArray
 from .history import History
 from .metrics import final_values, length_error, normalised, rest_length_error
 
-__all__ = ["VERDICTS", "ClaimCheck", "check_claims", "majority"]
+__all__ = ["MIN_STEPS", "VERDICTS", "ClaimCheck", "check_claims", "majority"]
 
 VERDICTS = ("reproduced", "not reproduced", "contradicted", "not comparable")
+#: fewest learning steps on which a claim about a size reached is judged (the paper: 300)
+MIN_STEPS = 100
 
 #: the strain conventions in which the paper's run of each rule family is reproduced
 _PAPER_CONVENTIONS = {"gcl": ("current",), "gpc": ("current", "initial")}
@@ -109,6 +116,7 @@ class _Statement:
     rule: str
     judge: Callable[[float], str]
     needs_coupling: bool = False  # a claim that the task is learned
+    size: bool = True  # a size reached (False: a direction)
 
 
 def _c_ratio(h: History) -> NDArray:
@@ -158,6 +166,7 @@ def _fall(claim: str, metric: str, measure) -> _Statement:
         measure,
         "reproduced if < 1 (it fell); contradicted if > 1",
         lambda m: "reproduced" if m < 1 else "contradicted" if m > 1 else "not reproduced",
+        size=False,
     )
 
 
@@ -169,6 +178,7 @@ def _gpc_statements() -> list[_Statement]:
             lambda h: _mean(_c_ratio(h)),
             "reproduced if > 1; contradicted if < 1",
             lambda m: "reproduced" if m > 1 else "contradicted" if m < 1 else "not reproduced",
+            size=False,
         ),
         _fall(
             "the clamped energy E^C descends",
@@ -275,6 +285,9 @@ def check_claims(
                 )
             elif not np.isfinite(m):
                 verdict, reason = "not comparable", "no trial measured"
+            elif st.size and h.steps < MIN_STEPS:
+                verdict = "not comparable"
+                reason = f"a size after 300 steps; this run has {h.steps} < {MIN_STEPS}"
             else:
                 verdict = st.judge(m)
                 if st.needs_coupling:

@@ -14,7 +14,10 @@ not produce (``energy_clamped`` of the exact gradient, which uses no clamped sta
 The task error is recorded in both strain conventions under explicit names,
 ``error_initial`` and ``error_current``; there is no convention-dependent ``error``
 (``history.task_error(strain_reference)`` picks one by name, and ``history.strain_reference``
-is the convention the rule trained in).
+is the convention the rule trained in). A :class:`~.node_tasks.NodeTask` measures no
+strain: both hold its error, and ``target_length`` / ``target_strain`` / ``desired_length``
+hold the target coordinates, their displacements and the desired coordinates
+(``target_rest_length`` stays NaN: there are no target springs).
 """
 
 from __future__ import annotations

@@ -92,7 +92,11 @@ def with_learning_arrays(net: Any, arrays: dict[str, NDArray]) -> Any:
 
 
 _KINDS = {"LearnableBody": ("continuum_vs_network.continuum.learnable", "LearnableBody")}
-_TASKS = {"MaterialTask": ("continuum_vs_network.continuum.material_task", "MaterialTask")}
+_TASKS = {
+    "MaterialTask": ("continuum_vs_network.continuum.material_task", "MaterialTask"),
+    "TaskSet": ("continuum_vs_network.learning.examples", "TaskSet"),
+    "NodeTask": ("continuum_vs_network.learning.node_tasks", "NodeTask"),
+}
 
 
 def medium_arrays(prefix: str, obj: Any) -> dict[str, NDArray]:

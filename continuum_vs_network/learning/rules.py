@@ -53,7 +53,10 @@ exponentially when the target should stretch (or runs to 0 when it should shrink
 Prospective configuration in the ``"current"`` convention has the same runaway on every
 clamped spring (``dL = alpha k S L``).
 
-Options every rule honours: ``dof``, ``learn_sources`` and ``learn_targets`` (both False by
+Options every rule honours: ``dof`` (``"rest_length"``, ``"stiffness"``, or ``"both"``:
+rest lengths and stiffnesses learned together, each by its own line of the rule, from the
+same states; the exact gradient's two rows are the gradient with respect to both),
+``learn_sources`` and ``learn_targets`` (both False by
 default: bulk learning; a target that learns its own rest length meets the task trivially,
 without the bulk transmitting anything, see :mod:`.coupling`),
 ``strain_reference`` (``"initial"``, the default: fixed clamp lengths from the task's
@@ -74,7 +77,9 @@ from numpy.typing import NDArray
 from .. import _validate as check
 from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
-from .sensitivity import Cost, cost_gradient
+from .examples import TaskSet
+from .node_tasks import NodeTask, node_cost_gradient
+from .sensitivity import Cost, Sensitivity, cost_gradient
 from .states import Solver, Tracker
 from .tasks import AllosteryTask, StrainReference, check_strain_reference
 
@@ -84,13 +89,16 @@ __all__ = [
     "ExactGradient",
     "LearningError",
     "ProspectiveConfiguration",
+    "Readout",
     "Rule",
     "Step",
     "Warm",
 ]
 
-Dof = Literal["rest_length", "stiffness", "eigenstrain", "modulus"]
-_NETWORK_DOFS = ("rest_length", "stiffness")
+Dof = Literal["rest_length", "stiffness", "both", "eigenstrain", "modulus"]
+_NETWORK_DOFS = ("rest_length", "stiffness", "both")
+#: the rows of a joint (``dof="both"``) update, in order
+JOINT = ("rest_length", "stiffness")
 
 
 class LearningError(RuntimeError):
@@ -108,11 +116,18 @@ class Warm:
     previous_free : (n_nodes, 2) float array or None
         The free equilibrium one step earlier: with ``free`` it extrapolates the next free
         state (a guess for the fast solver; the warm start stays ``free``).
+    examples : tuple of Warm or None
+        One warm start per example of a :class:`~.examples.TaskSet`.
     """
 
     free: NDArray | None = None
     clamped: NDArray | None = None
     previous_free: NDArray | None = None
+    examples: tuple[Warm, ...] | None = None
+
+    def example(self, e: int) -> Warm:
+        """The warm start of example ``e`` (empty when there is none)."""
+        return self.examples[e] if self.examples is not None else Warm()
 
     def free_guess(self) -> NDArray | None:
         """Linear extrapolation ``2 free - previous_free`` (or ``free``)."""
@@ -127,9 +142,10 @@ class Step:
 
     Attributes
     ----------
-    delta : (n_springs,) float array
-        Change of ``L`` or ``k`` (masks and floors applied).
-    dof : {"rest_length", "stiffness"}
+    delta : (n_springs,) float array, or (2, n_springs) for ``dof="both"``
+        Change of ``L`` or ``k`` (masks and floors applied); for ``"both"`` the rows are
+        the changes of ``L`` and of ``k`` (:data:`JOINT`), learned together.
+    dof : {"rest_length", "stiffness", "both"}
     free : Equilibrium or None
         Free state (sources clamped) of the network before the step, when the rule used one.
     clamped : Equilibrium or None
@@ -140,6 +156,9 @@ class Step:
         Spring lengths as the rule read them (with read-out noise, if any).
     raw : (n_springs,) float array
         The rule's update before masks and floors.
+    examples : tuple of Step or None
+        For a :class:`~.examples.TaskSet`: each example's step (its states and raw
+        update); ``delta`` is their summed ``raw``, masked and floored once.
     """
 
     delta: NDArray[np.float64]
@@ -151,10 +170,13 @@ class Step:
     measured_clamped: NDArray | None = field(default=None, repr=False)
     raw: NDArray | None = field(default=None, repr=False)
     previous: Warm | None = field(default=None, repr=False)
+    examples: tuple[Step, ...] | None = field(default=None, repr=False)
 
     @property
     def warm(self) -> Warm:
         """Warm starts for the next step (this step's states; the older ones kept)."""
+        if self.examples is not None:
+            return Warm(examples=tuple(s.warm for s in self.examples))
         before = self.previous or Warm()
         return Warm(
             free=before.free if self.free is None else self.free.positions,
@@ -176,36 +198,47 @@ class Step:
             except ValueError as err:
                 raise LearningError(str(err)) from err
         _check_finite_update(self.delta, self.dof)
-        if self.dof == "rest_length":
-            new = net.rest_length + self.delta
-            _check_finite_update(new, self.dof)
-            bad = np.flatnonzero(new <= 0)
-            if bad.size:
-                j = int(bad[0])
-                raise LearningError(
-                    f"rest length of spring {j} would become {new[j]:.3g} <= 0 "
-                    f"({bad.size} springs); set min_rest_length to floor it"
-                )
-            return net.with_rest_length(new)
-        new = net.stiffness + self.delta
-        _check_finite_update(new, self.dof)
-        bad = np.flatnonzero(new < 0)
+        if self.dof == "both":  # rest lengths and stiffnesses together: rows JOINT
+            for dof, row in zip(JOINT, self.delta):
+                net = _apply_one(net, dof, row)
+            return net
+        return _apply_one(net, self.dof, self.delta)
+
+
+def _apply_one(net: SpringNetwork, dof: str, delta: NDArray) -> SpringNetwork:
+    """``net`` with ``delta`` added to its rest lengths or stiffnesses (checked)."""
+    if dof == "rest_length":
+        new = net.rest_length + delta
+        _check_finite_update(new, dof)
+        bad = np.flatnonzero(new <= 0)
         if bad.size:
             j = int(bad[0])
             raise LearningError(
-                f"stiffness of spring {j} would become {new[j]:.3g} < 0 "
-                f"({bad.size} springs); set min_stiffness to floor it"
+                f"rest length of spring {j} would become {new[j]:.3g} <= 0 "
+                f"({bad.size} springs); set min_rest_length to floor it"
             )
-        return net.with_stiffness(new)
+        return net.with_rest_length(new)
+    new = net.stiffness + delta
+    _check_finite_update(new, dof)
+    bad = np.flatnonzero(new < 0)
+    if bad.size:
+        j = int(bad[0])
+        raise LearningError(
+            f"stiffness of spring {j} would become {new[j]:.3g} < 0 "
+            f"({bad.size} springs); set min_stiffness to floor it"
+        )
+    return net.with_stiffness(new)
 
 
 def _check_finite_update(values: NDArray, dof: str) -> None:
     """A non-finite update (an overflow: learning rate too large, a diverged state) stops."""
+    values = np.asarray(values)
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
-        j = int(bad[0])
+        j = int(bad[0]) % values.shape[-1]
+        value = values.ravel()[bad[0]]
         raise LearningError(
-            f"the {dof} update of spring {j} is not finite ({values[j]}; {bad.size} springs): "
+            f"the {dof} update of spring {j} is not finite ({value}; {bad.size} springs): "
             f"the step overflowed (lower the learning rate)"
         )
 
@@ -213,6 +246,27 @@ def _check_finite_update(values: NDArray, dof: str) -> None:
 def _plain(value: object) -> object:
     """Tuples as lists, so that settings survive a JSON round trip unchanged."""
     return list(value) if isinstance(value, tuple) else value
+
+
+@dataclass(frozen=True)
+class Readout:
+    """How a rule reads a state: relative read-out noise and temperature (``k_B T``)."""
+
+    noise: float = 0.0
+    temperature: float = 0.0
+
+    def lengths(self, net, state, pinned, clamps, rng) -> NDArray:
+        """Spring lengths of ``state`` as read: one thermal draw around it
+        (:func:`~.thermal.thermal_sample`) when ``temperature > 0``, then read-out noise."""
+        x = state.positions
+        if self.temperature > 0:
+            from .thermal import thermal_sample
+
+            try:
+                x = thermal_sample(net, pinned, clamps, state, self.temperature, rng)
+            except ValueError as err:
+                raise LearningError(str(err)) from err
+        return _noisy(net.lengths(x), self.noise, rng)
 
 
 def _noisy(lengths: NDArray, noise: float, rng: np.random.Generator | None) -> NDArray:
@@ -234,7 +288,9 @@ class Rule:
     solver: Solver = field(default_factory=Solver)
 
     def __post_init__(self) -> None:
-        check.choice("dof", self.dof, ("rest_length", "stiffness", "eigenstrain", "modulus"))
+        check.choice(
+            "dof", self.dof, ("rest_length", "stiffness", "both", "eigenstrain", "modulus")
+        )
         check_strain_reference(self.strain_reference)
         check.boolean("learn_sources", self.learn_sources)
         check.boolean("learn_targets", self.learn_targets)
@@ -281,13 +337,24 @@ class Rule:
 
     def _delta(self, net: SpringNetwork, task: AllosteryTask, raw: NDArray) -> NDArray:
         """Mask and floor a raw update. A floor stops a decrease; it never lifts a value."""
+        if self.dof == "both":
+            return np.stack([self._delta_one(net, task, r, d) for r, d in zip(raw, JOINT)])
+        return self._delta_one(net, task, raw, self.dof)
+
+    def _delta_one(self, net, task, raw: NDArray, dof: str) -> NDArray:
         raw = np.where(self.learning_mask(net, task), raw, 0.0)
-        old = net.rest_length if self.dof == "rest_length" else net.stiffness
-        floor = self.min_rest_length if self.dof == "rest_length" else self.min_stiffness
+        old = net.rest_length if dof == "rest_length" else net.stiffness
+        floor = self.min_rest_length if dof == "rest_length" else self.min_stiffness
         if floor is None:
             return raw
         new = np.maximum(old + raw, np.minimum(old, floor))
         return new - old
+
+    def _per_dof(self, local) -> NDArray:
+        """``local(dof)`` for the rule's ``dof``; rows :data:`JOINT` stacked for "both"."""
+        if self.dof == "both":
+            return np.stack([local(d) for d in JOINT])
+        return local(self.dof)
 
     def _free(
         self,
@@ -301,6 +368,24 @@ class Rule:
             net, task.pinned, clamps, warm.free, key="free", guess=warm.free_guess()
         )
 
+    def _fully_clamped(self, net, task, warm, tracker, read: Readout, rng):
+        """The state with sources *and* targets clamped at the task's strains (GPC's
+        clamped state, the trainer's imposed strain of directed aging): ``(state, target
+        clamp lengths, measured spring lengths)``."""
+        ref = self.strain_reference
+        x0 = warm.clamped if warm.clamped is not None else warm.free
+        if isinstance(task, NodeTask):  # target coordinates pinned at the desired values
+            lengths = task.desired
+            pinned, start = task.node_clamps(net.positions if x0 is None else x0, lengths)
+            clamps = task.source_clamps(net)
+            clamped = tracker.solve(net, pinned, clamps, start, key="clamped")
+            return clamped, lengths, net.lengths(clamped.positions)
+        lengths = task.desired_lengths(net, ref)
+        clamps = task.source_clamps(net, ref)
+        clamps.update(zip(task.targets.tolist(), lengths.tolist()))
+        clamped = tracker.solve(net, task.pinned, clamps, x0, key="clamped")
+        return clamped, lengths, read.lengths(net, clamped, task.pinned, clamps, rng)
+
     def update(
         self,
         net: SpringNetwork,
@@ -309,6 +394,7 @@ class Rule:
         warm: Warm | None = None,
         tracker: Tracker | None = None,
         noise: float = 0.0,
+        temperature: float = 0.0,
         rng: np.random.Generator | None = None,
     ) -> Step:
         """One learning step on ``net`` for ``task``.
@@ -316,7 +402,8 @@ class Rule:
         Parameters
         ----------
         net : SpringNetwork
-        task : AllosteryTask
+        task : AllosteryTask or TaskSet
+            A task set (several examples) gives the sum of the per-example updates.
         warm : Warm, optional
             Warm starts (the previous step's ``step.warm``).
         tracker : Tracker, optional
@@ -326,13 +413,19 @@ class Rule:
             Relative read-out noise: every length the rule reads is ``r (1 + noise xi)``
             with ``xi ~ N(0, 1)`` drawn from ``rng``.
         rng : numpy.random.Generator, optional
-            Required when ``noise > 0``.
+            Required when ``noise > 0`` or ``temperature > 0``.
+        temperature : float
+            ``k_B T`` (energy units): every state the rule reads is one draw of its thermal
+            fluctuations (exact harmonic Boltzmann distribution, :mod:`.thermal`) instead
+            of the equilibrium; the rule's own states are still found as equilibria.
 
         Returns
         -------
         Step
         """
         if not isinstance(net, SpringNetwork):
+            if temperature != 0.0:
+                raise ValueError("temperature is implemented for spring networks only")
             return self._medium_update(net, task, tracker=tracker, noise=noise)
         if self.dof not in _NETWORK_DOFS:
             raise ValueError(
@@ -340,13 +433,37 @@ class Rule:
             )
         task.check(net)
         noise = check.real("noise", noise, low=0)
-        if noise > 0 and not isinstance(rng, np.random.Generator):
-            raise ValueError("noise > 0 needs rng, a numpy.random.Generator")
+        temperature = check.real("temperature", temperature, low=0)
+        if (noise > 0 or temperature > 0) and not isinstance(rng, np.random.Generator):
+            raise ValueError("noise > 0 or temperature > 0 needs rng, a numpy.random.Generator")
+        if isinstance(task, NodeTask) and (noise > 0 or temperature > 0):
+            raise ValueError(
+                "read-out noise and temperature are implemented for spring tasks: node tasks "
+                "take noise 0 and temperature 0"
+            )
+        read = Readout(float(noise), float(temperature))
         tracker = tracker or Tracker(self.solver)
         warm = warm or Warm()
-        step = self._update(net, task, warm, tracker, float(noise), rng)
+        if isinstance(task, TaskSet):
+            return self._update_examples(net, task, warm, tracker, read, rng)
+        step = self._update(net, task, warm, tracker, read, rng)
         _check_finite_update(step.delta, self.dof)
         return dataclasses.replace(step, previous=warm)
+
+    def _update_examples(self, net, tasks, warm, tracker, read, rng) -> Step:
+        """Several examples at once: the sum of the per-example updates (.examples)."""
+        steps = []
+        for e, task in enumerate(tasks.tasks):
+            w = warm.example(e)
+            step = self._update(net, task, w, tracker, read, rng)
+            steps.append(dataclasses.replace(step, previous=w))
+        raw = np.sum([s.raw for s in steps], axis=0)
+        delta = self._delta(net, tasks, raw)
+        _check_finite_update(delta, self.dof)
+        return Step(
+            delta=delta, dof=self.dof, free=None, clamped=None, raw=raw,
+            previous=warm, examples=tuple(steps),
+        )  # fmt: skip
 
     def _update(
         self,
@@ -354,7 +471,7 @@ class Rule:
         task: AllosteryTask,
         warm: Warm,
         tracker: Tracker,
-        noise: float,
+        read: Readout,
         rng: np.random.Generator | None,
     ) -> Step:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -425,10 +542,46 @@ class CoupledLearning(Rule):
         _check_rate("alpha", self.alpha)
         _check_rate("eta", self.eta)
 
-    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
+    def _update(self, net, task, warm, tracker, read, rng) -> Step:
+        if isinstance(task, NodeTask):
+            free, nudged, lengths, r_free, r_nudged = self._node_states(net, task, warm, tracker)
+        else:
+            free, nudged, lengths, r_free, r_nudged = self._states(
+                net, task, warm, tracker, read, rng
+            )
+        k, L = net.stiffness, net.rest_length
+
+        def local(dof: str) -> NDArray:
+            if dof == "rest_length":
+                return (self.alpha / self.eta) * k * (r_nudged - r_free)
+            return (self.alpha / (2 * self.eta)) * ((r_free - L) ** 2 - (r_nudged - L) ** 2)
+
+        raw = self._per_dof(local)
+        return Step(
+            delta=self._delta(net, task, raw),
+            dof=self.dof,
+            free=free,
+            clamped=nudged,
+            clamp_lengths=lengths,
+            measured_free=r_free,
+            measured_clamped=r_nudged,
+            raw=raw,
+        )
+
+    def _node_states(self, net, task, warm, tracker):
+        """Free state and the state with the target coordinates nudged (node clamps)."""
+        free = self._free(net, task, tracker, warm)
+        out = task.outputs(free.positions)
+        nudge = out + self.eta * (task.desired - out)
+        pinned, start = task.node_clamps(free.positions, nudge)
+        nudged = tracker.solve(net, pinned, task.source_clamps(net), start, key="nodes")
+        return free, nudged, nudge, net.lengths(free.positions), net.lengths(nudged.positions)
+
+    def _states(self, net, task, warm, tracker, read, rng):
+        """Free state and the state with the target springs nudged (Eq. 13)."""
         ref = self.strain_reference
         free = self._free(net, task, tracker, warm)
-        r_free = _noisy(net.lengths(free.positions), noise, rng)
+        r_free = read.lengths(net, free, task.pinned, task.source_clamps(net, ref), rng)
         s_free = task.target_strains(net, r_free[task.targets], ref)
         s_nudge = s_free + self.eta * (task.target_strain - s_free)
         lengths = task.target_rest(net, ref) * (1.0 + s_nudge)
@@ -441,22 +594,8 @@ class CoupledLearning(Rule):
             # the nudge moves the network about as much as it did one step earlier
             guess = free.positions + (np.asarray(warm.clamped) - np.asarray(warm.free))
         nudged = tracker.solve(net, task.pinned, clamps, free.positions, key="free", guess=guess)
-        r_nudged = _noisy(net.lengths(nudged.positions), noise, rng)
-        k, L = net.stiffness, net.rest_length
-        if self.dof == "rest_length":
-            raw = (self.alpha / self.eta) * k * (r_nudged - r_free)
-        else:
-            raw = (self.alpha / (2 * self.eta)) * ((r_free - L) ** 2 - (r_nudged - L) ** 2)
-        return Step(
-            delta=self._delta(net, task, raw),
-            dof=self.dof,
-            free=free,
-            clamped=nudged,
-            clamp_lengths=lengths,
-            measured_free=r_free,
-            measured_clamped=r_nudged,
-            raw=raw,
-        )
+        r_nudged = read.lengths(net, nudged, task.pinned, clamps, rng)
+        return free, nudged, lengths, r_free, r_nudged
 
     def _medium_step(self, medium, task, tracker) -> Step:
         free = medium.free_state(task, tracker=tracker)
@@ -490,19 +629,16 @@ class ProspectiveConfiguration(Rule):
     def uses_free_state(self) -> bool:
         return False
 
-    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
-        ref = self.strain_reference
-        lengths = task.desired_lengths(net, ref)
-        clamps = task.source_clamps(net, ref)
-        clamps.update(zip(task.targets.tolist(), lengths.tolist()))
-        x0 = warm.clamped if warm.clamped is not None else warm.free
-        clamped = tracker.solve(net, task.pinned, clamps, x0, key="clamped")
-        r_c = _noisy(net.lengths(clamped.positions), noise, rng)
+    def _update(self, net, task, warm, tracker, read, rng) -> Step:
+        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, read, rng)
         k, L = net.stiffness, net.rest_length
-        if self.dof == "rest_length":
-            raw = self.alpha * k * (r_c - L)
-        else:
-            raw = -0.5 * self.alpha * (r_c - L) ** 2
+
+        def local(dof: str) -> NDArray:
+            if dof == "rest_length":
+                return self.alpha * k * (r_c - L)
+            return -0.5 * self.alpha * (r_c - L) ** 2
+
+        raw = self._per_dof(local)
         return Step(
             delta=self._delta(net, task, raw),
             dof=self.dof,
@@ -544,19 +680,32 @@ class ExactGradient(Rule):
         _check_rate("alpha", self.alpha)
         check.choice("cost", self.cost, ("strain", "length"))
 
-    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
+    def _update(self, net, task, warm, tracker, read, rng) -> Step:
         free = self._free(net, task, tracker, warm)
-        r_free = _noisy(net.lengths(free.positions), noise, rng)
+        if isinstance(task, NodeTask):
+            r_free = net.lengths(free.positions)
+        else:
+            clamps = task.source_clamps(net, self.strain_reference)
+            r_free = read.lengths(net, free, task.pinned, clamps, rng)
         try:
-            grad = cost_gradient(
-                net,
-                task,
-                free,
-                strain_reference=self.strain_reference,
-                dof=self.dof,
-                cost=self.cost,
-                target_lengths=r_free[task.targets],
-            )
+            if isinstance(task, NodeTask):
+                grad = self._per_dof(lambda dof: node_cost_gradient(net, task, free, dof=dof))
+            else:
+                sens = Sensitivity(
+                    net, task.pinned, task.source_clamps(net, self.strain_reference), free
+                )  # one factorisation serves both rows of dof="both"
+                grad = self._per_dof(
+                    lambda dof: cost_gradient(
+                        net,
+                        task,
+                        free,
+                        strain_reference=self.strain_reference,
+                        dof=dof,
+                        cost=self.cost,
+                        target_lengths=r_free[task.targets],
+                        sensitivity=sens,
+                    )
+                )
         except (np.linalg.LinAlgError, RuntimeError) as err:
             raise LearningError(f"exact gradient: singular KKT system ({err})") from err
         tracker.stats.factorisations += 1

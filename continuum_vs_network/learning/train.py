@@ -33,8 +33,10 @@ from numpy.typing import NDArray
 from .. import _validate as check
 from ..network.equilibrium import Equilibrium, EquilibriumError
 from ..network.model import SpringNetwork
+from .examples import TaskSet
 from .history import LEGACY, MEASUREMENTS, UPDATES, History
 from .medium import is_medium, learning_arrays, with_learning_arrays
+from .node_tasks import NodeTask
 from .rules import LearningError, Rule, Step, Warm
 from .states import Tracker
 from .tasks import AllosteryTask
@@ -65,6 +67,7 @@ def train(
     *,
     seeds: Sequence[int] = (0,),
     noise: float = 0.0,
+    temperature: float = 0.0,
     measure: bool = True,
     progress: bool = True,
     checkpoint: str | Path | None = None,
@@ -78,7 +81,7 @@ def train(
     net : SpringNetwork or callable ``f(rng) -> SpringNetwork``
         A callable builds each trial's network from the trial's generator (e.g.
         ``paper_network``); a network is used as is in every trial.
-    task : AllosteryTask or callable ``f(net, rng) -> AllosteryTask``
+    task : AllosteryTask, TaskSet or callable ``f(net, rng) -> task``
         Likewise (e.g. ``paper_task``).
     rule : Rule
         :class:`CoupledLearning`, :class:`ProspectiveConfiguration` or
@@ -90,6 +93,9 @@ def train(
     noise : float
         Relative read-out noise of the lengths the rule reads (see ``Rule.update``);
         measurements in the history are noise-free.
+    temperature : float
+        ``k_B T``: every state the rule reads is one thermal draw around its equilibrium
+        (see ``Rule.update`` and :mod:`.thermal`); measurements are equilibria.
     measure : bool
         Solve the free state after every step to measure the error even when the rule
         does not need it (prospective configuration). With False those measurements are
@@ -121,6 +127,7 @@ def train(
         f"trial(s) of {steps} steps"
     )  # fmt: skip
     noise = check.real("noise", noise, low=0)
+    temperature = check.real("temperature", temperature, low=0)
     measure = check.boolean("measure", measure)
     checkpoint_every = check.integer("checkpoint_every", checkpoint_every, low=1)
     if callback is not None and not callable(callback):
@@ -130,6 +137,8 @@ def train(
 
     settings = dict(rule.settings())
     settings.update(steps=steps, noise=float(noise), measure=bool(measure))
+    if temperature > 0:  # (absent at T = 0: settings and checkpoints of plain runs unchanged)
+        settings["temperature"] = float(temperature)
     fingerprint = json.dumps(
         {"settings": settings, "seeds": seeds.tolist(), "every": int(checkpoint_every)},
         sort_keys=True,
@@ -151,7 +160,7 @@ def train(
                 task,
                 rule,
                 steps,
-                float(noise),
+                (float(noise), float(temperature)),
                 measure,
                 state,
                 int(checkpoint_every),
@@ -217,8 +226,11 @@ def _build(seed: int, net: NetworkSpec, task: TaskSpec):
             "net must be a SpringNetwork or a learning medium (LearnableBody), or build one; "
             f"got {type(net0).__name__}"
         )
-    if not isinstance(task0, AllosteryTask):
-        raise ValueError(f"task must be an AllosteryTask or build one, got {type(task0).__name__}")
+    if not isinstance(task0, AllosteryTask | TaskSet | NodeTask):
+        raise ValueError(
+            "task must be an AllosteryTask, a NodeTask or a TaskSet or build one, got "
+            f"{type(task0).__name__}"
+        )
     task0.check(net0)
     return net0, task0, np.random.default_rng(noise_ss)
 
@@ -230,7 +242,7 @@ def _run_trial(
     task: TaskSpec,
     rule: Rule,
     steps: int,
-    noise: float,
+    readout: tuple[float, float],
     measure: bool,
     state: _Checkpoint,
     every: int,
@@ -259,35 +271,59 @@ def _run_trial(
             "iterations": base["iterations"] + s.iterations,
         }
 
-    def measure_free(cur: SpringNetwork, warm: Warm) -> Equilibrium | None:
+    def measure_free(cur: SpringNetwork, warm: Warm, task=task0) -> Equilibrium | None:
         nonlocal measure_seconds
         if not measure:
             return None
         t0 = time.perf_counter()
         if is_medium(cur):
-            eq = cur.free_state(task0, tracker=tracker)
+            eq = cur.free_state(task, tracker=tracker)
             measure_seconds += time.perf_counter() - t0
             return eq
-        clamps = task0.source_clamps(cur, rule.strain_reference)
-        eq = tracker.solve(cur, task0.pinned, clamps, warm.free, key="free")
+        clamps = task.source_clamps(cur, rule.strain_reference)
+        eq = tracker.solve(cur, task.pinned, clamps, warm.free, key="free")
         measure_seconds += time.perf_counter() - t0
         return eq
+
+    def measure_examples(cur, warm: Warm, step: Step | None) -> list | None:
+        """Free states of every example of a task set (the rule's own, or measured)."""
+        out = []
+        for e, task in enumerate(task0.tasks):
+            own = step.examples[e].free if step is not None else None
+            out.append(own if own is not None else measure_free(cur, warm.example(e), task))
+        return None if any(f is None for f in out) else out
+
+    def next_warm(warm: Warm, step: Step, free) -> Warm:
+        if step.examples is not None:
+            return Warm(
+                examples=tuple(
+                    next_warm(warm.example(e), s, None if free is None else free[e])
+                    for e, s in enumerate(step.examples)
+                )
+            )
+        return Warm(
+            free=free.positions if free is not None else warm.free,
+            clamped=step.warm.clamped,
+            previous_free=warm.free if free is not None else warm.previous_free,
+        )
 
     t = state.step
     reason = ""
     try:
         while t < steps:
-            step = rule.update(cur, task0, warm=warm, tracker=tracker, noise=noise, rng=noise_rng)
-            free = step.free if step.free is not None else measure_free(cur, warm)
+            step = rule.update(
+                cur, task0, warm=warm, tracker=tracker, noise=readout[0],
+                temperature=readout[1], rng=noise_rng,
+            )  # fmt: skip
+            if step.examples is not None:
+                free = measure_examples(cur, warm, step)
+            else:
+                free = step.free if step.free is not None else measure_free(cur, warm)
             _record_update(rec, t, step, cur, rule, mask)
             _record_measure(rec, t, cur, task0, rule, free, mask)
             _record_time(rec, t, time.perf_counter() - t_start, measure_seconds, counters())
             nxt = step.apply(cur)
-            warm = Warm(
-                free=free.positions if free is not None else warm.free,
-                clamped=step.warm.clamped,
-                previous_free=warm.free if free is not None else warm.previous_free,
-            )
+            warm = next_warm(warm, step, free)
             cur = nxt
             t += 1
             if bar is not None:
@@ -307,7 +343,10 @@ def _run_trial(
                     measure_seconds,
                     counters(),
                 )
-        free = measure_free(cur, warm)
+        if isinstance(task0, TaskSet):
+            free = measure_examples(cur, warm, None)
+        else:
+            free = measure_free(cur, warm)
         _record_measure(rec, steps, cur, task0, rule, free, mask)
         _record_time(rec, steps, time.perf_counter() - t_start, measure_seconds, counters())
     except (EquilibriumError, LearningError) as err:
@@ -318,12 +357,16 @@ def _run_trial(
 
 
 def _energy_gradient(net: SpringNetwork, x: NDArray, dof: str, mask: NDArray) -> float:
-    dr = net.lengths(x) - net.rest_length
-    g = -net.stiffness * dr if dof == "rest_length" else 0.5 * dr**2
-    return float(np.linalg.norm(g[mask]))
+    return _summed_gradient(net, [x], dof, mask)
 
 
 def _record_measure(rec, t, net, task, rule, free, mask) -> None:
+    if isinstance(task, TaskSet):
+        _record_examples(rec, t, net, task, rule, free, mask)
+        return
+    if isinstance(task, NodeTask):
+        _record_nodes(rec, t, net, task, rule, free, mask)
+        return
     if is_medium(net):
         if free is not None:
             for name, value in net.measurements(task, free, rule.dof, mask).items():
@@ -345,8 +388,63 @@ def _record_measure(rec, t, net, task, rule, free, mask) -> None:
     rec["residual"][t] = free.residual
 
 
+def _record_examples(rec, t, net, tasks: TaskSet, rule, free, mask) -> None:
+    """A task set: summed errors and energies, the examples' target values side by side,
+    ``|sum_e dE_e/dtheta|`` and the largest residual."""
+    ref = rule.strain_reference
+    rec["target_rest_length"][t] = net.rest_length[tasks.targets]
+    rec["desired_length"][t] = tasks.desired_lengths(net, ref)
+    if free is None:
+        return
+    xs = [f.positions for f in free]
+    r_t = np.concatenate([net.lengths(x)[k.targets] for x, k in zip(xs, tasks.tasks)])
+    rec["target_length"][t] = r_t
+    rec["target_strain"][t] = np.concatenate(
+        [k.target_strains(net, net.lengths(x)[k.targets], ref) for x, k in zip(xs, tasks.tasks)]
+    )
+    rec["error_current"][t] = tasks.error(net, xs, "current")
+    rec["error_initial"][t] = tasks.error(net, xs, "initial")
+    rec["energy_free"][t] = float(sum(f.energy for f in free))
+    rec["energy_gradient_free"][t] = _summed_gradient(net, xs, rule.dof, mask)
+    rec["residual"][t] = float(max(f.residual for f in free))
+
+
+def _record_nodes(rec, t, net, task: NodeTask, rule, free, mask) -> None:
+    """A node task: ``target_length`` holds the target coordinates, ``target_strain`` their
+    displacements, ``desired_length`` the desired coordinates; one error (no strain)."""
+    rec["desired_length"][t] = task.desired
+    if free is None:
+        return
+    x = free.positions
+    out = task.outputs(x)
+    rec["target_length"][t] = out
+    rec["target_strain"][t] = out - task.reference
+    rec["error_current"][t] = rec["error_initial"][t] = task.error(net, x)
+    rec["energy_free"][t] = free.energy
+    rec["energy_gradient_free"][t] = _energy_gradient(net, x, rule.dof, mask)
+    rec["residual"][t] = free.residual
+
+
+def _summed_gradient(net: SpringNetwork, xs: list, dof: str, mask: NDArray) -> float:
+    """``|sum_x dE/dtheta(x)|`` over the learning springs (both rows for ``dof="both"``)."""
+    g = 0.0
+    for x in xs:
+        dr = net.lengths(x) - net.rest_length
+        by = {"rest_length": -net.stiffness * dr, "stiffness": 0.5 * dr**2}
+        g = g + (np.stack([by["rest_length"], by["stiffness"]]) if dof == "both" else by[dof])
+    return float(np.linalg.norm(np.asarray(g)[..., mask]))
+
+
 def _record_update(rec, t, step: Step, net, rule, mask) -> None:
     rec["update_norm"][t] = float(np.linalg.norm(step.delta))
+    if step.examples is not None:
+        clamped = [s.clamped for s in step.examples]
+        if all(c is not None for c in clamped):
+            rec["energy_clamped"][t] = float(sum(c.energy for c in clamped))
+            xs = [c.positions for c in clamped]
+            rec["energy_gradient_clamped"][t] = _summed_gradient(net, xs, rule.dof, mask)
+            rec["clamp_length"][t] = np.concatenate([s.clamp_lengths for s in step.examples])
+        return
     if step.clamped is not None and is_medium(net):
         rec["energy_clamped"][t] = step.clamped.energy
         g = net.local_gradient(step.clamped, rule.dof)
@@ -392,6 +490,20 @@ def _digest(net: SpringNetwork) -> str:
     for a in arrays or (net.positions, net.springs, net.stiffness, net.rest_length):
         h.update(np.ascontiguousarray(a).tobytes())
     return h.hexdigest()
+
+
+def _saved_warm(files: dict, examples: int | None) -> Warm:
+    if examples is not None:
+        return Warm(examples=tuple(_saved_warm_one(files, f"example{e}_") for e in range(examples)))
+    return _saved_warm_one(files, "")
+
+
+def _saved_warm_one(files: dict, infix: str) -> Warm:
+    return Warm(
+        free=files.get(f"cur/warm_{infix}free"),
+        clamped=files.get(f"cur/warm_{infix}clamped"),
+        previous_free=files.get(f"cur/warm_{infix}previous_free"),
+    )
 
 
 # -- state of a run (and its checkpoint file) -----------------------------------------------
@@ -473,7 +585,12 @@ class _Checkpoint:
             arrays["cur/warm_clamped"] = np.asarray(warm.clamped)
         if warm.previous_free is not None:
             arrays["cur/warm_previous_free"] = np.asarray(warm.previous_free)
+        for e, w in enumerate(warm.examples or ()):
+            for name in ("free", "clamped", "previous_free"):
+                if getattr(w, name) is not None:
+                    arrays[f"cur/warm_example{e}_{name}"] = np.asarray(getattr(w, name))
         progress = {
+            "examples": None if warm.examples is None else len(warm.examples),
             "trial": i,
             "step": t,
             "digest": self._current[2],
@@ -575,12 +692,10 @@ class _Checkpoint:
                 "record": {
                     k[4:]: v.copy()
                     for k, v in files.items()
-                    if k.startswith("cur/") and k[4:] not in _CURRENT_STATE | LEGACY
+                    if k.startswith("cur/")
+                    and k[4:] not in _CURRENT_STATE | LEGACY
+                    and not k.startswith("cur/warm_example")
                 },
                 "learning": {k: files[f"cur/{k}"] for k in _LEARNING if f"cur/{k}" in files},
-                "warm": Warm(
-                    free=files.get("cur/warm_free"),
-                    clamped=files.get("cur/warm_clamped"),
-                    previous_free=files.get("cur/warm_previous_free"),
-                ),
+                "warm": _saved_warm(files, progress.get("examples")),
             }

@@ -17,6 +17,7 @@ from .. import _validate as check
 from .model import SpringNetwork
 
 __all__ = [
+    "MAX_RAMP",
     "RelaxArguments",
     "clamp_arrays",
     "lone_nodes",
@@ -25,6 +26,10 @@ __all__ = [
     "relax_arguments",
     "solver_arguments",
 ]
+
+
+#: most continuation steps of one ``relax`` call (each is a full solve)
+MAX_RAMP = 10_000
 
 
 def network(value: Any, name: str = "net") -> SpringNetwork:
@@ -70,7 +75,7 @@ def relax_arguments(
     check.choice("clamp", clamp, ("exact", "rod"))
     tol = check.real("tol", tol, low=0, low_open=True)
     rod_stiffness = check.real("rod_stiffness", rod_stiffness, low=0, low_open=True)
-    ramp = check.integer("ramp", ramp, low=1)
+    ramp = check.integer("ramp", ramp, low=1, high=MAX_RAMP)
     if max_iter is not None:
         max_iter = check.integer("max_iter", max_iter, low=1, what="None or an integer >= 1")
     max_seconds = check.real("max_seconds", max_seconds, low=0, low_open=True)
@@ -144,7 +149,7 @@ def solver_arguments(solver: Any, methods: tuple[str, ...]) -> tuple[int, ...]:
     check.real("rod_stiffness", solver.rod_stiffness, low=0, low_open=True)
     if solver.max_iter is not None:
         check.integer("max_iter", solver.max_iter, low=1, what="None or an integer >= 1")
-    check.integer("ramp", solver.ramp, low=1)
+    check.integer("ramp", solver.ramp, low=1, high=MAX_RAMP)
     check.boolean("reuse", solver.reuse)
     check.real(
         "refactor_ratio", solver.refactor_ratio, low=0, high=1, low_open=True, high_open=True
@@ -154,7 +159,9 @@ def solver_arguments(solver: Any, methods: tuple[str, ...]) -> tuple[int, ...]:
     ramps = solver.retry_ramps
     if isinstance(ramps, str) or not isinstance(ramps, tuple | list):
         raise check.ArgumentError("retry_ramps", ramps, "a tuple of integers >= 1")
-    ramps = tuple(check.integer(f"retry_ramps[{i}]", r, low=1) for i, r in enumerate(ramps))
+    ramps = tuple(
+        check.integer(f"retry_ramps[{i}]", r, low=1, high=MAX_RAMP) for i, r in enumerate(ramps)
+    )
     check.integer("anderson", solver.anderson, low=0)
     check.boolean("trust_region", solver.trust_region)
     check.integer("trust_region_max_free", solver.trust_region_max_free, low=0)

@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import index_array
+from .._validate import choice, index_array, real
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .model import SpringNetwork
@@ -191,10 +191,8 @@ class Problem:
         clamp: ClampMode = "exact",
         rod_stiffness: float = 1e10,
     ) -> Problem:
-        if clamp not in ("exact", "rod"):
-            raise ValueError(f"clamp must be 'exact' or 'rod', got {clamp!r}")
-        if not (np.isfinite(rod_stiffness) and rod_stiffness > 0):
-            raise ValueError(f"rod_stiffness must be finite and > 0, got {rod_stiffness}")
+        choice("clamp", clamp, ("exact", "rod"))
+        rod_stiffness = real("rod_stiffness", rod_stiffness, low=0, low_open=True)
         idx, length = _clamp_arrays(net, clamped)
         free = ~pin_mask(net, pinned, avoid=idx)
         return cls(net, free, idx, length, clamp, float(rod_stiffness))

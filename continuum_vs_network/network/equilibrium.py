@@ -196,8 +196,8 @@ def relax(
         net, methods=tuple(METHODS), method=method, tol=tol, clamp=clamp,
         rod_stiffness=rod_stiffness, ramp=ramp, max_iter=max_iter, max_seconds=max_seconds,
     )  # fmt: skip
-    method, tol, ramp, max_iter, max_seconds = (
-        args.method, args.tol, args.ramp, args.max_iter, args.max_seconds
+    method, tol, ramp, max_iter, max_seconds, rod_stiffness = (
+        args.method, args.tol, args.ramp, args.max_iter, args.max_seconds, args.rod_stiffness
     )  # fmt: skip
     if method == "paper":
         clamp = "rod"

@@ -67,7 +67,9 @@ def estimate(scene: Scene) -> Estimate:
         n_targets = 1 if scene.task.kind == "paper" else scene.task.n_targets
         n_sources = 1 if scene.task.kind == "paper" else scene.task.n_sources
         methods = len(scene.solver.methods) if scene.solver is not None else 1
-        runs = methods * len(L.rules) * len(L.noise)
+        # a GCL rule runs once per nudge when etas lists several
+        rules = sum(len(L.etas) if r.startswith("gcl") and L.etas else 1 for r in L.rules)
+        runs = methods * rules * len(L.noise)
         units = runs * L.trials
         est.add("network", "n_nodes", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
         # every trial's history and its initial and final networks are merged in memory
@@ -119,6 +121,16 @@ def estimate(scene: Scene) -> Estimate:
         # element operators (~ 600 bytes per DOF for P1) next to the factorisation
         est.add("continuum", "refine", dofs * FE_BYTES_PER_DOF, f"{dofs} FE unknowns")
         return est
+    if net is not None and scene.kind == "beyond_paper":
+        n = max(net.sizes)
+        nodes = n * n
+        est.add("network", "sizes", nodes * SOLVE_BYTES_PER_NODE, f"solving a {n} x {n} lattice")
+        runs = len(net.sizes) * len(L.examples) + 2 * len(L.rules) + 1
+        est.add(
+            "learning", "steps", runs * _history_bytes(L.steps, 2 * max(L.examples)),
+            f"{runs} histories of {L.steps} steps",
+        )  # fmt: skip
+        return est
     if net is None or scene.kind not in ("transmission", "relaxation", "stability", "solvers"):
         return est  # a kind without an estimate yet
     sizes = (net.size,) if scene.kind == "stability" else net.sizes
@@ -140,6 +152,9 @@ def estimate(scene: Scene) -> Estimate:
         key = "steps_per_tau" if d.steps_per_tau / 20 > d.duration / 12 else "duration"
         # the network trajectory (and its displacements), and the continuum's
         est.add("dynamics", key, frames * (3 * nodes * 16 + 2 * dofs * 8), f"{frames} time steps")
+    if scene.kind == "physical_time":
+        # a run keeps at most 300 outputs of positions and learning degrees of freedom
+        est.add("network", key, 300 * (nodes * 16 + 6 * nodes * 16), "300 recorded outputs")
     return est
 
 

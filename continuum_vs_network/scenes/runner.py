@@ -104,6 +104,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_continuum_learning import plan_continuum_learning
 
         return plan_continuum_learning(scene)
+    if scene.kind == "beyond_paper":
+        from .units_beyond import plan_beyond_paper
+
+        return plan_beyond_paper(scene)
     if scene.kind in ("transmission", "relaxation"):
         from .units_physics import plan_physics
 
@@ -116,6 +120,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_accuracy import plan_accuracy
 
         return plan_accuracy(scene)
+    if scene.kind == "physical_time":
+        from .units_time import plan_time
+
+        return plan_time(scene)
     from .units_solvers import plan_solvers
 
     return plan_solvers(scene)

@@ -6,13 +6,15 @@ A scene is data only (no code is executed from it). Top-level keys::
     description = "one line"  # shown by ``cvn scenes`` and in the report
     seed = 0                  # first seed; trial i uses seed + i
     kind = "learning"         # learning | transmission | relaxation | stability | solvers
-                              # | accuracy
+                              # | accuracy | continuum_learning | beyond_paper
+                              # | physical_time
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
-``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[export]``, ``[report]``,
-and ``[sweep]`` (the scene as a grid of variants, :class:`SweepSpec`). Which tables a kind
-needs and which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an error
-(a scene never carries settings that are silently ignored). Every key of every table is
+``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[physical_time]``,
+``[export]``, ``[report]``, and ``[sweep]`` (the scene as a grid of variants,
+:class:`SweepSpec`). Which tables a kind needs and which it accepts is in
+:data:`KIND_TABLES`; a table a kind does not use is an error (a scene never carries settings
+that are silently ignored). Every key of every table is
 listed, with its type, default and meaning, in the dataclasses below (``cvn scenes --keys``
 prints them).
 
@@ -44,6 +46,7 @@ __all__ = [
     "ExportSpec",
     "LearningSpec",
     "NetworkSpec",
+    "PhysicalTimeSpec",
     "ReportSpec",
     "Scene",
     "SceneError",
@@ -67,7 +70,9 @@ KINDS = (
     "stability",
     "solvers",
     "accuracy",
+    "physical_time",
     "continuum_learning",
+    "beyond_paper",
 )
 
 #: For each kind: (tables it needs, tables it also accepts).
@@ -87,21 +92,43 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     "stability": (frozenset({"network", "task", "solver"}), frozenset({"stability", "report"})),
     "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
     "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
+    "physical_time": (
+        frozenset({"network", "task", "physical_time"}),
+        frozenset({"export", "report"}),
+    ),
     "continuum_learning": (
         frozenset({"network", "task", "learning", "continuum"}),
         frozenset({"export", "report"}),
     ),
+    "beyond_paper": (frozenset({"network", "task", "learning"}), frozenset({"report"})),
 }
 
 #: Learning runs a scene can name. Paper task: the paper's experiments (see
 #: :func:`continuum_vs_network.learning.replication.paper_experiments`; ``gcl``, ``gpc`` and
 #: ``exact`` let every spring learn, as the paper does). Stern-scale tasks: ``gcl``, ``gpc``
 #: and ``exact`` learn in the bulk only (sources and targets frozen), ``gcl_all`` and
-#: ``gpc_all`` let every spring learn (a target can then meet the task alone).
-RULES = ("gcl", "gcl_floor", "gcl_frozen", "gpc", "gpc_frozen", "exact", "gcl_all", "gpc_all")
+#: ``gpc_all`` let every spring learn (a target can then meet the task alone); ``aging`` and
+#: ``aging_k`` are directed aging of rest lengths and of stiffnesses
+#: (:class:`~continuum_vs_network.learning.aging.DirectedAging`, in the bulk).
+RULES = (
+    "gcl",
+    "gcl_floor",
+    "gcl_frozen",
+    "gpc",
+    "gpc_frozen",
+    "exact",
+    "gcl_all",
+    "gpc_all",
+    "aging",
+    "aging_k",
+    "gcl_both",
+)
 #: Rules only the paper task knows, and only Stern-scale tasks know.
 PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
-STERN_RULES = ("gcl_all", "gpc_all")
+STERN_RULES = ("gcl_all", "gpc_all", "aging", "aging_k", "gcl_both")
+#: The rules a ``beyond_paper`` scene compares (in the bulk, on the paper's and Stern's task;
+#: ``gcl_both`` learns rest lengths and stiffnesses together).
+BEYOND_RULES = ("aging", "aging_k", "gpc", "gcl", "gcl_both", "exact")
 #: The rules a ``continuum_learning`` scene trains both media with (Stern-scale meaning:
 #: ``gcl``, ``gpc``, ``exact`` in the bulk, sources' and targets' material frozen).
 CONTINUUM_RULES = ("gcl", "gpc", "exact", "gcl_all", "gpc_all")
@@ -272,9 +299,10 @@ class NetworkSpec:
     sizes: tuple[int, ...] | None = _key(
         "list[int]",
         None,
-        "n x n triangular lattices, one per entry (transmission, relaxation, solvers)",
+        "n x n triangular lattices, one per entry (transmission, relaxation, solvers, "
+        "physical_time; beyond_paper: the first hosts Stern's task, all the capacity study)",
         check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
-        used=_kinds("transmission", "relaxation", "solvers"),
+        used=_kinds("transmission", "relaxation", "solvers", "beyond_paper", "physical_time"),
     )
     noise: float | None = _key(
         "float",
@@ -387,12 +415,50 @@ class LearningSpec:
     etas: tuple[float, ...] = _key(
         "list[float]",
         (),
-        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
+        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta "
+        "(beyond_paper: the thermal study's nudges)",
         check=_each(_positive),
-        used=_kinds("learning"),
+        used=_when(
+            lambda s: (
+                s.kind == "beyond_paper"
+                or (s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules))
+            ),
+            "by learning scenes with a GCL rule and beyond_paper scenes",
+        ),
     )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
-    alpha_exact: float = _key("float", 1.0, "exact-gradient learning rate", check=_positive)
+    alpha_exact: float = _key(
+        "float",
+        1.0,
+        "exact-gradient learning rate",
+        check=_positive,
+        used=_kinds("learning", "continuum_learning"),
+    )
+    alpha_aging: float = _key(
+        "float",
+        0.5,
+        "directed-aging rate (aging, aging_k)",
+        check=_positive,
+        used=_when(
+            lambda s: any(r.startswith("aging") for r in s.learning.rules),
+            "with rules aging or aging_k",
+        ),
+    )
+    temperatures: tuple[float, ...] = _key(
+        "list[float]",
+        (0.0, 1e-8, 1e-6),
+        "temperatures k_B T of the thermal study (every state read as a harmonic Boltzmann "
+        "draw), one GCL run per nudge of etas and one exact-gradient run per entry",
+        check=_all(_unique_nonempty, _each(_non_negative), _increasing),
+        used=_kinds("beyond_paper"),
+    )
+    examples: tuple[int, ...] = _key(
+        "list[int]",
+        (1, 2, 4, 8),
+        "numbers of examples trained together, one capacity run per entry and lattice size",
+        check=_all(_unique_nonempty, _each(_at_least(1)), _increasing),
+        used=_kinds("beyond_paper"),
+    )
     floor: float = _key(
         "float",
         0.1,
@@ -687,7 +753,7 @@ class ExportSpec:
         "bool",
         False,
         "time series (learning trajectory, relaxation)",
-        used=_kinds("learning", "relaxation"),
+        used=_kinds("learning", "relaxation", "physical_time"),
     )
     every: int = _key(
         "int",
@@ -705,6 +771,73 @@ class ExportSpec:
         "learning trials to export",
         check=_all(_unique_nonempty, _each(_non_negative)),
         used=_kinds("learning"),
+    )
+
+
+#: Learning runs of a physical_time scene: GCL as twin networks, GCL with phases, GPC.
+TIME_RULES = ("gcl", "gcl_phases", "gpc")
+
+
+@dataclass(frozen=True)
+class PhysicalTimeSpec:
+    """``[physical_time]``: learning concurrent with the dynamics against the ratio of
+    learning rate to relaxation rate (:mod:`continuum_vs_network.learning.physical_time`)."""
+
+    rules: tuple[str, ...] = _key(
+        "list[str]",
+        ("gcl", "gpc"),
+        "rules: gcl (twin networks), gcl_phases, gpc (continuous)",
+        choices=TIME_RULES,
+        check=_unique_nonempty,
+    )
+    ratios: tuple[float, ...] = _key(
+        "list[float]",
+        (0.3, 1.0, 3.0, 10.0, 30.0),
+        "ratios alpha k tau of learning rate to relaxation rate",
+        check=_all(_unique_nonempty, _each(_positive), _increasing),
+    )
+    eta: float = _key(
+        "float",
+        0.1,
+        "GCL nudge amplitude",
+        check=_positive,
+        used=_when(
+            lambda s: any(r.startswith("gcl") for r in s.physical_time.rules), "by GCL rules"
+        ),
+    )
+    drag: float = _key("float", 1.0, "node drag c", check=_positive)
+    dashpot: float = _key("float", 0.0, "spring dashpot gamma (Kelvin-Voigt)", check=_non_negative)
+    arm_stiffness: float = _key(
+        "float", 0.0, "Maxwell-arm stiffness k2 (0: no arm)", check=_non_negative
+    )
+    arm_dashpot: float = _key("float", 0.0, "Maxwell-arm dashpot gamma2", check=_non_negative)
+    learning_times: float = _key(
+        "float", 5.0, "run length in learning times 1 / (alpha k)", check=_positive
+    )
+    relaxation_times: float = _key(
+        "float", 6.0, "shortest run, in relaxation times", check=_positive
+    )
+    steps_per_tau: int = _key("int", 20, "physical steps per relaxation time", check=_at_least(2))
+    steps_per_rate: int = _key(
+        "int", 10, "physical steps per learning time 1 / (alpha k)", check=_at_least(1)
+    )
+    fraction: float = _key(
+        "float",
+        0.1,
+        "learned when the error has made all but this fraction of its quasi-static drop",
+        check=_open_unit,
+    )
+    phase: float = _key(
+        "float", 1.0, "gcl_phases: phase length in relaxation times", check=_positive
+    )
+    frames: int = _key(
+        "int",
+        25,
+        "frames of the exported series",
+        check=_at_least(2),
+        used=_when(
+            lambda s: s.export is not None and s.export.series, "with [export] series = true"
+        ),
     )
 
 
@@ -731,6 +864,7 @@ _TABLES: dict[str, type] = {
     "dynamics": DynamicsSpec,
     "stability": StabilitySpec,
     "accuracy": AccuracySpec,
+    "physical_time": PhysicalTimeSpec,
     "export": ExportSpec,
     "report": ReportSpec,
 }
@@ -746,8 +880,8 @@ class Scene:
     seed : int
     kind : str
         One of :data:`KINDS`.
-    network, task, learning, solver, continuum, dynamics, stability, accuracy, export : spec
-        or None
+    network, task, learning, solver, continuum, dynamics, stability, accuracy, physical_time,
+    export : spec or None
         The tables given (None when absent).
     report : ReportSpec
         Always present (defaults when the table is absent).
@@ -769,6 +903,7 @@ class Scene:
     dynamics: DynamicsSpec | None = None
     stability: StabilitySpec | None = None
     accuracy: AccuracySpec | None = None
+    physical_time: PhysicalTimeSpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
     sweep: SweepSpec | None = None
@@ -959,6 +1094,24 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
     return scene
 
 
+def _check_physical_time(scene: Scene, file: str, need_key: Callable) -> None:
+    net, task, spec = scene.network, scene.task, scene.physical_time
+    if net.builder != "triangular":
+        raise SceneError(
+            file, "network", "builder", "kind 'physical_time' runs on triangular lattices"
+        )
+    need_key("network", "sizes", "for a physical_time scene")
+    if task.kind != "stern":
+        raise SceneError(file, "task", "kind", "kind 'physical_time' takes kind = 'stern'")
+    if (spec.arm_stiffness > 0) != (spec.arm_dashpot > 0):
+        raise SceneError(
+            file,
+            "physical_time",
+            "arm_dashpot",
+            "arm_stiffness and arm_dashpot must both be > 0 (a Maxwell arm) or both 0",
+        )
+
+
 def _short(value: Any, width: int = 60) -> str:
     """``repr(value)`` (strings: the text itself) cut to ``width`` characters."""
     text = value if isinstance(value, str) else repr(value)
@@ -1004,7 +1157,13 @@ def _check_kind(scene: Scene, file: str) -> None:
     if kind == "continuum_learning":
         _check_continuum_learning(scene, file, need_key)
         return
+    if kind == "beyond_paper":
+        _check_beyond_paper(scene, file, need_key)
+        return
     if kind == "accuracy":
+        return
+    if kind == "physical_time":
+        _check_physical_time(scene, file, need_key)
         return
     if kind == "learning":
         assert net is not None and task is not None and scene.learning is not None
@@ -1044,7 +1203,8 @@ def _check_kind(scene: Scene, file: str) -> None:
                     "learning",
                     "rules",
                     f"{bad[0]!r} exists for Stern-scale tasks only (the paper's 'gcl' and "
-                    "'gpc' already let every spring learn)",
+                    "'gpc' already let every spring learn; directed aging of the paper task "
+                    "is in the beyond_paper scene)",
                 )
         if scene.solver is not None:
             bad = [m for m in scene.solver.methods if m not in ("newton", "paper")]
@@ -1121,6 +1281,31 @@ def _check_continuum_learning(scene: Scene, file: str, need_key) -> None:
             "strain_reference",
             "a continuum's material springs measure strain against the undeformed body; "
             "set strain_reference = 'initial'",
+        )
+
+
+def _check_beyond_paper(scene: Scene, file: str, need_key) -> None:
+    if scene.network.builder != "triangular":
+        raise SceneError(file, "network", "builder", "beyond_paper runs on triangular lattices")
+    need_key("network", "sizes", "for a beyond_paper scene (the capacity study's lattices)")
+    if scene.task.kind != "stern":
+        raise SceneError(
+            file, "task", "kind", "beyond_paper takes kind = 'stern' (the paper's task is added)"
+        )
+    bad = [r for r in scene.learning.rules if r not in BEYOND_RULES]
+    if bad:
+        raise SceneError(
+            file,
+            "learning",
+            "rules",
+            f"{bad[0]!r} is not a beyond_paper rule ({', '.join(BEYOND_RULES)})",
+        )
+    if scene.learning.strain_reference != "initial":
+        raise SceneError(
+            file,
+            "learning",
+            "strain_reference",
+            "beyond_paper learns fixed target geometries; set strain_reference = 'initial'",
         )
 
 

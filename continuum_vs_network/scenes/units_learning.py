@@ -250,7 +250,10 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
     tasks :func:`~continuum_vs_network.learning.stern.stern_rules`: ``gcl``, ``gpc`` and
     ``exact`` learn in the bulk (sources and targets frozen; the exact gradient uses
     ``alpha_gcl`` on the length cost, as ``stern_rules`` matches the step sizes),
-    ``gcl_all`` and ``gpc_all`` let every spring learn. Keys are :func:`run_names`.
+    ``gcl_all`` and ``gpc_all`` let every spring learn, ``aging`` and ``aging_k`` are
+    directed aging of rest lengths and stiffnesses (in the bulk, :func:`aging_rules`),
+    ``gcl_both`` GCL of rest lengths and stiffnesses together (``dof="both"``).
+    Keys are :func:`run_names`.
     """
     import dataclasses
 
@@ -282,6 +285,8 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
             "gcl_all": every["GCL"],
             "gpc_all": every["GPC"],
         }
+        table.update(aging_rules(L.alpha_aging, bulk["GPC"]))
+        table["gcl_both"] = dataclasses.replace(bulk["GCL"], dof="both", min_stiffness=1e-3)
     out = {}
     for rule in L.rules:
         if rule.startswith("gcl") and L.etas:
@@ -290,6 +295,24 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
         else:
             out[rule] = table[rule]
     return out
+
+
+def aging_rules(alpha: float, like) -> dict[str, Any]:
+    """Directed aging of rest lengths (``aging``) and stiffnesses (``aging_k``) with the
+    options of the rule ``like`` (bulk learning, strain reference, solver, floor)."""
+    from ..learning.aging import DirectedAging
+
+    common = {
+        "learn_sources": like.learn_sources,
+        "learn_targets": like.learn_targets,
+        "strain_reference": like.strain_reference,
+        "solver": like.solver,
+    }
+    floor = like.min_rest_length
+    return {
+        "aging": DirectedAging(alpha, min_rest_length=floor, **common),
+        "aging_k": DirectedAging(alpha, dof="stiffness", min_stiffness=1e-3, **common),
+    }
 
 
 def experiments(scene: Scene, solver: str = "newton"):

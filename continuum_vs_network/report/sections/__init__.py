@@ -13,8 +13,10 @@ from collections.abc import Callable
 
 from . import (
     accuracy,
+    beyond_paper,
     continuum_learning,
     learning,
+    physical_time,
     relaxation,
     solvers,
     stability,
@@ -31,5 +33,7 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "stability": stability.section,
     "solvers": solvers.section,
     "accuracy": accuracy.section,
+    "physical_time": physical_time.section,
     "continuum_learning": continuum_learning.section,
+    "beyond_paper": beyond_paper.section,
 }

@@ -1,0 +1,204 @@
+"""Several examples at once: a dataset of input/output pairs trained together.
+
+A :class:`TaskSet` is a tuple of :class:`~.tasks.AllosteryTask` examples on one network
+(the same pins): different source strains, each with its own desired target strains
+(a multifunctional network), or different source and target springs (symmetric training,
+:func:`symmetric`). Every rule takes a task set where it takes a task: one learning step
+is the **sum of the per-example updates** (each example's own free / nudged / clamped
+states), masked and floored once; so the exact gradient descends the summed error
+``C = sum_e C_e`` and a local rule descends the sum of its per-example objectives.
+:func:`~.train.train` records the summed error and the examples' target values side by
+side (``n_targets`` is the total over the examples).
+
+Bulk learning freezes the union of every example's sources and targets.
+
+:func:`examples_task` draws a dataset for a capacity study (Rocks et al. 2019: how many
+independent responses a network of a given size can hold).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .. import _validate as check
+from ..network.constraints import default_pins
+from ..network.model import SpringNetwork
+from .tasks import AllosteryTask, StrainReference, _candidates, _positive_normal
+
+__all__ = ["TaskSet", "examples_task", "symmetric"]
+
+
+@dataclass(frozen=True, eq=False)
+class TaskSet:
+    """Examples trained together (see the module).
+
+    Attributes
+    ----------
+    tasks : tuple of AllosteryTask
+        The examples, at least one; all with the same ``pinned`` mask.
+    """
+
+    tasks: tuple[AllosteryTask, ...]
+
+    def __post_init__(self) -> None:
+        tasks = tuple(self.tasks) if isinstance(self.tasks, list | tuple) else None
+        if not tasks or not all(isinstance(t, AllosteryTask) for t in tasks):
+            raise check.ArgumentError(
+                "tasks", self.tasks, "a non-empty sequence of AllosteryTask examples"
+            )
+        pins = tasks[0].pinned
+        for e, t in enumerate(tasks[1:], 1):
+            if t.pinned.shape != pins.shape or not np.array_equal(t.pinned, pins):
+                raise ValueError(f"example {e} has other pins than example 0: share one mask")
+        object.__setattr__(self, "tasks", tasks)
+
+    # -- what rules and train read --------------------------------------------------------
+    @property
+    def n_examples(self) -> int:
+        return len(self.tasks)
+
+    @property
+    def pinned(self) -> NDArray[np.bool_]:
+        return self.tasks[0].pinned
+
+    @property
+    def sources(self) -> NDArray[np.int64]:
+        """Every example's sources, concatenated (the springs bulk learning freezes)."""
+        return np.concatenate([t.sources for t in self.tasks])
+
+    @property
+    def targets(self) -> NDArray[np.int64]:
+        """Every example's targets, concatenated (the order of recorded target values)."""
+        return np.concatenate([t.targets for t in self.tasks])
+
+    @property
+    def target_strain(self) -> NDArray[np.float64]:
+        return np.concatenate([t.target_strain for t in self.tasks])
+
+    @property
+    def n_targets(self) -> int:
+        return int(sum(t.n_targets for t in self.tasks))
+
+    @property
+    def n_sources(self) -> int:
+        return int(sum(t.n_sources for t in self.tasks))
+
+    def check(self, net: SpringNetwork) -> None:
+        """Raise ``ValueError`` if an example does not fit ``net``."""
+        for t in self.tasks:
+            t.check(net)
+
+    def desired_lengths(
+        self, net: SpringNetwork, strain_reference: StrainReference = "initial"
+    ) -> NDArray:
+        """Every example's desired target lengths, concatenated."""
+        return np.concatenate([t.desired_lengths(net, strain_reference) for t in self.tasks])
+
+    def error(
+        self,
+        net: SpringNetwork,
+        positions: list[ArrayLike],
+        strain_reference: StrainReference = "initial",
+    ) -> float:
+        """Summed error ``sum_e C_e`` at the examples' free-state ``positions`` (a list)."""
+        if len(positions) != self.n_examples:
+            raise ValueError(f"need one free state per example ({self.n_examples})")
+        return float(sum(t.error(net, x, strain_reference) for t, x in zip(self.tasks, positions)))
+
+    # -- files ------------------------------------------------------------------------------
+    def to_arrays(self) -> dict[str, NDArray]:
+        from .history import _task_arrays
+
+        out: dict[str, NDArray] = {"n_examples": np.array(self.n_examples)}
+        for e, t in enumerate(self.tasks):
+            out.update({f"e{e}/{k.split('/', 1)[1]}": v for k, v in _task_arrays("x", t).items()})
+        return out
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, NDArray]) -> TaskSet:
+        from .history import _task_from
+
+        n = int(arrays["n_examples"])
+        tasks = []
+        for e in range(n):
+            head = f"e{e}/"
+            part = {"x/" + k[len(head) :]: v for k, v in arrays.items() if k.startswith(head)}
+            tasks.append(_task_from(part, "x"))
+        return cls(tuple(tasks))
+
+
+def symmetric(task: AllosteryTask) -> TaskSet:
+    """Symmetric training: ``task`` and its exchange (sources become targets, at the
+    strains the targets should reach, and targets become sources), trained together."""
+    if not isinstance(task, AllosteryTask):
+        raise check.ArgumentError("task", task, "an AllosteryTask")
+    swapped = AllosteryTask(
+        sources=task.targets,
+        source_strain=task.target_strain,
+        targets=task.sources,
+        target_strain=task.source_strain,
+        source_rest_length=task.target_rest_length,
+        target_rest_length=task.source_rest_length,
+        pinned=task.pinned,
+    )
+    return TaskSet((task, swapped))
+
+
+def examples_task(
+    net: SpringNetwork,
+    n_examples: int,
+    rng: np.random.Generator,
+    *,
+    n_sources: int = 1,
+    n_targets: int = 1,
+    source_std: float = 0.1,
+    target_std: float = 0.1,
+    shared_springs: bool = False,
+    candidates: ArrayLike | None = None,
+) -> TaskSet:
+    """``n_examples`` independent input/output pairs on one network.
+
+    Each example clamps ``n_sources`` source springs at strains drawn from
+    ``N(0, source_std)`` and asks for ``n_targets`` target strains drawn from
+    ``N(0, target_std)``, independently of every other example. With ``shared_springs``
+    every example uses the same source and target springs (only the strains differ: in
+    linear response a network then holds at most ``n_sources + 1`` examples exactly,
+    whatever its size); otherwise (the default) each example has its own springs, distinct
+    from every other example's (independent responses: the capacity grows with the
+    network, Rocks et al. 2019). Springs are drawn as in :func:`~.tasks.stern_task`.
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise check.ArgumentError("rng", rng, "a numpy.random.Generator")
+    n_examples = check.integer("n_examples", n_examples, low=1)
+    n_sources = check.integer("n_sources", n_sources, low=1)
+    n_targets = check.integer("n_targets", n_targets, low=1)
+    source_std = check.real("source_std", source_std, low=0, low_open=True)
+    target_std = check.real("target_std", target_std, low=0, low_open=True)
+    shared_springs = check.boolean("shared_springs", shared_springs)
+    pool = _candidates(net, candidates)
+    per = n_sources + n_targets
+    need = per if shared_springs else per * n_examples
+    if pool.size < need:
+        raise ValueError(
+            f"need {need} candidate springs for {n_examples} examples, the network offers "
+            f"{pool.size}"
+        )
+    chosen = rng.choice(pool, size=need, replace=False)
+    pins = default_pins(net, avoid=chosen)
+    tasks = []
+    for e in range(n_examples):
+        springs = chosen[:per] if shared_springs else chosen[e * per : (e + 1) * per]
+        tasks.append(
+            AllosteryTask.create(
+                net,
+                springs[:n_sources],
+                _positive_normal(rng, 0.0, source_std, n_sources),
+                springs[n_sources:],
+                _positive_normal(rng, 0.0, target_std, n_targets),
+                pinned=pins,
+            )
+        )
+    return TaskSet(tuple(tasks))

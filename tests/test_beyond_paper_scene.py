@@ -1,0 +1,101 @@
+"""The beyond_paper scene: its keys, a tiny run end to end, the capacity rule."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from continuum_vs_network.report.sections.beyond_paper import capacity
+from continuum_vs_network.scenes import SceneError, load_scene, run_scene
+
+TINY = """
+name = "tiny_beyond"
+description = "tiny"
+seed = 0
+kind = "beyond_paper"
+
+[network]
+builder = "triangular"
+sizes = [4, 6]
+
+[task]
+kind = "stern"
+n_sources = 2
+n_targets = 1
+
+[learning]
+rules = ["aging", "gpc", "gcl"]
+steps = 8
+alpha_gcl = 0.5
+alpha_gpc = 0.5
+alpha_aging = 0.5
+examples = [1, 2]
+etas = [0.01, 1.0]
+temperatures = [0.0, 1e-6]
+"""
+
+
+def _write(tmp_path, text):
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    return path
+
+
+def test_capacity_is_the_largest_prefix_that_met_the_task():
+    assert capacity({1: 1e-4, 2: 5e-3, 4: 0.2, 8: 1e-3}) == 2
+    assert capacity({1: 0.5, 2: 1e-4}) == 0
+    assert capacity({1: 1e-4, 2: float("nan")}) == 1
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key"),
+    [
+        ('rules = ["aging", "gpc", "gcl"]', 'rules = ["gcl_all"]', "rules"),
+        ("steps = 8", "steps = 8\ntrials = 3", "trials"),
+        ("steps = 8", "steps = 8\nnoise = [0.0, 1e-3]", "noise"),
+        ("examples = [1, 2]", "examples = [2, 1]", "examples"),
+        ("temperatures = [0.0, 1e-6]", "temperatures = [-1.0]", "temperatures"),
+    ],
+)
+def test_bad_or_unused_keys_name_the_key(tmp_path, old, new, key):
+    with pytest.raises(SceneError) as err:
+        load_scene(_write(tmp_path, TINY.replace(old, new)))
+    assert err.value.key == key
+
+
+def test_aging_key_is_refused_without_an_aging_rule(tmp_path):
+    text = TINY.replace('rules = ["aging", "gpc", "gcl"]', 'rules = ["gcl"]')
+    with pytest.raises(SceneError, match="alpha_aging"):
+        load_scene(_write(tmp_path, text))
+
+
+def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
+    scene = load_scene(_write(tmp_path, TINY))
+    result = run_scene(scene, tmp_path / "out", progress=False)
+    units = result.units
+    assert {"beyond/compare/paper/aging", "beyond/compare/stern/gcl", "beyond/symmetric"} <= set(
+        units
+    )
+    assert "beyond/capacity/size6/examples2" in units
+    assert {"beyond/node/aging", "beyond/node/gcl"} <= set(units)
+    # uniform k on the lattice and equal rates: aging and GPC take identical steps
+    a = np.asarray(units["beyond/compare/stern/aging"].arrays["error"])
+    g = np.asarray(units["beyond/compare/stern/gpc"].arrays["error"])
+    assert np.allclose(a, g, rtol=1e-10, atol=0)
+    for u in units.values():
+        assert u.meta["coupling"] in ("coupled", "partially coupled", "decoupled", "not measured")
+    from continuum_vs_network.report.writer import write_report
+
+    write_report(result, tmp_path / "report")
+    doc = json.loads((tmp_path / "report" / "report.json").read_text())
+    claims = {f["claim"]: f["verdict"] for f in doc["findings"]}
+    key = "GPC of rest lengths is directed aging of rest lengths with a k-weighted rate"
+    assert claims[f"{key} (Stern's task)"] == "reproduced"
+    assert claims[f"{key} (paper's task)"] == "not comparable"
+    assert any(c.startswith("a larger network holds more") for c in claims)
+    assert "gcl learns a node-displacement task" in claims
+    assert {"beyond/thermal/T1/gcl_eta0.01", "beyond/thermal/T0/exact"} <= set(units)
+    assert units["beyond/thermal/T1/gcl_eta0.01"].meta["temperature"] == 1e-6
+    assert "GCL's error floor grows with the temperature at every nudge" in claims
