@@ -32,6 +32,8 @@ alpha_gcl = 0.5
 alpha_gpc = 0.5
 alpha_aging = 0.5
 examples = [1, 2]
+etas = [0.01, 1.0]
+temperatures = [0.0, 1e-6]
 """
 
 
@@ -54,6 +56,7 @@ def test_capacity_is_the_largest_prefix_that_met_the_task():
         ("steps = 8", "steps = 8\ntrials = 3", "trials"),
         ("steps = 8", "steps = 8\nnoise = [0.0, 1e-3]", "noise"),
         ("examples = [1, 2]", "examples = [2, 1]", "examples"),
+        ("temperatures = [0.0, 1e-6]", "temperatures = [-1.0]", "temperatures"),
     ],
 )
 def test_bad_or_unused_keys_name_the_key(tmp_path, old, new, key):
@@ -93,3 +96,6 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
     assert claims[f"{key} (paper's task)"] == "not comparable"
     assert any(c.startswith("a larger network holds more") for c in claims)
     assert "gcl learns a node-displacement task" in claims
+    assert {"beyond/thermal/T1/gcl_eta0.01", "beyond/thermal/T0/exact"} <= set(units)
+    assert units["beyond/thermal/T1/gcl_eta0.01"].meta["temperature"] == 1e-6
+    assert "GCL's error floor grows with the temperature at every nudge" in claims

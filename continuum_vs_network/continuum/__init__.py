@@ -10,6 +10,7 @@ the names below) needs only numpy and scipy; scikit-fem loads on the first mesh 
 - :mod:`.probes`: sparse displacement and strain probes;
 - :mod:`.transmission`: source patches, the Eshelby inclusion, strain against distance;
 - :mod:`.viscoelastic`: mass, damping and implicit time stepping, relaxation times;
+- :mod:`.maxwell`: the Maxwell arm of a standard linear solid (internal strains).
 - :mod:`.learnable`: a learning medium, element-wise eigenstrain and modulus fields
   (:func:`learnable_body`), trained by the same rules and ``train`` as networks;
 - :mod:`.material_task`: material springs as sources and targets (:class:`MaterialTask`);
@@ -48,6 +49,7 @@ from .materials import (
     NetworkModuli,
     lattice_area_per_node,
     lattice_lame,
+    lattice_maxwell_arm,
     lattice_viscous_lame,
     network_moduli,
     node_drag_to_continuum,
@@ -94,6 +96,8 @@ from .viscoelastic import (
     Damping,
     damping_matrix,
     explicit_limit,
+    lattice_damping,
+    linear_system,
     relaxation_time,
     simulate_body,
     slowest_relaxation_time,
@@ -140,9 +144,12 @@ __all__ = [
     "field_magnitude",
     "fix",
     "lattice_area_per_node",
+    "lattice_damping",
     "lattice_lame",
+    "lattice_maxwell_arm",
     "lattice_viscous_lame",
     "learnable_body",
+    "linear_system",
     "localisation",
     "locate",
     "mass_matrix",

@@ -45,6 +45,7 @@ __all__ = [
     "network_mesh",
     "read_series_index",
     "spring_roles",
+    "time_history_series",
     "write_mesh",
     "write_series",
 ]
@@ -383,6 +384,55 @@ def write_series(
         if frame.match(old.name) and old.name not in keep:
             old.unlink(missing_ok=True)
     return index
+
+
+def time_history_series(
+    net: SpringNetwork,
+    times: ArrayLike,
+    positions: ArrayLike,
+    rest_length: ArrayLike,
+    stiffness: ArrayLike,
+    folder: str | os.PathLike[str],
+    stem: str,
+    *,
+    sources: ArrayLike = (),
+    targets: ArrayLike = (),
+) -> Path:
+    """A network learning in physical time as a PVD series: one frame per output time.
+
+    Parameters
+    ----------
+    net : SpringNetwork
+        The starting network (its positions are the reference configuration).
+    times : (T,) float array
+        Output times (physical time units), strictly increasing; the PVD time steps.
+    positions : (T, n_nodes, 2) float array
+        The moving network at each time (e.g. ``TimeHistory.positions``).
+    rest_length, stiffness : (T, n_springs) float arrays
+        The learning degrees of freedom at each time; each frame carries them, so the
+        ``strain``, ``force`` and ``rest_length`` arrays follow the learning.
+    folder, stem : as for :func:`write_series`
+    sources, targets : spring indices for the ``role`` cell array.
+
+    Returns
+    -------
+    pathlib.Path of the ``.pvd`` index.
+    """
+    x = np.asarray(positions, dtype=np.float64)
+    L = np.asarray(rest_length, dtype=np.float64)
+    k = np.asarray(stiffness, dtype=np.float64)
+    T = np.size(times)
+    if x.shape != (T, net.n_nodes, 2):
+        raise ValueError(f"positions must have shape ({T}, {net.n_nodes}, 2), got {x.shape}")
+    for name, arr in (("rest_length", L), ("stiffness", k)):
+        if arr.shape != (T, net.n_springs):
+            raise ValueError(f"{name} must have shape ({T}, {net.n_springs}), got {arr.shape}")
+    roles = spring_roles(net.n_springs, sources=sources, targets=targets)
+    frames = (
+        network_mesh(net.with_rest_length(Li).with_stiffness(ki), xi, fields={"role": roles})
+        for xi, Li, ki in zip(x, L, k)
+    )
+    return write_series(frames, times, folder, stem)
 
 
 def read_series_index(path: str | os.PathLike[str]) -> list[tuple[float, Path]]:

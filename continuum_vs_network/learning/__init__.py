@@ -21,6 +21,7 @@ from .coupling import Coupling, measure_coupling
 from .examples import TaskSet, examples_task, symmetric
 from .history import History
 from .node_tasks import NodeTask, node_cost_gradient, node_task
+from .physical_time import TimeHistory, learn_in_time, network_relaxation_time
 from .rules import (
     CoupledLearning,
     ExactGradient,
@@ -50,12 +51,15 @@ __all__ = [
     "Solver",
     "Step",
     "TaskSet",
+    "TimeHistory",
     "Tracker",
     "Warm",
     "cost_gradient",
     "examples_task",
     "gcl_limit",
+    "learn_in_time",
     "measure_coupling",
+    "network_relaxation_time",
     "node_cost_gradient",
     "node_task",
     "paper_task",

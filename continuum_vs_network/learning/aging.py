@@ -58,8 +58,8 @@ class DirectedAging(Rule):
     def uses_free_state(self) -> bool:
         return False
 
-    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
-        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, noise, rng)
+    def _update(self, net, task, warm, tracker, read, rng) -> Step:
+        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, read, rng)
         k, L = net.stiffness, net.rest_length
 
         def local(dof: str):

@@ -89,6 +89,7 @@ __all__ = [
     "ExactGradient",
     "LearningError",
     "ProspectiveConfiguration",
+    "Readout",
     "Rule",
     "Step",
     "Warm",
@@ -247,6 +248,27 @@ def _plain(value: object) -> object:
     return list(value) if isinstance(value, tuple) else value
 
 
+@dataclass(frozen=True)
+class Readout:
+    """How a rule reads a state: relative read-out noise and temperature (``k_B T``)."""
+
+    noise: float = 0.0
+    temperature: float = 0.0
+
+    def lengths(self, net, state, pinned, clamps, rng) -> NDArray:
+        """Spring lengths of ``state`` as read: one thermal draw around it
+        (:func:`~.thermal.thermal_sample`) when ``temperature > 0``, then read-out noise."""
+        x = state.positions
+        if self.temperature > 0:
+            from .thermal import thermal_sample
+
+            try:
+                x = thermal_sample(net, pinned, clamps, state, self.temperature, rng)
+            except ValueError as err:
+                raise LearningError(str(err)) from err
+        return _noisy(net.lengths(x), self.noise, rng)
+
+
 def _noisy(lengths: NDArray, noise: float, rng: np.random.Generator | None) -> NDArray:
     if noise == 0.0:
         return lengths
@@ -346,7 +368,7 @@ class Rule:
             net, task.pinned, clamps, warm.free, key="free", guess=warm.free_guess()
         )
 
-    def _fully_clamped(self, net, task, warm, tracker, noise, rng):
+    def _fully_clamped(self, net, task, warm, tracker, read: Readout, rng):
         """The state with sources *and* targets clamped at the task's strains (GPC's
         clamped state, the trainer's imposed strain of directed aging): ``(state, target
         clamp lengths, measured spring lengths)``."""
@@ -357,12 +379,12 @@ class Rule:
             pinned, start = task.node_clamps(net.positions if x0 is None else x0, lengths)
             clamps = task.source_clamps(net)
             clamped = tracker.solve(net, pinned, clamps, start, key="clamped")
-            return clamped, lengths, _noisy(net.lengths(clamped.positions), noise, rng)
+            return clamped, lengths, net.lengths(clamped.positions)
         lengths = task.desired_lengths(net, ref)
         clamps = task.source_clamps(net, ref)
         clamps.update(zip(task.targets.tolist(), lengths.tolist()))
         clamped = tracker.solve(net, task.pinned, clamps, x0, key="clamped")
-        return clamped, lengths, _noisy(net.lengths(clamped.positions), noise, rng)
+        return clamped, lengths, read.lengths(net, clamped, task.pinned, clamps, rng)
 
     def update(
         self,
@@ -372,6 +394,7 @@ class Rule:
         warm: Warm | None = None,
         tracker: Tracker | None = None,
         noise: float = 0.0,
+        temperature: float = 0.0,
         rng: np.random.Generator | None = None,
     ) -> Step:
         """One learning step on ``net`` for ``task``.
@@ -390,13 +413,19 @@ class Rule:
             Relative read-out noise: every length the rule reads is ``r (1 + noise xi)``
             with ``xi ~ N(0, 1)`` drawn from ``rng``.
         rng : numpy.random.Generator, optional
-            Required when ``noise > 0``.
+            Required when ``noise > 0`` or ``temperature > 0``.
+        temperature : float
+            ``k_B T`` (energy units): every state the rule reads is one draw of its thermal
+            fluctuations (exact harmonic Boltzmann distribution, :mod:`.thermal`) instead
+            of the equilibrium; the rule's own states are still found as equilibria.
 
         Returns
         -------
         Step
         """
         if not isinstance(net, SpringNetwork):
+            if temperature != 0.0:
+                raise ValueError("temperature is implemented for spring networks only")
             return self._medium_update(net, task, tracker=tracker, noise=noise)
         if self.dof not in _NETWORK_DOFS:
             raise ValueError(
@@ -404,26 +433,29 @@ class Rule:
             )
         task.check(net)
         noise = check.real("noise", noise, low=0)
-        if noise > 0 and not isinstance(rng, np.random.Generator):
-            raise ValueError("noise > 0 needs rng, a numpy.random.Generator")
-        if isinstance(task, NodeTask) and noise > 0:
+        temperature = check.real("temperature", temperature, low=0)
+        if (noise > 0 or temperature > 0) and not isinstance(rng, np.random.Generator):
+            raise ValueError("noise > 0 or temperature > 0 needs rng, a numpy.random.Generator")
+        if isinstance(task, NodeTask) and (noise > 0 or temperature > 0):
             raise ValueError(
-                "read-out noise is relative to spring lengths: node tasks take noise 0"
+                "read-out noise and temperature are implemented for spring tasks: node tasks "
+                "take noise 0 and temperature 0"
             )
+        read = Readout(float(noise), float(temperature))
         tracker = tracker or Tracker(self.solver)
         warm = warm or Warm()
         if isinstance(task, TaskSet):
-            return self._update_examples(net, task, warm, tracker, float(noise), rng)
-        step = self._update(net, task, warm, tracker, float(noise), rng)
+            return self._update_examples(net, task, warm, tracker, read, rng)
+        step = self._update(net, task, warm, tracker, read, rng)
         _check_finite_update(step.delta, self.dof)
         return dataclasses.replace(step, previous=warm)
 
-    def _update_examples(self, net, tasks, warm, tracker, noise, rng) -> Step:
+    def _update_examples(self, net, tasks, warm, tracker, read, rng) -> Step:
         """Several examples at once: the sum of the per-example updates (.examples)."""
         steps = []
         for e, task in enumerate(tasks.tasks):
             w = warm.example(e)
-            step = self._update(net, task, w, tracker, noise, rng)
+            step = self._update(net, task, w, tracker, read, rng)
             steps.append(dataclasses.replace(step, previous=w))
         raw = np.sum([s.raw for s in steps], axis=0)
         delta = self._delta(net, tasks, raw)
@@ -439,7 +471,7 @@ class Rule:
         task: AllosteryTask,
         warm: Warm,
         tracker: Tracker,
-        noise: float,
+        read: Readout,
         rng: np.random.Generator | None,
     ) -> Step:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -510,12 +542,12 @@ class CoupledLearning(Rule):
         _check_rate("alpha", self.alpha)
         _check_rate("eta", self.eta)
 
-    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
+    def _update(self, net, task, warm, tracker, read, rng) -> Step:
         if isinstance(task, NodeTask):
             free, nudged, lengths, r_free, r_nudged = self._node_states(net, task, warm, tracker)
         else:
             free, nudged, lengths, r_free, r_nudged = self._states(
-                net, task, warm, tracker, noise, rng
+                net, task, warm, tracker, read, rng
             )
         k, L = net.stiffness, net.rest_length
 
@@ -545,11 +577,11 @@ class CoupledLearning(Rule):
         nudged = tracker.solve(net, pinned, task.source_clamps(net), start, key="nodes")
         return free, nudged, nudge, net.lengths(free.positions), net.lengths(nudged.positions)
 
-    def _states(self, net, task, warm, tracker, noise, rng):
+    def _states(self, net, task, warm, tracker, read, rng):
         """Free state and the state with the target springs nudged (Eq. 13)."""
         ref = self.strain_reference
         free = self._free(net, task, tracker, warm)
-        r_free = _noisy(net.lengths(free.positions), noise, rng)
+        r_free = read.lengths(net, free, task.pinned, task.source_clamps(net, ref), rng)
         s_free = task.target_strains(net, r_free[task.targets], ref)
         s_nudge = s_free + self.eta * (task.target_strain - s_free)
         lengths = task.target_rest(net, ref) * (1.0 + s_nudge)
@@ -562,7 +594,7 @@ class CoupledLearning(Rule):
             # the nudge moves the network about as much as it did one step earlier
             guess = free.positions + (np.asarray(warm.clamped) - np.asarray(warm.free))
         nudged = tracker.solve(net, task.pinned, clamps, free.positions, key="free", guess=guess)
-        r_nudged = _noisy(net.lengths(nudged.positions), noise, rng)
+        r_nudged = read.lengths(net, nudged, task.pinned, clamps, rng)
         return free, nudged, lengths, r_free, r_nudged
 
     def _medium_step(self, medium, task, tracker) -> Step:
@@ -597,8 +629,8 @@ class ProspectiveConfiguration(Rule):
     def uses_free_state(self) -> bool:
         return False
 
-    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
-        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, noise, rng)
+    def _update(self, net, task, warm, tracker, read, rng) -> Step:
+        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, read, rng)
         k, L = net.stiffness, net.rest_length
 
         def local(dof: str) -> NDArray:
@@ -648,9 +680,13 @@ class ExactGradient(Rule):
         _check_rate("alpha", self.alpha)
         check.choice("cost", self.cost, ("strain", "length"))
 
-    def _update(self, net, task, warm, tracker, noise, rng) -> Step:
+    def _update(self, net, task, warm, tracker, read, rng) -> Step:
         free = self._free(net, task, tracker, warm)
-        r_free = _noisy(net.lengths(free.positions), noise, rng)
+        if isinstance(task, NodeTask):
+            r_free = net.lengths(free.positions)
+        else:
+            clamps = task.source_clamps(net, self.strain_reference)
+            r_free = read.lengths(net, free, task.pinned, clamps, rng)
         try:
             if isinstance(task, NodeTask):
                 grad = self._per_dof(lambda dof: node_cost_gradient(net, task, free, dof=dof))

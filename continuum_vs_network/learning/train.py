@@ -67,6 +67,7 @@ def train(
     *,
     seeds: Sequence[int] = (0,),
     noise: float = 0.0,
+    temperature: float = 0.0,
     measure: bool = True,
     progress: bool = True,
     checkpoint: str | Path | None = None,
@@ -92,6 +93,9 @@ def train(
     noise : float
         Relative read-out noise of the lengths the rule reads (see ``Rule.update``);
         measurements in the history are noise-free.
+    temperature : float
+        ``k_B T``: every state the rule reads is one thermal draw around its equilibrium
+        (see ``Rule.update`` and :mod:`.thermal`); measurements are equilibria.
     measure : bool
         Solve the free state after every step to measure the error even when the rule
         does not need it (prospective configuration). With False those measurements are
@@ -123,6 +127,7 @@ def train(
         f"trial(s) of {steps} steps"
     )  # fmt: skip
     noise = check.real("noise", noise, low=0)
+    temperature = check.real("temperature", temperature, low=0)
     measure = check.boolean("measure", measure)
     checkpoint_every = check.integer("checkpoint_every", checkpoint_every, low=1)
     if callback is not None and not callable(callback):
@@ -132,6 +137,8 @@ def train(
 
     settings = dict(rule.settings())
     settings.update(steps=steps, noise=float(noise), measure=bool(measure))
+    if temperature > 0:  # (absent at T = 0: settings and checkpoints of plain runs unchanged)
+        settings["temperature"] = float(temperature)
     fingerprint = json.dumps(
         {"settings": settings, "seeds": seeds.tolist(), "every": int(checkpoint_every)},
         sort_keys=True,
@@ -153,7 +160,7 @@ def train(
                 task,
                 rule,
                 steps,
-                float(noise),
+                (float(noise), float(temperature)),
                 measure,
                 state,
                 int(checkpoint_every),
@@ -235,7 +242,7 @@ def _run_trial(
     task: TaskSpec,
     rule: Rule,
     steps: int,
-    noise: float,
+    readout: tuple[float, float],
     measure: bool,
     state: _Checkpoint,
     every: int,
@@ -304,7 +311,10 @@ def _run_trial(
     reason = ""
     try:
         while t < steps:
-            step = rule.update(cur, task0, warm=warm, tracker=tracker, noise=noise, rng=noise_rng)
+            step = rule.update(
+                cur, task0, warm=warm, tracker=tracker, noise=readout[0],
+                temperature=readout[1], rng=noise_rng,
+            )  # fmt: skip
             if step.examples is not None:
                 free = measure_examples(cur, warm, step)
             else:

@@ -183,6 +183,16 @@ def linear_system(
     return K, C
 
 
+class _Scaled:
+    """``a I`` as a matrix for ``@``."""
+
+    def __init__(self, a: float) -> None:
+        self.a = a
+
+    def __matmul__(self, v: NDArray) -> NDArray:
+        return self.a * v
+
+
 class Stepper:
     """Backward-Euler steps of a visco-elastic network (see the module docstring).
 
@@ -286,7 +296,10 @@ class Stepper:
             b = b + vv.ravel()[rows] / dt
         kc, Lc = self._step_springs(net, arm)
         shift = vis.drag / dt + (1.0 / dt**2 if self.inertia else 0.0)
-        D = self.pattern.assemble(dashpot_blocks(x, springs, vis.dashpot / dt), shift)
+        if vis.dashpot:
+            D = self.pattern.assemble(dashpot_blocks(x, springs, vis.dashpot / dt), shift)
+        else:  # drag (and mass) only: D = shift I, no assembly
+            D = _Scaled(shift)
         x0_rows = x.ravel()[rows]
 
         def grad(y: NDArray) -> NDArray:
@@ -355,7 +368,11 @@ class Stepper:
             if clip:  # compressed springs: tangentially clipped, positive semi-definite
                 _, r = _unit(y, springs)
                 L = np.minimum(Lc, r)
-            W = self.pattern.assemble(spring_hessian_blocks(y, springs, kc, L)) + D
+            blocks = spring_hessian_blocks(y, springs, kc, L)
+            if isinstance(D, _Scaled):
+                W = self.pattern.assemble(blocks, shift=D.a)
+            else:
+                W = self.pattern.assemble(blocks) + D
             factor = factor_pd(W, ordered=self.ordered)
             self.factorisations += 1
             if factor is not None:

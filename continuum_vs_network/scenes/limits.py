@@ -155,6 +155,9 @@ def estimate(scene: Scene) -> Estimate:
         key = "steps_per_tau" if d.steps_per_tau / 20 > d.duration / 12 else "duration"
         # the network trajectory (and its displacements), and the continuum's
         est.add("dynamics", key, frames * (3 * nodes * 16 + 2 * dofs * 8), f"{frames} time steps")
+    if scene.kind == "physical_time":
+        # a run keeps at most 300 outputs of positions and learning degrees of freedom
+        est.add("network", key, 300 * (nodes * 16 + 6 * nodes * 16), "300 recorded outputs")
     return est
 
 

@@ -13,7 +13,10 @@ What is written (``meshes/<scene>/`` by default):
   data (tensor, magnitude, principal direction, dilation; ``frozen`` elements) on the
   network's triangles (the network's rest-length changes) or the continuum's mesh;
 * relaxation (largest lattice): ``network_n<n>_final.vtu``, ``continuum_n<n>_final.vtu`` and,
-  with ``series = true``, ``network_n<n>_relaxation.pvd`` (time = physical time).
+  with ``series = true``, ``network_n<n>_relaxation.pvd`` (time = physical time);
+* physical_time (largest lattice, ``series = true``): ``<rule>_n<n>_physical_time.pvd``, the
+  moving network learning in physical time at the ratio nearest 1 (one frame per output
+  time; time = physical time; :func:`~continuum_vs_network.io.export.time_history_series`).
 """
 
 from __future__ import annotations
@@ -79,6 +82,23 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
     written: list[Path] = []
     for key, unit in result.units.items():
         a = unit.arrays
+        if key.startswith("physical_time/"):
+            if export.series and "series/x" in a:
+                from ..io.export import time_history_series
+
+                written.append(
+                    time_history_series(
+                        _net(a, "net/"),
+                        a["series/times"],
+                        a["series/x"],
+                        a["series/rest_length"],
+                        a["series/stiffness"],
+                        folder,
+                        f"{unit.meta['rule']}_n{unit.meta['n']}_physical_time",
+                        sources=a["net/sources"],
+                        targets=a["net/targets"],
+                    )
+                )
         if key.startswith("continuum_learning/"):
             if export.continuum and "triangles" in a:
                 written.append(_learned_field_mesh(key, a, folder))

@@ -120,6 +120,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_accuracy import plan_accuracy
 
         return plan_accuracy(scene)
+    if scene.kind == "physical_time":
+        from .units_time import plan_time
+
+        return plan_time(scene)
     from .units_solvers import plan_solvers
 
     return plan_solvers(scene)

@@ -7,12 +7,14 @@ A scene is data only (no code is executed from it). Top-level keys::
     seed = 0                  # first seed; trial i uses seed + i
     kind = "learning"         # learning | transmission | relaxation | stability | solvers
                               # | accuracy | continuum_learning | beyond_paper
+                              # | physical_time
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
-``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[export]``, ``[report]``,
-and ``[sweep]`` (the scene as a grid of variants, :class:`SweepSpec`). Which tables a kind
-needs and which it accepts is in :data:`KIND_TABLES`; a table a kind does not use is an error
-(a scene never carries settings that are silently ignored). Every key of every table is
+``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[physical_time]``,
+``[export]``, ``[report]``, and ``[sweep]`` (the scene as a grid of variants,
+:class:`SweepSpec`). Which tables a kind needs and which it accepts is in
+:data:`KIND_TABLES`; a table a kind does not use is an error (a scene never carries settings
+that are silently ignored). Every key of every table is
 listed, with its type, default and meaning, in the dataclasses below (``cvn scenes --keys``
 prints them).
 
@@ -44,6 +46,7 @@ __all__ = [
     "ExportSpec",
     "LearningSpec",
     "NetworkSpec",
+    "PhysicalTimeSpec",
     "ReportSpec",
     "Scene",
     "SceneError",
@@ -67,6 +70,7 @@ KINDS = (
     "stability",
     "solvers",
     "accuracy",
+    "physical_time",
     "continuum_learning",
     "beyond_paper",
 )
@@ -88,6 +92,10 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     "stability": (frozenset({"network", "task", "solver"}), frozenset({"stability", "report"})),
     "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
     "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
+    "physical_time": (
+        frozenset({"network", "task", "physical_time"}),
+        frozenset({"export", "report"}),
+    ),
     "continuum_learning": (
         frozenset({"network", "task", "learning", "continuum"}),
         frozenset({"export", "report"}),
@@ -291,10 +299,10 @@ class NetworkSpec:
     sizes: tuple[int, ...] | None = _key(
         "list[int]",
         None,
-        "n x n triangular lattices, one per entry (transmission, relaxation, solvers; "
-        "beyond_paper: the first hosts Stern's task, all the capacity study)",
+        "n x n triangular lattices, one per entry (transmission, relaxation, solvers, "
+        "physical_time; beyond_paper: the first hosts Stern's task, all the capacity study)",
         check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
-        used=_kinds("transmission", "relaxation", "solvers", "beyond_paper"),
+        used=_kinds("transmission", "relaxation", "solvers", "beyond_paper", "physical_time"),
     )
     noise: float | None = _key(
         "float",
@@ -407,11 +415,15 @@ class LearningSpec:
     etas: tuple[float, ...] = _key(
         "list[float]",
         (),
-        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta",
+        "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta "
+        "(beyond_paper: the thermal study's nudges)",
         check=_each(_positive),
         used=_when(
-            lambda s: s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules),
-            "by learning scenes with a GCL rule",
+            lambda s: (
+                s.kind == "beyond_paper"
+                or (s.kind == "learning" and any(r.startswith("gcl") for r in s.learning.rules))
+            ),
+            "by learning scenes with a GCL rule and beyond_paper scenes",
         ),
     )
     alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
@@ -431,6 +443,14 @@ class LearningSpec:
             lambda s: any(r.startswith("aging") for r in s.learning.rules),
             "with rules aging or aging_k",
         ),
+    )
+    temperatures: tuple[float, ...] = _key(
+        "list[float]",
+        (0.0, 1e-8, 1e-6),
+        "temperatures k_B T of the thermal study (every state read as a harmonic Boltzmann "
+        "draw), one GCL run per nudge of etas and one exact-gradient run per entry",
+        check=_all(_unique_nonempty, _each(_non_negative), _increasing),
+        used=_kinds("beyond_paper"),
     )
     examples: tuple[int, ...] = _key(
         "list[int]",
@@ -733,7 +753,7 @@ class ExportSpec:
         "bool",
         False,
         "time series (learning trajectory, relaxation)",
-        used=_kinds("learning", "relaxation"),
+        used=_kinds("learning", "relaxation", "physical_time"),
     )
     every: int = _key(
         "int",
@@ -751,6 +771,73 @@ class ExportSpec:
         "learning trials to export",
         check=_all(_unique_nonempty, _each(_non_negative)),
         used=_kinds("learning"),
+    )
+
+
+#: Learning runs of a physical_time scene: GCL as twin networks, GCL with phases, GPC.
+TIME_RULES = ("gcl", "gcl_phases", "gpc")
+
+
+@dataclass(frozen=True)
+class PhysicalTimeSpec:
+    """``[physical_time]``: learning concurrent with the dynamics against the ratio of
+    learning rate to relaxation rate (:mod:`continuum_vs_network.learning.physical_time`)."""
+
+    rules: tuple[str, ...] = _key(
+        "list[str]",
+        ("gcl", "gpc"),
+        "rules: gcl (twin networks), gcl_phases, gpc (continuous)",
+        choices=TIME_RULES,
+        check=_unique_nonempty,
+    )
+    ratios: tuple[float, ...] = _key(
+        "list[float]",
+        (0.3, 1.0, 3.0, 10.0, 30.0),
+        "ratios alpha k tau of learning rate to relaxation rate",
+        check=_all(_unique_nonempty, _each(_positive), _increasing),
+    )
+    eta: float = _key(
+        "float",
+        0.1,
+        "GCL nudge amplitude",
+        check=_positive,
+        used=_when(
+            lambda s: any(r.startswith("gcl") for r in s.physical_time.rules), "by GCL rules"
+        ),
+    )
+    drag: float = _key("float", 1.0, "node drag c", check=_positive)
+    dashpot: float = _key("float", 0.0, "spring dashpot gamma (Kelvin-Voigt)", check=_non_negative)
+    arm_stiffness: float = _key(
+        "float", 0.0, "Maxwell-arm stiffness k2 (0: no arm)", check=_non_negative
+    )
+    arm_dashpot: float = _key("float", 0.0, "Maxwell-arm dashpot gamma2", check=_non_negative)
+    learning_times: float = _key(
+        "float", 5.0, "run length in learning times 1 / (alpha k)", check=_positive
+    )
+    relaxation_times: float = _key(
+        "float", 6.0, "shortest run, in relaxation times", check=_positive
+    )
+    steps_per_tau: int = _key("int", 20, "physical steps per relaxation time", check=_at_least(2))
+    steps_per_rate: int = _key(
+        "int", 10, "physical steps per learning time 1 / (alpha k)", check=_at_least(1)
+    )
+    fraction: float = _key(
+        "float",
+        0.1,
+        "learned when the error has made all but this fraction of its quasi-static drop",
+        check=_open_unit,
+    )
+    phase: float = _key(
+        "float", 1.0, "gcl_phases: phase length in relaxation times", check=_positive
+    )
+    frames: int = _key(
+        "int",
+        25,
+        "frames of the exported series",
+        check=_at_least(2),
+        used=_when(
+            lambda s: s.export is not None and s.export.series, "with [export] series = true"
+        ),
     )
 
 
@@ -777,6 +864,7 @@ _TABLES: dict[str, type] = {
     "dynamics": DynamicsSpec,
     "stability": StabilitySpec,
     "accuracy": AccuracySpec,
+    "physical_time": PhysicalTimeSpec,
     "export": ExportSpec,
     "report": ReportSpec,
 }
@@ -792,8 +880,8 @@ class Scene:
     seed : int
     kind : str
         One of :data:`KINDS`.
-    network, task, learning, solver, continuum, dynamics, stability, accuracy, export : spec
-        or None
+    network, task, learning, solver, continuum, dynamics, stability, accuracy, physical_time,
+    export : spec or None
         The tables given (None when absent).
     report : ReportSpec
         Always present (defaults when the table is absent).
@@ -815,6 +903,7 @@ class Scene:
     dynamics: DynamicsSpec | None = None
     stability: StabilitySpec | None = None
     accuracy: AccuracySpec | None = None
+    physical_time: PhysicalTimeSpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
     sweep: SweepSpec | None = None
@@ -1005,6 +1094,24 @@ def parse_scene(data: Mapping[str, Any], file: str = "<scene>") -> Scene:
     return scene
 
 
+def _check_physical_time(scene: Scene, file: str, need_key: Callable) -> None:
+    net, task, spec = scene.network, scene.task, scene.physical_time
+    if net.builder != "triangular":
+        raise SceneError(
+            file, "network", "builder", "kind 'physical_time' runs on triangular lattices"
+        )
+    need_key("network", "sizes", "for a physical_time scene")
+    if task.kind != "stern":
+        raise SceneError(file, "task", "kind", "kind 'physical_time' takes kind = 'stern'")
+    if (spec.arm_stiffness > 0) != (spec.arm_dashpot > 0):
+        raise SceneError(
+            file,
+            "physical_time",
+            "arm_dashpot",
+            "arm_stiffness and arm_dashpot must both be > 0 (a Maxwell arm) or both 0",
+        )
+
+
 def _short(value: Any, width: int = 60) -> str:
     """``repr(value)`` (strings: the text itself) cut to ``width`` characters."""
     text = value if isinstance(value, str) else repr(value)
@@ -1054,6 +1161,9 @@ def _check_kind(scene: Scene, file: str) -> None:
         _check_beyond_paper(scene, file, need_key)
         return
     if kind == "accuracy":
+        return
+    if kind == "physical_time":
+        _check_physical_time(scene, file, need_key)
         return
     if kind == "learning":
         assert net is not None and task is not None and scene.learning is not None

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from .schema import Scene
+from .timing import single_threaded
 from .units import Unit, UnitContext
 
 __all__ = ["lame_error", "plan_accuracy"]
@@ -128,6 +129,7 @@ def lame_error(element: str, h: float, poisson: float) -> dict[str, Any]:
     return {"error": err, "dofs": int(body.n_dofs), "seconds": seconds, "warned": warned}
 
 
+@single_threaded
 def fe_unit(scene: Scene, params: dict, ctx: UnitContext):
     """One element type at one mesh size on Lamé's cylinder."""
     lame_error("P2_curved", 0.5, 0.3)  # warm-up: imports and first calls are not timed
@@ -202,6 +204,7 @@ def _network_problem(size: int, problem: str) -> dict[str, Any]:
     }
 
 
+@single_threaded
 def network_unit(scene: Scene, params: dict, ctx: UnitContext):
     """One network scheme at one step count against the DOP853 reference."""
     from ..network.dynamics import simulate, stability_limit
@@ -258,6 +261,7 @@ def _continuum_problem(problem: str) -> dict[str, Any]:
     return {"body": body, "fixed": fixed, "mode": mode, "t_end": t_end, "exact": exact}
 
 
+@single_threaded
 def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
     """One continuum scheme at one step count against the lowest mode's closed form."""
     from ..continuum.viscoelastic import Damping, simulate_body

@@ -21,6 +21,12 @@
   sources, ``n_targets`` target node coordinates asked to move by ``N(0, target_std)``
   mean rest lengths) on the first lattice; its coupling is the source share of the target
   displacements (sources on and off, as :mod:`~continuum_vs_network.learning.coupling`).
+* ``beyond/thermal/T<i>/<run>``: learning at temperature ``T = [learning]
+  temperatures[i]`` (every state the rule reads is one harmonic Boltzmann draw,
+  :mod:`~continuum_vs_network.learning.thermal`) on Stern's task of the first lattice: GCL
+  at every nudge of ``[learning] etas`` (``gcl_eta<eta>``; default ``eta``) and the exact
+  gradient (``exact``, no nudge). The error floor is the median C/C0 of the last quarter
+  of the steps.
 * ``beyond/symmetric``: GCL on one source and one target trained in both directions at
   once (:func:`~continuum_vs_network.learning.examples.symmetric`) on the first lattice.
 
@@ -36,8 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
 __all__ = ["beyond_rules", "plan_beyond_paper"]
 
@@ -88,6 +94,18 @@ def plan_beyond_paper(scene: Scene) -> list[Unit]:
         )
         for rule in scene.learning.rules
     ]
+    L = scene.learning
+    for i, T in enumerate(L.temperatures):
+        for run in [*(f"gcl_eta{eta:g}" for eta in _etas(scene)), "exact"]:
+            units.append(
+                Unit(
+                    key=f"beyond/thermal/T{i}/{run}",
+                    func=thermal_unit,
+                    params={"temperature": T, "run": run},
+                    depends=depends,
+                    weight=steps,
+                )
+            )
     for n in scene.network.sizes:
         for m in scene.learning.examples:
             units.append(
@@ -286,3 +304,37 @@ def node_unit(scene: Scene, params: dict, ctx: UnitContext):
         "n_targets": task.n_targets,
     }
     return {"error": e, "seconds": np.asarray(h.seconds[0], dtype=float)}, meta
+
+
+def _etas(scene: Scene) -> tuple[float, ...]:
+    return scene.learning.etas or (scene.learning.eta,)
+
+
+def thermal_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """GCL at one nudge, or the exact gradient, at temperature ``T`` on Stern's task."""
+    from ..learning.tasks import stern_task
+    from ..learning.train import train
+
+    t = scene.task
+    net, rng = _lattice(scene, scene.network.sizes[0])
+    task = stern_task(
+        net, t.n_sources, t.n_targets, rng, source_std=t.source_std, target_std=t.target_std
+    )
+    run = params["run"]
+    rule = _table(scene)["exact" if run == "exact" else "gcl"]
+    if run != "exact":
+        rule = dataclasses.replace(rule, eta=float(run.removeprefix("gcl_eta")))
+    rule = per_stiffness(rule, net)
+    h = train(
+        net, task, rule, scene.learning.steps, temperature=params["temperature"],
+        progress=False, callback=_callback(ctx),
+    )  # fmt: skip
+    arrays, meta = _record(h, net, [task])
+    e = arrays["error"]
+    tail = e[-max(1, e.size // 4) :] / e[0]
+    meta.update(
+        floor=float(np.median(tail)) if int(h.completed[0]) == h.steps else float("nan"),
+        temperature=params["temperature"],
+        eta=None if run == "exact" else rule.eta,
+    )
+    return arrays, meta

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from .schema import Scene
+from .timing import single_threaded
 from .units import Unit, UnitContext
 from .units_physics import centre_spring, lattice
 
@@ -57,6 +58,7 @@ def warm_up(method: str) -> None:
     _WARM.add(method)
 
 
+@single_threaded
 def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Residual against iterations and wall-clock time of one method at one size."""
     from ..network.equilibrium import EquilibriumError, relax

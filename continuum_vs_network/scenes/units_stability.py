@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from .schema import Scene
+from .timing import single_threaded
 from .units import Unit, UnitContext
 from .units_physics import centre_spring, lattice
 from .units_solvers import warm_up
@@ -212,6 +213,7 @@ def _equilibrium_problem(scene: Scene, kind: str, value: float):
     return net, {spring: float(net.clamp_length(spring, strain))}, options
 
 
+@single_threaded
 def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
     """One method on one case; an error raised is recorded, not raised."""
     from ..network.constraints import default_pins
@@ -303,6 +305,7 @@ def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
 
 
 # -- dynamics ------------------------------------------------------------------------------
+@single_threaded
 def dynamics_unit(scene: Scene, params: dict, ctx: UnitContext):
     """One scheme at ``f`` times the explicit stability limit; refusal or failure recorded."""
     from ..network.dynamics import simulate, stability_limit
@@ -359,6 +362,7 @@ def dynamics_unit(scene: Scene, params: dict, ctx: UnitContext):
 
 
 # -- continuum locking ---------------------------------------------------------------------
+@single_threaded
 def locking_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Lamé's cylinder at one Poisson's ratio: error, DOFs, whether a warning was raised."""
     from .units_accuracy import lame_error
@@ -368,6 +372,7 @@ def locking_unit(scene: Scene, params: dict, ctx: UnitContext):
 
 
 # -- learning with stiff springs -----------------------------------------------------------
+@single_threaded
 def learning_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Coupled learning on a lattice with stiff springs: steps done, stop reason, C/C0."""
     from ..learning.rules import CoupledLearning

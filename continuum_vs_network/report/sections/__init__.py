@@ -16,6 +16,7 @@ from . import (
     beyond_paper,
     continuum_learning,
     learning,
+    physical_time,
     relaxation,
     solvers,
     stability,
@@ -32,6 +33,7 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "stability": stability.section,
     "solvers": solvers.section,
     "accuracy": accuracy.section,
+    "physical_time": physical_time.section,
     "continuum_learning": continuum_learning.section,
     "beyond_paper": beyond_paper.section,
 }

@@ -85,8 +85,9 @@ def _finite_elements(doc: Document, result, a) -> None:
         f"plane strain, Young's modulus 1, Poisson's ratio {a.poisson:g}) on ring meshes of "
         "size h. Error: relative L2 norm of the displacement error against the closed form "
         "u_r = A r + B / r. Seconds: the whole solve (mesh, basis, assembly, factorisation, "
-        "solve), after a warm-up solve. P2 on straight-sided triangles sees a polygonal "
-        "boundary, a geometric error of order h^2; isoparametric P2 follows the circles."
+        "solve), after a warm-up solve, with one BLAS thread. P2 on straight-sided "
+        "triangles sees a polygonal boundary, a geometric error of order h^2; isoparametric "
+        "P2 follows the circles."
     )
     rows, dof_s, time_s, summary = [], [], [], []
     for j, element in enumerate(a.elements):

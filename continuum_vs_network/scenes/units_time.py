@@ -1,0 +1,247 @@
+"""Units of physical_time scenes: learning concurrent with the dynamics, one unit per size
+and rule (``physical_time/n<n>/<rule>``).
+
+For an ``n x n`` triangular lattice (k = 1) with a Stern-scale task (sources and targets
+frozen, bulk learning, strains against the initial rest lengths), the unit measures the
+relaxation time ``tau`` after the source step
+(:func:`~continuum_vs_network.learning.physical_time.network_relaxation_time`), then for
+every ratio ``rho = alpha k tau`` of ``[physical_time] ratios`` runs
+
+* the rule in physical time (:func:`~continuum_vs_network.learning.physical_time.learn_in_time`)
+  for ``max(learning_times / (alpha k), relaxation_times tau)``, and
+* its quasi-static limit (every physical step an equilibrium) for ``learning_times /
+  (alpha k)`` with the same steps,
+
+with ``dt = min(tau / steps_per_tau, 1 / (steps_per_rate alpha k))`` for both (physical
+and learning step equal; ``gcl_phases`` learns once per cycle of two phases of
+``min(phase tau, 1 / (2 steps_per_rate alpha k))``, so its learning step is no longer).
+
+Measured per ratio (errors relative to the initial one): the time to make all but
+``fraction`` of the quasi-static error drop, in both runs (``T`` and ``T_qs``) and their
+ratio (the slowdown), the final errors, and the oscillation: the largest factor by which
+the error climbs back above its running minimum (:func:`rebound`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .units import Unit, UnitContext
+from .schema import Scene
+
+__all__ = ["OSCILLATION", "SLOWDOWN", "critical_ratio", "crossing_time", "plan_time", "rebound"]
+
+#: A run is past the quasi-static regime when it learns this many times slower than its
+#: quasi-static limit ...
+SLOWDOWN = 2.0
+#: ... or when its error climbs back to this many times its running minimum (oscillation).
+OSCILLATION = 2.0
+#: Errors below this fraction of the initial one are at the solver's floor: no rebound.
+FLOOR = 1e-6
+
+
+def plan_time(scene: Scene) -> list[Unit]:
+    """One unit per size and rule."""
+    d = scene.to_dict()
+    depends = {k: d[k] for k in ("seed", "network", "task", "physical_time") if k in d}
+    sizes = scene.network.sizes
+    rules = scene.physical_time.rules
+    series = scene.export is not None and scene.export.series
+    return [
+        Unit(
+            key=f"physical_time/n{n}/{rule}",
+            func=time_unit,
+            params={"n": int(n), "rule": rule, "series": bool(series and n == sizes[-1])},
+            depends=depends,
+        )
+        for n in sizes
+        for rule in rules
+    ]
+
+
+def crossing_time(times: np.ndarray, values: np.ndarray, level: float) -> float:
+    """First time ``values`` reach ``level`` or below (linear between frames); inf if never."""
+    below = np.flatnonzero(values <= level)
+    if below.size == 0:
+        return math.inf
+    i = int(below[0])
+    if i == 0:
+        return float(times[0])
+    v0, v1 = values[i - 1], values[i]
+    return float(times[i - 1] + (times[i] - times[i - 1]) * (v0 - level) / (v0 - v1))
+
+
+def rebound(values: np.ndarray, floor: float = FLOOR) -> float:
+    """Largest ``v[j] / min(v[:j+1])`` over the ``v[j] >= floor``: how far the error climbs
+    back above its running minimum (1 for a monotone decrease; an overshoot through zero
+    and back gives a large value)."""
+    v = np.asarray(values, float)
+    running = np.minimum.accumulate(v)
+    ok = v >= floor
+    if not ok.any():
+        return 1.0
+    return float(np.max(v[ok] / np.maximum(running[ok], floor * 1e-6)))
+
+
+def critical_ratio(ratios, slowdown, rebounds) -> tuple[float, str]:
+    """The smallest ratio past the quasi-static regime, and which criterion it met.
+
+    A ratio is past when ``slowdown >= SLOWDOWN`` (learning time over its quasi-static
+    value; inf when the level is never reached) or ``rebound >= OSCILLATION``. Between the
+    last ratio before and the first one past, the crossing of the criterion is
+    interpolated in log-log (geometric mean when a value is inf or 0). Returns
+    ``(ratios[0], ...)`` when the first ratio is already past and ``(inf, "none")`` when
+    none is.
+    """
+    r = np.asarray(ratios, float)
+    s = np.asarray(slowdown, float)
+    q = np.asarray(rebounds, float)
+    past = (s >= SLOWDOWN) | (q >= OSCILLATION)
+    if not past.any():
+        return math.inf, "none"
+    i = int(np.argmax(past))
+    which = "slowdown" if s[i] >= SLOWDOWN else "oscillation"
+    if i == 0:
+        return float(r[0]), which
+    values, level = (s, SLOWDOWN) if which == "slowdown" else (q, OSCILLATION)
+    v0, v1 = values[i - 1], values[i]
+    if not (np.isfinite(v1) and v0 > 0 and v1 > v0):
+        return float(math.sqrt(r[i - 1] * r[i])), which
+    f = math.log(level / v0) / math.log(v1 / v0)
+    return float(r[i - 1] * (r[i] / r[i - 1]) ** min(max(f, 0.0), 1.0)), which
+
+
+def _rule(name: str, alpha: float, eta: float):
+    from ..learning.rules import CoupledLearning, ProspectiveConfiguration
+
+    kw = {"strain_reference": "initial", "learn_sources": False, "learn_targets": False}
+    if name == "gpc":
+        return ProspectiveConfiguration(alpha, **kw)
+    return CoupledLearning(alpha, eta, **kw)
+
+
+def time_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """Learning in physical time against the ratio, for one size and rule."""
+    from ..learning.physical_time import learn_in_time, network_relaxation_time
+    from ..learning.tasks import stern_task
+    from ..network.viscous import Viscosity
+    from .units_physics import lattice
+
+    spec, t = scene.physical_time, scene.task
+    n, name = params["n"], params["rule"]
+    net = lattice(scene, n)
+    rng = np.random.default_rng([scene.seed, n])
+    for _ in range(200):  # clamps are held end nodes: sources and targets share no node
+        task = stern_task(
+            net, t.n_sources, t.n_targets, rng, source_std=t.source_std, target_std=t.target_std
+        )
+        ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()
+        if np.unique(ends).size == ends.size:
+            break
+    else:
+        raise ValueError(
+            f"no task of {t.n_sources} sources and {t.n_targets} targets without shared nodes "
+            f"found on the {n} x {n} lattice in 200 draws; use fewer springs or a larger lattice"
+        )
+    vis = Viscosity(
+        drag=spec.drag,
+        dashpot=spec.dashpot,
+        arm_stiffness=spec.arm_stiffness,
+        arm_dashpot=spec.arm_dashpot,
+    )
+    tau = network_relaxation_time(net, task, vis)
+    k = float(np.mean(net.stiffness))
+    arrays: dict[str, Any] = {}
+    rows = []
+    series_ratio = float(min(spec.ratios, key=lambda r: abs(math.log(r))))
+    for i, ratio in enumerate(spec.ratios):
+        alpha = ratio / (k * tau)
+        rule = _rule(name, alpha, spec.eta)
+        dt = min(tau / spec.steps_per_tau, 1.0 / (spec.steps_per_rate * alpha * k))
+        opts: dict[str, Any] = {"form": "twin" if name == "gcl" else None}
+        if name == "gcl_phases":
+            phase = min(spec.phase * tau, 0.5 / (spec.steps_per_rate * alpha * k))
+            dt = min(dt, phase)
+            opts = {"form": "phases", "phase": phase}
+        elif name == "gpc":
+            opts = {}
+        t_learn = spec.learning_times / (alpha * k)
+        duration = max(t_learn, spec.relaxation_times * tau)
+        outputs = min(300, max(20, round(60 * duration / t_learn)))
+        run = learn_in_time(
+            net, task, rule, viscosity=vis, duration=duration, dt=dt, n_outputs=outputs, **opts
+        )
+        qs = learn_in_time(
+            net,
+            task,
+            rule,
+            viscosity=vis,
+            duration=t_learn,
+            dt=dt,
+            n_outputs=60,
+            quasistatic=True,
+            **opts,
+        )
+        e = run.error / run.error[0]
+        e_qs = qs.error / qs.error[0]
+        level = e_qs[-1] + spec.fraction * (1.0 - e_qs[-1])
+        T = crossing_time(run.times, e, level)
+        T_qs = crossing_time(qs.times, e_qs, level)
+        at_t_learn = float(np.interp(t_learn, run.times, e))
+        rows.append(
+            {
+                "ratio": ratio,
+                "alpha": alpha,
+                "dt": dt,
+                "dt_learn": run.dt_learn,
+                "duration": duration,
+                "T": T,
+                "T_qs": T_qs,
+                "slowdown": T / T_qs if T_qs > 0 else math.nan,
+                "error_final": float(e[-1]),
+                "error_at_qs_end": at_t_learn,
+                "error_qs_end": float(e_qs[-1]),
+                "rebound": rebound(e),
+                "seconds": float(run.seconds[-1]),
+                "seconds_qs": float(qs.seconds[-1]),
+                "factorisations": run.factorisations,
+            }
+        )
+        arrays[f"r{i}/times"] = run.times
+        arrays[f"r{i}/error"] = e
+        arrays[f"r{i}/times_qs"] = qs.times
+        arrays[f"r{i}/error_qs"] = e_qs
+        if params["series"] and ratio == series_ratio:
+            idx = np.unique(np.linspace(0, run.times.size - 1, spec.frames).round().astype(int))
+            arrays.update(
+                {
+                    "net/positions": net.positions,
+                    "net/springs": net.springs,
+                    "net/stiffness": net.stiffness,
+                    "net/rest_length": net.rest_length,
+                    "net/sources": task.sources,
+                    "net/targets": task.targets,
+                    "series/times": run.times[idx],
+                    "series/x": run.positions[idx],
+                    "series/rest_length": run.rest_length[idx],
+                    "series/stiffness": run.stiffness[idx],
+                }
+            )
+    crit, which = critical_ratio(
+        spec.ratios, [r["slowdown"] for r in rows], [r["rebound"] for r in rows]
+    )
+    meta = {
+        "critical_ratio": crit,
+        "critical_by": which,
+        "n": n,
+        "n_nodes": net.n_nodes,
+        "rule": name,
+        "tau": tau,
+        "error0": float(run.error[0]),
+        "series_ratio": series_ratio if params["series"] else None,
+        "runs": rows,
+    }
+    return arrays, meta

@@ -1,0 +1,228 @@
+"""Learning concurrent with the dynamics: closed forms, the quasi-static limit, export and
+the physical_time scene."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import continuum_vs_network as cvn
+from continuum_vs_network.learning import (
+    CoupledLearning,
+    ExactGradient,
+    ProspectiveConfiguration,
+    stern_task,
+)
+from continuum_vs_network.learning.physical_time import learn_in_time, network_relaxation_time
+from continuum_vs_network.network.viscous import Viscosity
+from continuum_vs_network.scenes.units_time import critical_ratio, crossing_time, rebound
+
+BULK = {"strain_reference": "initial", "learn_sources": False, "learn_targets": False}
+
+
+@pytest.fixture(scope="module")
+def small():
+    net = cvn.triangular_lattice(5, 5)
+    task = stern_task(net, 1, 1, np.random.default_rng(3))
+    return net, task
+
+
+def test_gpc_target_rest_length_relaxes_exponentially_onto_its_clamp(small):
+    """A clamped spring keeps its length r, so L' = alpha k (r - L) gives
+    L(t) = r + (L0 - r) exp(-alpha k t) exactly, whatever the dynamics of the rest."""
+    net, task = small
+    alpha, T = 0.3, 4.0
+    rule = ProspectiveConfiguration(alpha, learn_targets=True)
+    h = learn_in_time(
+        net, task, rule, viscosity=Viscosity(drag=1.0), duration=T, dt=0.1, learn_every=3
+    )
+    j = int(task.targets[0])
+    r = float(task.desired_lengths(net, "initial")[0])
+    L0 = net.rest_length[j]
+    expected = r + (L0 - r) * np.exp(-alpha * net.stiffness[j] * h.times)
+    # the rest length is updated every dt_learn = 0.3: compare at those times
+    on_grid = np.isclose(np.round(h.times / h.dt_learn) * h.dt_learn, h.times)
+    np.testing.assert_allclose(h.rest_length[on_grid, j], expected[on_grid], rtol=1e-12)
+    assert h.dt_learn == pytest.approx(0.3)
+
+
+@pytest.mark.parametrize(
+    ("rule", "form"),
+    [
+        (ProspectiveConfiguration(0.2, **BULK), "continuous"),
+        (CoupledLearning(0.2, 0.1, **BULK), "twin"),
+    ],
+    ids=["gpc", "gcl_twin"],
+)
+def test_learning_in_time_tends_to_the_quasi_static_limit(small, rule, form):
+    """Same learning steps, drag c -> 0 (relaxation time ~ c, physical step ~ c): the
+    learned rest lengths approach the quasi-static run, the gap shrinking ~ the ratio of
+    learning rate to relaxation rate."""
+    net, task = small
+    dt_learn, T = 0.25, 3.0
+    qs = learn_in_time(
+        net,
+        task,
+        rule,
+        viscosity=Viscosity(drag=1.0),
+        duration=T,
+        dt=dt_learn,
+        form=form,
+        quasistatic=True,
+        n_outputs=5,
+    )
+    gaps = []
+    for c in (1.0, 0.25, 1 / 16):
+        m = round(4 / c)  # physical steps per learning step: dt ~ c, dt_learn fixed
+        run = learn_in_time(
+            net,
+            task,
+            rule,
+            viscosity=Viscosity(drag=c),
+            duration=T,
+            dt=dt_learn / m,
+            learn_every=m,
+            form=form,
+            n_outputs=5,
+        )
+        assert run.dt_learn == pytest.approx(dt_learn)
+        change = np.max(np.abs(qs.rest_length[-1] - net.rest_length))
+        gaps.append(np.max(np.abs(run.rest_length[-1] - qs.rest_length[-1])) / change)
+    assert gaps[0] > 1.8 * gaps[1] > 1.8**2 * gaps[2], gaps
+    assert gaps[-1] < 0.05, gaps
+
+
+def test_gcl_phases_with_long_phases_learn_as_their_quasi_static_limit(small):
+    net, task = small
+    rule = CoupledLearning(0.02, 0.1, **BULK)
+    vis = Viscosity(drag=0.2)
+    tau = network_relaxation_time(net, task, vis)  # the net force down to 1 %
+    kw = {"duration": 4 * 2 * 3 * tau + tau, "form": "phases", "phase": 3 * tau, "n_outputs": 4}
+    run = learn_in_time(net, task, rule, viscosity=vis, dt=tau / 4, **kw)
+    qs = learn_in_time(net, task, rule, viscosity=vis, dt=tau / 4, quasistatic=True, **kw)
+    change = np.max(np.abs(qs.rest_length[-1] - net.rest_length))
+    assert change > 0
+    assert np.max(np.abs(run.rest_length[-1] - qs.rest_length[-1])) < 1e-2 * change
+    assert run.error[-1] < run.error[0]
+
+
+def test_relaxation_time_grows_with_drag(small):
+    net, task = small
+    t1 = network_relaxation_time(net, task, Viscosity(drag=1.0))
+    t2 = network_relaxation_time(net, task, Viscosity(drag=2.0))
+    assert t2 == pytest.approx(2 * t1, rel=0.02)  # overdamped: time proportional to drag
+
+
+def test_bad_input_is_named(small):
+    net, task = small
+    vis = Viscosity()
+    with pytest.raises(ValueError, match="quasi-static"):
+        learn_in_time(net, task, ExactGradient(0.1), viscosity=vis, duration=1.0, dt=0.1)
+    with pytest.raises(ValueError, match="form"):
+        learn_in_time(
+            net, task, ProspectiveConfiguration(0.1), viscosity=vis, duration=1, dt=0.1, form="twin"
+        )
+    with pytest.raises(ValueError, match="phase"):
+        learn_in_time(
+            net, task, CoupledLearning(0.1, 0.1), viscosity=vis, duration=1, dt=0.1, form="phases"
+        )
+    with pytest.raises(ValueError, match="explicit learning step"):
+        learn_in_time(net, task, CoupledLearning(5.0, 0.1), viscosity=vis, duration=1, dt=1.0)
+
+
+def test_study_measures():
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    assert crossing_time(t, np.array([1.0, 0.6, 0.2, 0.1]), 0.4) == pytest.approx(1.5)
+    assert crossing_time(t, np.array([1.0, 0.9, 0.8, 0.7]), 0.5) == np.inf
+    assert rebound(np.array([1.0, 0.5, 0.7, 0.2, 0.3])) == pytest.approx(1.5)
+    assert rebound(np.array([1.0, 0.1, 1e-5, 2e-3, 1e-3])) == pytest.approx(200)  # overshoot
+    assert rebound(np.array([1.0, 1e-8, 1e-7])) == 1.0  # below the floor
+    assert rebound(np.array([1.0, 0.5, 0.25])) == 1.0
+    ratios = [1.0, 10.0, 100.0]
+    assert critical_ratio(ratios, [1.0, 1.0, 1.0], [1.0, 1.0, 1.0]) == (np.inf, "none")
+    r, by = critical_ratio(ratios, [1.0, 1.0, 4.0], [1.0, 1.0, 1.0])
+    assert by == "slowdown" and r == pytest.approx(10 * 10**0.5)  # log-log halfway to 4
+    r, by = critical_ratio(ratios, [1.0, 1.0, 1.0], [1.0, 1.0, 4.0])
+    assert by == "oscillation" and r == pytest.approx(10 * 10**0.5)
+    assert critical_ratio(ratios, [3.0, 1.0, 1.0], [1.0, 1.0, 1.0]) == (1.0, "slowdown")
+
+
+def test_time_history_series_has_one_frame_per_output(small, tmp_path):
+    pytest.importorskip("meshio")
+    from continuum_vs_network.io.export import read_series_index, time_history_series
+
+    net, task = small
+    h = learn_in_time(
+        net,
+        task,
+        ProspectiveConfiguration(0.2, **BULK),
+        viscosity=Viscosity(),
+        duration=2.0,
+        dt=0.1,
+        n_outputs=5,
+    )
+    index = time_history_series(
+        net,
+        h.times,
+        h.positions,
+        h.rest_length,
+        h.stiffness,
+        tmp_path,
+        "run",
+        sources=task.sources,
+        targets=task.targets,
+    )
+    frames = read_series_index(index)
+    assert [t for t, _ in frames] == pytest.approx(h.times.tolist())
+    import meshio
+
+    last = meshio.read(frames[-1][1])
+    np.testing.assert_allclose(last.cell_data["rest_length"][0], h.rest_length[-1])
+    np.testing.assert_allclose(
+        last.point_data["displacement"][:, :2], h.positions[-1] - net.positions
+    )
+    with pytest.raises(ValueError, match="positions"):
+        time_history_series(
+            net, h.times, h.positions[:-1], h.rest_length, h.stiffness, tmp_path, "bad"
+        )
+
+
+def test_physical_time_scene_runs_and_judges(tmp_path):
+    pytest.importorskip("matplotlib")
+    from continuum_vs_network.report.writer import write_report
+    from continuum_vs_network.scenes.runner import run_scene
+    from continuum_vs_network.scenes.schema import parse_scene
+
+    text = """
+name = "pt"
+description = "tiny"
+kind = "physical_time"
+[network]
+builder = "triangular"
+sizes = [5, 6]
+[task]
+kind = "stern"
+n_sources = 1
+n_targets = 1
+[physical_time]
+rules = ["gpc"]
+ratios = [0.3, 3.0]
+relaxation_times = 1.0
+learning_times = 3.0
+"""
+    import tomllib
+
+    scene = parse_scene(tomllib.loads(text), "pt.toml")
+    result = run_scene(scene, tmp_path / "results")
+    units = result.select("physical_time/")
+    assert sorted(units) == ["physical_time/n5/gpc", "physical_time/n6/gpc"]
+    for u in units.values():
+        assert u.meta["tau"] > 0
+        for r in u.meta["runs"]:
+            # at the smallest ratio the run is quasi-static to a few percent
+            if r["ratio"] == 0.3:
+                assert abs(r["error_at_qs_end"] - r["error_qs_end"]) < 0.05
+    path = write_report(result, tmp_path / "report", render=False)
+    text = path.read_text()
+    assert "speed of learning cannot be addressed" in text
+    assert "physical_time_speed" in text
