@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .runner import Unit, UnitContext
+from .units import Unit, UnitContext
 from .schema import Scene
 
 __all__ = ["OSCILLATION", "SLOWDOWN", "critical_ratio", "crossing_time", "plan_time", "rebound"]
