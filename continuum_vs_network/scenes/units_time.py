@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from .units import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
 __all__ = ["OSCILLATION", "SLOWDOWN", "critical_ratio", "crossing_time", "plan_time", "rebound"]
 
