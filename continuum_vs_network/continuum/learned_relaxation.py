@@ -71,8 +71,8 @@ def source_step(medium, task, *, damping, dt: float, t_end: float) -> SourceStep
     dt, t_end : float
         Time step and duration (> 0).
     """
+    from ..network.kkt import factor_kkt
     from .probes import chord_strain_probe
-    from .static import factorise
     from .viscoelastic import damping_matrix
 
     if not (np.isfinite(dt) and dt > 0 and np.isfinite(t_end) and t_end > 0):
@@ -88,11 +88,9 @@ def source_step(medium, task, *, damping, dt: float, t_end: float) -> SourceStep
     if C.nnz == 0:
         raise ValueError("damping must have a drag or a viscosity > 0")
     K = medium.stiffness()[free][:, free]
-    A = factorise((C / dt + K).tocsc(), symmetric=True)
     G = chord_strain_probe(medium.body, task.source_a, task.source_b).operator.tocsc()[:, free]
     T = chord_strain_probe(medium.body, task.target_a, task.target_b).operator.tocsc()[:, free]
-    Z = A.solve(G.T.toarray())
-    S = G @ Z
+    kkt = factor_kkt((C / dt + K).tocsc(), G)  # one factorisation, Schur complement of G
     f = medium.load()[free]
     x = u[free]
     n = int(np.ceil(t_end / dt))
@@ -100,9 +98,7 @@ def source_step(medium, task, *, damping, dt: float, t_end: float) -> SourceStep
     out = np.empty((n + 1, task.n_targets))
     out[0] = T @ x
     for i in range(n):
-        y = A.solve(C @ x / dt + f)
-        lam = np.linalg.solve(S, G @ y - task.source_strain)
-        x = y - Z @ lam
+        x, _ = kkt.solve(C @ x / dt + f, task.source_strain)
         out[i + 1] = T @ x
     if not np.all(np.isfinite(out)):
         raise FloatingPointError("the relaxation produced non-finite strains")

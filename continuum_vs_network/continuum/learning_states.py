@@ -12,7 +12,8 @@ solve), and then any clamp set costs one solve for ``u0 = K^-1 f`` plus a dense 
 the size of the clamp set: ``lambda = (G_c Z_c)^-1 (G_c u0 - v)``, ``u = u0 - Z_c lambda``.
 The free state (sources clamped), the nudged and the fully clamped states and the adjoint
 all reuse the one factorisation; with eigenstrain learning ``K`` never changes, so a whole
-training run factorises once.
+training run factorises once. The factorisation (:func:`~..network.kkt.factor_spd`) and the
+Schur-complement solve (:func:`~..network.kkt.schur_solve`) are the network engine's.
 
 Adjoint: a cost ``C = d^T W d / 2`` of the free target strains ``d = G_t u^F - S_T``
 has ``dC/dtheta = p . (df/dtheta - dK/dtheta u^F)`` with
@@ -33,6 +34,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from ..network.kkt import schur_solve
 
 __all__ = [
     "MaterialState",
@@ -78,8 +81,8 @@ class _System:
     """Factorised stiffness of one modulus field and one task's clamps (cached)."""
 
     def __init__(self, medium, task, tracker) -> None:
+        from ..network.kkt import factor_spd
         from .probes import chord_strain_probe
-        from .static import factorise
 
         n = medium.n_dofs
         keep = np.ones(n, dtype=bool)
@@ -87,7 +90,13 @@ class _System:
         self.free = np.flatnonzero(keep)
         K = medium.stiffness()[self.free][:, self.free]
         self.K = K
-        self.factor = factorise(K, symmetric=True)
+        factor = factor_spd(K)
+        if factor is None:
+            raise ValueError(
+                "the stiffness with the fixed DOFs removed is not positive definite: the body "
+                "can move without strain; fix enough DOFs to stop rigid motion"
+            )
+        self.factor = factor
         body = medium.body
         G = chord_strain_probe(
             body,
@@ -95,7 +104,7 @@ class _System:
             np.vstack([task.source_b, task.target_b]),
         ).operator
         self.G = G.tocsc()[:, self.free].tocsr()
-        self.Z = self.factor.solve(self.G.T.toarray())  # (n_free, n_s + n_t)
+        self.Z = np.asarray(factor.solve(self.G.T.toarray()))  # (n_free, n_s + n_t)
         self.S = self.G @ self.Z
         self.n_sources = task.n_sources
         self._u0: tuple[NDArray, tuple] | None = None
@@ -133,9 +142,7 @@ def _solve(medium, task, clamped: NDArray, values: NDArray, tracker) -> Material
     sys_ = _system(medium, task, tracker)
     u0, f, const = sys_.u0(medium)
     Gc = sys_.G[clamped]
-    S = sys_.S[np.ix_(clamped, clamped)]
-    lam = np.linalg.solve(S, Gc @ u0 - values)
-    uf = u0 - sys_.Z[:, clamped] @ lam
+    uf, lam = schur_solve(u0, Gc, sys_.Z[:, clamped], sys_.S[np.ix_(clamped, clamped)], values)
     u = np.zeros(medium.n_dofs)
     u[sys_.free] = uf
     Ku = sys_.K @ uf
@@ -195,8 +202,8 @@ def cost_gradient(
     ns = task.n_sources
     d = free.target_strain - task.target_strain
     w = d if weight is None else np.asarray(weight, float) @ d
-    Zs, Zt = sys_.Z[:, :ns], sys_.Z[:, ns:]
-    pf = Zt @ w - Zs @ np.linalg.solve(sys_.S[:ns, :ns], sys_.S[:ns, ns:] @ w)
+    # p solves [K G_s^T; G_s 0] [p; mu] = [G_t^T w; 0], and K^-1 G_t^T w = Z_t w
+    pf, _ = schur_solve(sys_.Z[:, ns:] @ w, sys_.G[:ns], sys_.Z[:, :ns], sys_.S[:ns, :ns], 0.0)
     p = np.zeros(medium.n_dofs)
     p[sys_.free] = pf
     return medium.parameter_gradient(free.u, p, dof)

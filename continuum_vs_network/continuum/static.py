@@ -23,9 +23,9 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
+from ..network.kkt import sparse_lu
 from .body import ElasticBody, dofs_where, stiffness_matrix
 
 __all__ = [
@@ -143,12 +143,9 @@ class Factorisation:
     ) -> None:
         if A.shape[0] != A.shape[1]:
             raise ValueError(f"matrix must be square, got shape {A.shape}")
-        pivots: dict = (
-            {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}} if symmetric else {}
-        )
         t0 = time.perf_counter()
         try:
-            self._lu = spla.splu(sp.csc_matrix(A), permc_spec=ordering, **pivots)
+            self._lu = sparse_lu(A, ordering=ordering, symmetric=symmetric)
         except RuntimeError as err:
             raise ValueError(
                 f"the matrix is singular ({err}): the body can move without strain. Fix "

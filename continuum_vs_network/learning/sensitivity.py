@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..network.constraints import Problem
 from ..network.equilibrium import Equilibrium
+from ..network.kkt import schur_solve
 from ..network.lagrangian import Frame, lagrangian_hessian
 from ..network.model import SpringNetwork
 from .tasks import AllosteryTask, StrainReference
@@ -114,8 +115,7 @@ class Sensitivity:
         else:
             z = np.asarray(self._solve_W(bf))
             if m:
-                w = np.linalg.solve(self._S, self.A @ z)
-                vf = z - self._Z @ w
+                vf, w = schur_solve(z, self.A, self._Z, self._S, 0.0)
             else:
                 vf, w = z, np.zeros((0, *bf.shape[1:]))
         if bf.ndim == 1:

@@ -48,6 +48,7 @@ from numpy.typing import NDArray
 from ..network.arguments import solver_arguments
 from ..network.constraints import Problem, clamp_tensions
 from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
+from ..network.kkt import schur_solve
 from ..network.lagrangian import Frame, lagrangian_hessian, trust_region
 from ..network.model import SpringNetwork
 
@@ -412,7 +413,7 @@ class Tracker:
             z = lin.factor.solve(force)
             if clamps.size:
                 At, Z, S = lin.rows_and_columns(net, clamps)
-                step = -z - Z @ np.linalg.solve(S, viol - At @ z)
+                step, _ = schur_solve(-z, At, Z, S, -viol)
             else:
                 step = -z
             lin.uses += 1

@@ -46,7 +46,16 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-__all__ = ["DENSE_MAX", "KKT", "Factor", "Inertia", "factor_kkt", "factor_spd"]
+__all__ = [
+    "DENSE_MAX",
+    "KKT",
+    "Factor",
+    "Inertia",
+    "factor_kkt",
+    "factor_spd",
+    "schur_solve",
+    "sparse_lu",
+]
 
 DENSE_MAX = 400  # below this many unknowns dense LAPACK beats scipy.sparse's overhead
 
@@ -77,6 +86,21 @@ def _dense(M) -> NDArray:
     return M.toarray() if sp.issparse(M) else np.asarray(M, dtype=np.float64)
 
 
+def sparse_lu(W: sp.spmatrix, *, ordering: str = "MMD_AT_PLUS_A", symmetric: bool = True):
+    """SuperLU factorisation of a square sparse ``W`` (raises RuntimeError when singular).
+
+    ``ordering``: SuperLU ``permc_spec``. Minimum degree on ``W + W^T`` suits symmetric
+    stiffness matrices (``benchmarks/bench_continuum.py``: 35-55 % less fill and 1.6-2.4x
+    faster factorisations than ``COLAMD`` at 1e5 DOFs). ``symmetric``: diagonal pivots in
+    SuperLU's symmetric mode, which keep that ordering (for symmetric positive-definite
+    ``W``; partial pivoting broke it and was 5-50x slower); False: partial pivoting.
+    """
+    pivots: dict = (
+        {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}} if symmetric else {}
+    )
+    return spla.splu(sp.csc_matrix(W), permc_spec=ordering, **pivots)
+
+
 def factor_spd(W: sp.spmatrix | NDArray, *, ordered: bool = False) -> Factor | None:
     """Factorise symmetric ``W`` (n, n); None when it is not positive definite.
 
@@ -93,12 +117,7 @@ def factor_spd(W: sp.spmatrix | NDArray, *, ordered: bool = False) -> Factor | N
             return None
         return Factor(lambda b: sla.cho_solve(c, b, check_finite=False), n)
     try:
-        lu = spla.splu(
-            sp.csc_matrix(W),
-            permc_spec="NATURAL" if ordered else "MMD_AT_PLUS_A",
-            diag_pivot_thresh=0.0,
-            options={"SymmetricMode": True},
-        )
+        lu = sparse_lu(W, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
     except RuntimeError:  # exactly singular
         return None
     if not np.array_equal(lu.perm_r, lu.perm_c) or not np.all(lu.U.diagonal() > 0):
@@ -163,6 +182,22 @@ class KKT:
         return self._solve(b, c)
 
 
+def schur_solve(
+    z: NDArray, A: sp.spmatrix | NDArray, Z: NDArray, S, c: NDArray
+) -> tuple[NDArray, NDArray]:
+    """The range-space solve of ``[[W, A^T], [A, 0]] [x; y] = [b; c]`` given ``z = W^-1 b``.
+
+    ``y = S^-1 (A z - c)``, ``x = z - Z y`` with ``Z = W^-1 A^T`` (n, m) and ``S = A Z``
+    (m, m: an array, or its ``scipy.linalg.lu_factor``). The Schur-complement reuse: with
+    ``Z`` and ``S`` formed once for many constraint rows, the system of any subset of them
+    is ``A[rows]``, ``Z[:, rows]``, ``S[rows][:, rows]``: no further solve with ``W``.
+    ``z`` (n,) or (n, p), ``c`` (m,) or (m, p).
+    """
+    r = A @ z - c
+    y = sla.lu_solve(S, r, check_finite=False) if isinstance(S, tuple) else np.linalg.solve(S, r)
+    return z - Z @ y, y
+
+
 def range_space(factor: Factor, A: sp.spmatrix | NDArray | None) -> KKT:
     """The KKT system of a positive-definite ``W`` given as a solver, and ``A``.
 
@@ -186,9 +221,7 @@ def range_space(factor: Factor, A: sp.spmatrix | NDArray | None) -> KKT:
     lu_S = sla.lu_factor(S, check_finite=False)
 
     def solve(b: NDArray, c: NDArray) -> tuple[NDArray, NDArray]:
-        z = np.asarray(factor.solve(b))
-        y = sla.lu_solve(lu_S, A @ z - c, check_finite=False)
-        return z - Z @ y, y
+        return schur_solve(np.asarray(factor.solve(b)), A, Z, lu_S, c)
 
     inertia = Inertia(n + s_inertia.negative, s_inertia.positive, 0)
     return KKT(n, m, solve, inertia, True)
