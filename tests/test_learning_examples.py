@@ -1,4 +1,5 @@
-"""Several examples at once (TaskSet): the summed update, the summed error, symmetric."""
+"""Several examples at once (TaskSet): the summed update, the summed error, symmetric,
+anchored."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from continuum_vs_network.learning import (
     ExactGradient,
     History,
     TaskSet,
+    anchored,
     cost_gradient,
     examples_task,
     stern_task,
@@ -103,6 +105,68 @@ def test_symmetric_exchanges_sources_and_targets_and_learns_both_ways():
         assert t.error(final, _free(final, t).positions) < 1e-3 * c0
 
 
+def _stern_lattice(seed: int):
+    from continuum_vs_network.learning.stern import stern_network
+
+    rng = np.random.default_rng(seed)
+    net = stern_network(64, rng)
+    return net, stern_task(net, 4, 2, rng, candidates=np.ones(net.n_springs, dtype=bool))
+
+
+def test_anchored_rest_example_asks_for_the_initial_strains():
+    net, task = _stern_lattice(0)
+    # prestress the network (rest lengths off the geometry) so "at rest" is not zero strain
+    L = net.rest_length * np.random.default_rng(9).uniform(0.95, 1.05, net.n_springs)
+    pre = net.with_rest_length(L)
+    for network, label in ((net, "stress-free"), (pre, "prestressed")):
+        pair = anchored(task, network)
+        assert pair.n_examples == 2 and pair.tasks[0] is task
+        rest = pair.tasks[1]
+        assert np.array_equal(rest.sources, task.sources)
+        assert np.array_equal(rest.targets, task.targets)
+        assert np.all(rest.source_strain == 0.0)
+        # sources clamped at their reference rest lengths, relaxed independently
+        clamps = task.with_source_strain(np.zeros(task.n_sources)).source_clamps(network)
+        x = cvn.relax(network, pinned=task.pinned, clamped=clamps).positions
+        S = network.lengths(x)[task.targets] / task.target_rest_length - 1.0
+        assert np.allclose(rest.target_strain, S, atol=1e-8), label
+        # the untrained network meets the rest example: no error with the sources off
+        assert rest.error(network, x) < 1e-14
+    assert np.allclose(anchored(task, net).tasks[1].target_strain, 0.0, atol=1e-8)
+    assert np.abs(anchored(task, pre).tasks[1].target_strain).max() > 1e-3
+    with pytest.raises(ValueError, match="task"):
+        anchored(pair, net)
+    with pytest.raises(ValueError, match="strain_reference"):
+        anchored(task, net, strain_reference="rest")
+
+
+def test_anchored_penalises_the_trivial_solution():
+    net, task = _stern_lattice(0)
+    pair = anchored(task, net)
+    # the trivial solution: each target's rest length at its goal, 1e4 times stiffer
+    L, k = net.rest_length.copy(), net.stiffness.copy()
+    L[task.targets] = task.desired_lengths(net)
+    k[task.targets] *= 1e4
+    trivial = net.with_rest_length(L).with_stiffness(k)
+    xs = [_free(trivial, t).positions for t in pair.tasks]
+    # targets that sit at their goals whatever the sources do miss the rest example by C0
+    c0 = 0.5 * float(np.sum(task.target_strain**2))
+    assert pair.tasks[0].error(trivial, xs[0]) < 1e-4 * c0
+    assert pair.error(trivial, xs) > 0.9 * c0
+    assert pair.tasks[1].error(trivial, xs[1]) == pytest.approx(c0, rel=0.05)
+
+
+def test_gcl_descends_an_anchored_task():
+    net, task = _stern_lattice(1)
+    pair = anchored(task, net)
+    h = train(net, pair, CoupledLearning(0.5, 0.1, min_rest_length=1e-3), 30, progress=False)
+    e = h.error_initial[0]
+    assert np.all(np.isfinite(e)) and e[-1] < 0.7 * e[0]
+    assert np.all(np.diff(e) <= 1e-3 * e[0])  # descends, up to solver round-off
+    # both examples are recorded: 2 task targets, then the rest example's 2
+    assert h.target_strain.shape[-1] == 4
+
+
 def test_examples_task_springs_and_bad_input():
     rng = np.random.default_rng(0)
     net = triangular_lattice(6, 6, noise=0.1, rng=rng)
@@ -117,3 +181,27 @@ def test_examples_task_springs_and_bad_input():
         examples_task(net, 1000, rng)
     with pytest.raises(ValueError, match="tasks"):
         TaskSet(())
+
+
+def test_scene_key_anchored_trains_the_task_with_its_rest_example():
+    from continuum_vs_network.scenes import SceneError, parse_scene
+    from continuum_vs_network.scenes.units_learning import builders, task_example
+
+    data = {
+        "name": "s",
+        "description": "d",
+        "kind": "learning",
+        "network": {"builder": "triangular", "n_nodes": 64},
+        "task": {"kind": "stern", "n_sources": 4, "n_targets": 2, "anchored": True},
+        "learning": {"rules": ["gcl"], "trials": 1, "steps": 2},
+    }
+    make_net, make_task = builders(parse_scene(data, "s.toml"))
+    rng = np.random.default_rng(0)
+    net = make_net(rng)
+    pair = make_task(net, rng)
+    assert isinstance(pair, TaskSet) and pair.n_examples == 2
+    assert np.all(pair.tasks[1].source_strain == 0.0)
+    assert task_example(pair) is pair.tasks[0]
+    data["task"]["anchored"] = "yes"
+    with pytest.raises(SceneError, match="anchored"):
+        parse_scene(data, "s.toml")

@@ -37,6 +37,7 @@ def _with(base, table, key, value):
         (LEARNING, "network", "n_nodes", 64),  # the paper's patch has a fixed size
         (LEARNING, "network", "fraction", 0.3),  # not a diluted network
         (LEARNING, "task", "strain", 0.2),
+        (LEARNING, "task", "anchored", True),  # a rest example only for stern tasks
         (LEARNING, "learning", "sweep_points", 5),  # sweeps off
         (TRANSMISSION, "task", "n_sources", 3),
         (TRANSMISSION, "network", "stiffness_ratios", [10.0]),

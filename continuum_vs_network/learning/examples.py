@@ -12,6 +12,12 @@ side (``n_targets`` is the total over the examples).
 
 Bulk learning freezes the union of every example's sources and targets.
 
+:func:`anchored` adds the **rest example** to a task: the sources clamped at zero strain,
+the targets asked to stay where the untrained network puts them with the sources off. A
+network that meets both examples must *transmit* the source strains; prestressing the
+targets into place (a decoupled, trivial solution, :mod:`.coupling`) fails the rest
+example, so the task is non-trivial by construction.
+
 :func:`examples_task` draws a dataset for a capacity study (Rocks et al. 2019: how many
 independent responses a network of a given size can hold).
 """
@@ -26,9 +32,16 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _validate as check
 from ..network.constraints import default_pins
 from ..network.model import SpringNetwork
-from .tasks import AllosteryTask, StrainReference, _candidates, _positive_normal
+from .states import Solver, Tracker
+from .tasks import (
+    AllosteryTask,
+    StrainReference,
+    _candidates,
+    _positive_normal,
+    check_strain_reference,
+)
 
-__all__ = ["TaskSet", "examples_task", "symmetric"]
+__all__ = ["TaskSet", "anchored", "examples_task", "symmetric"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,6 +158,41 @@ def symmetric(task: AllosteryTask) -> TaskSet:
         pinned=task.pinned,
     )
     return TaskSet((task, swapped))
+
+
+def anchored(
+    task: AllosteryTask,
+    net: SpringNetwork,
+    *,
+    strain_reference: StrainReference = "initial",
+    solver: Solver | None = None,
+) -> TaskSet:
+    """``task`` and its rest example, trained together (see the module).
+
+    The rest example has ``task``'s sources clamped at zero strain and its targets desired
+    at the strains they show in ``net`` (the untrained network) in that state: zero change
+    when the sources are off. Strains in ``strain_reference`` (the two conventions agree
+    when ``net`` is the network ``task`` was made on).
+
+    Raises
+    ------
+    EquilibriumError
+        The state of ``net`` with the sources off cannot be found.
+    """
+    if not isinstance(task, AllosteryTask):
+        raise check.ArgumentError("task", task, "an AllosteryTask")
+    if not isinstance(net, SpringNetwork):
+        raise check.ArgumentError("net", net, "a SpringNetwork")
+    check_strain_reference(strain_reference)
+    task.check(net)
+    off = task.with_source_strain(np.zeros(task.n_sources))
+    eq = Tracker(solver or Solver()).solve(
+        net, task.pinned, off.source_clamps(net, strain_reference), None, key="free"
+    )
+    rest = off.with_target_strain(
+        off.target_strains(net, net.lengths(eq.positions)[task.targets], strain_reference)
+    )
+    return TaskSet((task, rest))
 
 
 def examples_task(

@@ -372,6 +372,16 @@ class TaskSpec:
         check=_positive,
         used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
     )
+    anchored: bool = _key(
+        "bool",
+        False,
+        "train the task together with its rest example (sources at zero strain, targets "
+        "at their untrained rest strains): non-trivial by construction (stern, learning)",
+        used=_when(
+            lambda s: s.task.kind == "stern" and s.kind == "learning",
+            "by stern tasks in learning scenes",
+        ),
+    )
     strain: float = _key(
         "float",
         0.1,

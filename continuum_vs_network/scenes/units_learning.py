@@ -197,10 +197,13 @@ def _stern_task(
     n_targets: int,
     source_std: float,
     target_std: float,
+    anchored: bool = False,
+    strain_reference: str = "initial",
 ):
+    from ..learning.examples import anchored as with_rest
     from ..learning.tasks import stern_task
 
-    return stern_task(
+    task = stern_task(
         net,
         n_sources,
         n_targets,
@@ -209,6 +212,15 @@ def _stern_task(
         source_std=source_std,
         target_std=target_std,
     )
+    return with_rest(task, net, strain_reference=strain_reference) if anchored else task
+
+
+def task_example(task):
+    """The task example of a trained task: ``task`` itself, or a task set's first example
+    (an anchored task's rest example is not the task; coupling and fields read the task)."""
+    from ..learning.examples import TaskSet
+
+    return task.tasks[0] if isinstance(task, TaskSet) else task
 
 
 def builders(scene: Scene):
@@ -229,6 +241,8 @@ def builders(scene: Scene):
             n_targets=task.n_targets,
             source_std=task.source_std,
             target_std=task.target_std,
+            anchored=task.anchored,
+            strain_reference=scene.learning.strain_reference,
         ),
     )
 
@@ -401,19 +415,20 @@ def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
     from ..network.equilibrium import EquilibriumError
 
     history = ctx.history(params["group"])
-    n, nt = history.trials, history.tasks[0].n_targets
+    tasks = [task_example(t) for t in history.tasks]
+    n, nt = history.trials, tasks[0].n_targets
     sweep = np.full((n, len(SCALES), nt), np.nan)
     initial_off = np.full((n, nt), np.nan)
     desired = np.full((n, nt), np.nan)
     share = np.full(n, np.nan)
     verdicts, failed = [], []
     for i in range(n):
-        desired[i] = history.tasks[i].target_strain
+        desired[i] = tasks[i].target_strain
         try:
             c = measure_coupling(
                 history.initial[i],
                 history.final[i],
-                history.tasks[i],
+                tasks[i],
                 strain_reference=history.strain_reference,
                 solver=exact_solver(),
             )
@@ -504,7 +519,7 @@ def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
     arrays: dict[str, np.ndarray] = {}
     meta: dict[str, Any] = {"trials": [], "failed": []}
     for k in params["trials"]:
-        task = history.tasks[k]
+        task = task_example(history.tasks[k])
         for stage, net in (("initial", history.initial[k]), ("final", history.final[k])):
             try:
                 eq = _free_state(net, task, ref)
