@@ -76,9 +76,15 @@ def section(doc: Document, result) -> None:
             rows = stern_table({(scene.network.n_nodes, r): h(solver, r) for r in names})
             if rows:
                 doc.table(list(rows[0]), [list(r.values()) for r in rows])
+        what = (
+            "summed error of the task and its rest example (sources at zero strain, targets "
+            "asked to stay at their untrained strains: `[task] anchored`)"
+            if scene.task.anchored
+            else "task error"
+        )
         doc.add(
             f"{scene.task.n_sources} sources, {scene.task.n_targets} targets; `C/C0` is "
-            f"the final over the initial task error, {error_label(ref)} (median "
+            f"the final over the initial {what}, {error_label(ref)} (median "
             "[quartiles]). Whether a low C/C0 is learned or trivial: next section."
         )
     coupling(doc, result, h, solvers, names)
