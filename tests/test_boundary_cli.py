@@ -353,3 +353,11 @@ def test_oversized_scene_file_and_absurd_worker_count_exit_2(tmp_path, capsys):
     scene = _write(tmp_path, TRANS)
     assert main(["run", scene, "--workers", "100000", "--out", str(tmp_path / "o")]) == 2
     assert "--workers must be in 1.." in _one_line(capsys.readouterr().err)
+
+
+def test_sweep_grid_too_large_for_memory_is_refused_before_expanding(tmp_path, capsys):
+    argv = ["sweep", "paper", "--set", "learning.trials=1..100000", "--set"]
+    argv += ["learning.steps=1..1000", "--dry-run", "--out", str(tmp_path), "--quiet"]
+    assert main(argv) == EXIT["usage"]
+    line = _one_line(capsys.readouterr().err)
+    assert "100000000 points" in line and "memory" in line

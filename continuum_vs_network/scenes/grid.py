@@ -15,11 +15,13 @@ import dataclasses
 import hashlib
 import itertools
 import json
+import math
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from .limits import check_grid
 from .schema import Scene, SceneError, SweepSpec, check_zip, parse_scene, sweep_values
 
 __all__ = ["GridPoint", "expand", "grid_shape", "parse_set", "with_overrides"]
@@ -169,6 +171,7 @@ def expand(scene: Scene) -> tuple[GridPoint, ...]:
     if scene.sweep is None:
         raise SceneError(scene.source, "sweep", "", "the scene has no [sweep] table")
     file = scene.source or "<scene>"
+    check_grid(math.prod(grid_shape(scene.sweep)), file)
     base = {
         k: ({kk: vv for kk, vv in v.items() if vv is not None} if isinstance(v, dict) else v)
         for k, v in scene.to_dict().items()

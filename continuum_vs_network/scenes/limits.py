@@ -20,7 +20,7 @@ from .. import _validate as check
 if TYPE_CHECKING:
     from .schema import Scene
 
-__all__ = ["Estimate", "check_resources", "estimate"]
+__all__ = ["Estimate", "check_grid", "check_resources", "estimate"]
 
 #: peak bytes per network node of an equilibrium solve (sparse Newton, factorisation fill)
 SOLVE_BYTES_PER_NODE = 10_000
@@ -30,6 +30,9 @@ NETWORK_BYTES_PER_NODE = 16 + 3 * (16 + 8 + 8)
 UNIT_BYTES = 8_000
 #: bytes per finite-element degree of freedom of a sparse direct solve in 2D (estimate)
 FE_BYTES_PER_DOF = 3_000
+#: bytes per sweep point: its scene (measured: 4 kB each for 1000 points) plus its records,
+#: table row and executor bookkeeping (estimate)
+POINT_BYTES = 16_000
 #: number of nodes of the paper's patch
 PAPER_NODES = 10
 
@@ -180,3 +183,23 @@ def check_resources(scene: Scene, file: str) -> None:
         f"{value!r} is too large: the scene needs about {check.format_bytes(est.total)} of "
         f"memory ({parts}) but {check.format_bytes(avail)} are available",
     )
+
+
+def check_grid(n_points: int, file: str) -> None:
+    """Raise :class:`~.schema.SceneError` when a sweep of ``n_points`` would not fit in memory.
+
+    Checked before the grid is expanded (expanding it is where the memory would go).
+    """
+    from .schema import SceneError
+
+    need = n_points * POINT_BYTES
+    avail = check.available_memory()
+    if need > avail:
+        raise SceneError(
+            file,
+            "sweep",
+            "",
+            f"the grid has {n_points} points, too many: expanding and tracking them needs "
+            f"about {check.format_bytes(need)} of memory but {check.format_bytes(avail)} are "
+            f"available; sweep fewer values",
+        )

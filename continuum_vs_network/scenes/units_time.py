@@ -25,12 +25,13 @@ the error climbs back above its running minimum (:func:`rebound`).
 from __future__ import annotations
 
 import math
+import time
 from typing import Any
 
 import numpy as np
 
-from .units import Unit, UnitContext
 from .schema import Scene
+from .units import Unit, UnitContext
 
 __all__ = ["OSCILLATION", "SLOWDOWN", "critical_ratio", "crossing_time", "plan_time", "rebound"]
 
@@ -126,6 +127,7 @@ def _rule(name: str, alpha: float, eta: float):
 def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Learning in physical time against the ratio, for one size and rule."""
     from ..learning.physical_time import learn_in_time, network_relaxation_time
+    from ..learning.rules import LearningError
     from ..learning.tasks import stern_task
     from ..network.viscous import Viscosity
     from .units_physics import lattice
@@ -171,50 +173,75 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         t_learn = spec.learning_times / (alpha * k)
         duration = max(t_learn, spec.relaxation_times * tau)
         outputs = min(300, max(20, round(60 * duration / t_learn)))
-        run = learn_in_time(
-            net, task, rule, viscosity=vis, duration=duration, dt=dt, n_outputs=outputs, **opts
-        )
-        qs = learn_in_time(
-            net,
-            task,
-            rule,
-            viscosity=vis,
-            duration=t_learn,
-            dt=dt,
-            n_outputs=60,
-            quasistatic=True,
-            **opts,
-        )
-        e = run.error / run.error[0]
+        t0 = time.perf_counter()
+        try:
+            run = learn_in_time(
+                net, task, rule, viscosity=vis, duration=duration, dt=dt, n_outputs=outputs, **opts
+            )
+        except (LearningError, RuntimeError):  # a rest length through zero, a failed step
+            run = None
+        seconds = time.perf_counter() - t0
+        try:
+            qs = learn_in_time(
+                net,
+                task,
+                rule,
+                viscosity=vis,
+                duration=t_learn,
+                dt=dt,
+                n_outputs=60,
+                quasistatic=True,
+                **opts,
+            )
+        except (LearningError, RuntimeError) as err:
+            raise ValueError(
+                f"the quasi-static run diverged at ratio {ratio:g} ({err}): its learning step "
+                "is too long; raise [physical_time] steps_per_rate"
+            ) from err
         e_qs = qs.error / qs.error[0]
         level = e_qs[-1] + spec.fraction * (1.0 - e_qs[-1])
-        T = crossing_time(run.times, e, level)
         T_qs = crossing_time(qs.times, e_qs, level)
-        at_t_learn = float(np.interp(t_learn, run.times, e))
-        rows.append(
-            {
-                "ratio": ratio,
-                "alpha": alpha,
-                "dt": dt,
-                "dt_learn": run.dt_learn,
-                "duration": duration,
-                "T": T,
-                "T_qs": T_qs,
-                "slowdown": T / T_qs if T_qs > 0 else math.nan,
-                "error_final": float(e[-1]),
-                "error_at_qs_end": at_t_learn,
-                "error_qs_end": float(e_qs[-1]),
-                "rebound": rebound(e),
-                "seconds": float(run.seconds[-1]),
-                "seconds_qs": float(qs.seconds[-1]),
-                "factorisations": run.factorisations,
-            }
-        )
-        arrays[f"r{i}/times"] = run.times
+        row = {
+            "ratio": ratio,
+            "alpha": alpha,
+            "dt": dt,
+            "dt_learn": qs.dt_learn,
+            "duration": duration,
+            "T_qs": T_qs,
+            "error_qs_end": float(e_qs[-1]),
+            "seconds": seconds,
+            "seconds_qs": float(qs.seconds[-1]),
+            "diverged": run is None,
+        }
+        if run is None:  # diverged: never learned, unbounded oscillation
+            row.update(
+                {
+                    "T": math.inf,
+                    "slowdown": math.inf,
+                    "error_final": None,
+                    "error_at_qs_end": None,
+                    "rebound": math.inf,
+                }
+            )
+            e, times = np.empty(0), np.empty(0)
+        else:
+            e, times = run.error / run.error[0], run.times
+            T = crossing_time(times, e, level)
+            row.update(
+                {
+                    "T": T,
+                    "slowdown": T / T_qs if T_qs > 0 else math.inf,
+                    "error_final": float(e[-1]),
+                    "error_at_qs_end": float(np.interp(t_learn, times, e)),
+                    "rebound": rebound(e),
+                }
+            )
+        rows.append(row)
+        arrays[f"r{i}/times"] = times
         arrays[f"r{i}/error"] = e
         arrays[f"r{i}/times_qs"] = qs.times
         arrays[f"r{i}/error_qs"] = e_qs
-        if params["series"] and ratio == series_ratio:
+        if params["series"] and ratio == series_ratio and run is not None:
             idx = np.unique(np.linspace(0, run.times.size - 1, spec.frames).round().astype(int))
             arrays.update(
                 {
@@ -233,6 +260,9 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     crit, which = critical_ratio(
         spec.ratios, [r["slowdown"] for r in rows], [r["rebound"] for r in rows]
     )
+    past = [r for r in rows if r["slowdown"] >= SLOWDOWN or r["rebound"] >= OSCILLATION]
+    if past and past[0]["diverged"]:
+        which = "divergence"
     meta = {
         "critical_ratio": crit,
         "critical_by": which,
@@ -240,7 +270,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         "n_nodes": net.n_nodes,
         "rule": name,
         "tau": tau,
-        "error0": float(run.error[0]),
+        "error0": float(qs.error[0]),
         "series_ratio": series_ratio if params["series"] else None,
         "runs": rows,
     }

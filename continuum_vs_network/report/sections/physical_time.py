@@ -84,7 +84,7 @@ def section(doc: Document, result) -> None:
                         fmt(r["error_at_qs_end"]),
                         fmt(r["error_qs_end"]),
                         fmt(r["error_final"]),
-                        fmt(r["rebound"]),
+                        "diverged" if r["diverged"] else fmt(r["rebound"]),
                         fmt(r["seconds"] + r["seconds_qs"]),
                     ]
                 )
@@ -271,7 +271,9 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
             )
         )
         gaps = [
-            abs(u.meta["runs"][0]["error_at_qs_end"] - u.meta["runs"][0]["error_qs_end"])
+            math.inf
+            if u.meta["runs"][0]["diverged"]
+            else abs(u.meta["runs"][0]["error_at_qs_end"] - u.meta["runs"][0]["error_qs_end"])
             for u in units
         ]
         findings.append(
