@@ -100,10 +100,12 @@ def _scenes(args: argparse.Namespace) -> int:
         return EXIT["ok"]
     scenes = [load_scene(name) for name in builtin_names()]
     width = max(len(s.name) for s in scenes)
-    print(f"{'scene':{width}}  {'kind':14}  default  description")
-    for s in scenes:
+    kinds = [s.kind + (" sweep" if s.sweep else "") for s in scenes]
+    kind_width = max(len(k) for k in kinds)
+    print(f"{'scene':{width}}  {'kind':{kind_width}}  default  description")
+    for s, kind in zip(scenes, kinds):
         print(
-            f"{s.name:{width}}  {s.kind + (' sweep' if s.sweep else ''):14}  "
+            f"{s.name:{width}}  {kind:{kind_width}}  "
             f"{'yes' if s.report.default else 'no':7}  "
             f"{s.description}"
         )

@@ -43,10 +43,11 @@ def _write(tmp_path, text):
     return path
 
 
-def test_capacity_is_the_largest_prefix_that_met_the_task():
-    assert capacity({1: 1e-4, 2: 5e-3, 4: 0.2, 8: 1e-3}) == 2
-    assert capacity({1: 0.5, 2: 1e-4}) == 0
-    assert capacity({1: 1e-4, 2: float("nan")}) == 1
+def test_capacity_is_the_largest_prefix_that_learned():
+    learned, trivial, missed = "learned (coupled)", "met trivially (decoupled)", "not met"
+    assert capacity({1: learned, 2: "learned, partially coupled", 4: missed, 8: learned}) == 2
+    assert capacity({1: missed, 2: learned}) == 0
+    assert capacity({1: learned, 2: trivial, 4: learned}) == 1
 
 
 @pytest.mark.parametrize(
@@ -93,7 +94,7 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
     claims = {f["claim"]: f["verdict"] for f in doc["findings"]}
     key = "GPC of rest lengths is directed aging of rest lengths with a k-weighted rate"
     assert claims[f"{key} (Stern's task)"] == "reproduced"
-    assert claims[f"{key} (paper's task)"] == "not comparable"
+    assert claims[f"{key} (the paper's task)"] == "not comparable"
     assert any(c.startswith("a larger network holds more") for c in claims)
     assert "gcl learns a node-displacement task" in claims
     assert {"beyond/thermal/T1/gcl_eta0.01", "beyond/thermal/T0/exact"} <= set(units)

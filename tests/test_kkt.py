@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from continuum_vs_network.network.kkt import Inertia, factor_kkt, factor_spd
+from continuum_vs_network.network.kkt import Inertia, factor_kkt, factor_spd, schur_solve
 
 
 def _laplacian_2d(side: int) -> sp.csr_matrix:
@@ -90,3 +90,31 @@ def test_without_constraints_and_singular_inputs():
         factor_kkt(W, A)
     with pytest.raises(ValueError, match="A must have 16 columns"):
         factor_kkt(W, np.ones((1, 3)))
+
+
+def test_schur_reuse_for_a_subset_of_rows_matches_a_fresh_factorisation():
+    """Z and S formed once for 5 rows solve the KKT system of any 3 of them."""
+    rng = np.random.default_rng(3)
+    W = _laplacian_2d(22)  # 484 unknowns: the sparse path
+    n = W.shape[0]
+    A = sp.csr_matrix(rng.standard_normal((5, n)))
+    factor = factor_spd(W)
+    Z = factor.solve(A.T.toarray())
+    S = A @ Z
+    rows = np.array([4, 0, 2])
+    b, c = rng.standard_normal(n), rng.standard_normal(3)
+    x, y = schur_solve(factor.solve(b), A[rows], Z[:, rows], S[np.ix_(rows, rows)], c)
+    x_ref, y_ref = factor_kkt(W, A[rows]).solve(b, c)
+    np.testing.assert_allclose(x, x_ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(y, y_ref, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(A[rows] @ x, c, atol=1e-10)
+
+
+def test_uncertified_factor_solves_the_same_but_does_not_detect_indefiniteness():
+    W = _laplacian_2d(22).tolil()
+    b = np.arange(W.shape[0], dtype=float)
+    spd = factor_spd(W.tocsr(), certify=False)
+    np.testing.assert_allclose(spd.solve(b), factor_spd(W.tocsr()).solve(b), rtol=1e-12)
+    W[0, 0] = -5.0  # one negative eigenvalue
+    assert factor_spd(W.tocsr()) is None
+    assert factor_spd(W.tocsr(), certify=False) is not None

@@ -90,7 +90,7 @@ class _System:
         self.free = np.flatnonzero(keep)
         K = medium.stiffness()[self.free][:, self.free]
         self.K = K
-        factor = factor_spd(K)
+        factor = factor_spd(K, certify=False)  # K > 0: the task's fixed DOFs stop rigid motion
         if factor is None:
             raise ValueError(
                 "the stiffness with the fixed DOFs removed is not positive definite: the body "

@@ -121,11 +121,17 @@ def _is_bool_nested(value: Any) -> bool:
     return isinstance(first, list | tuple) and bool(first) and isinstance(first[0], bool)
 
 
+#: clamp lengths allowed, as a factor of the clamped spring's rest length either way
+CLAMP_RATIO = 1e6
+
+
 def clamp_arrays(net: SpringNetwork, clamped: Any) -> tuple[NDArray, NDArray]:
     """``clamped`` ``{spring_index: length}`` as (m,) int64 indices and (m,) float lengths.
 
     Keys must be integers (a float key like 1.7 or a bool is refused, not truncated) naming
-    springs in range; lengths finite real numbers > 0.
+    springs in range; lengths finite, within :data:`CLAMP_RATIO` of the spring's rest length
+    either way (strain -0.999999 .. 1e6): beyond that the forces of a clamp overflow or drown
+    the local balance in round-off, so no method could meet ``tol``.
     """
     if clamped is None:
         return np.empty(0, np.int64), np.empty(0)
@@ -137,7 +143,15 @@ def clamp_arrays(net: SpringNetwork, clamped: Any) -> tuple[NDArray, NDArray]:
         idx[i] = check.integer(
             "clamped key", k, low=0, high=top, what=f"a spring index in 0..{top}"
         )
-        length[i] = check.real(f"clamped[{idx[i]}]", v, low=0, low_open=True)
+        rest = float(net.rest_length[idx[i]])
+        low, high = rest / CLAMP_RATIO, rest * CLAMP_RATIO
+        length[i] = check.real(
+            f"clamped[{idx[i]}]",
+            v,
+            low=low,
+            high=high,
+            what=f"a length in {low:.3g}..{high:.3g} (1e-6..1e6 x the spring's rest length)",
+        )
     return idx, length
 
 

@@ -545,7 +545,7 @@ class SolverSpec:
     tol: float = _key(
         "float",
         1e-10,
-        "relative residual tolerance (forces / mean(k) mean(L))",
+        "relative residual tolerance (net force on a free coordinate / its node's sum k L)",
         check=_open_unit,
         used=_kinds("transmission", "stability", "solvers"),
     )
