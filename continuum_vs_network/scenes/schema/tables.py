@@ -1,0 +1,28 @@
+"""Every scene table by name."""
+
+from __future__ import annotations
+
+from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
+from .tables_physics import (
+    AccuracySpec,
+    ContinuumSpec,
+    DynamicsSpec,
+    ExportSpec,
+    PhysicalTimeSpec,
+    ReportSpec,
+    StabilitySpec,
+)
+
+_TABLES: dict[str, type] = {
+    "network": NetworkSpec,
+    "task": TaskSpec,
+    "learning": LearningSpec,
+    "solver": SolverSpec,
+    "continuum": ContinuumSpec,
+    "dynamics": DynamicsSpec,
+    "stability": StabilitySpec,
+    "accuracy": AccuracySpec,
+    "physical_time": PhysicalTimeSpec,
+    "export": ExportSpec,
+    "report": ReportSpec,
+}
