@@ -205,3 +205,28 @@ def test_scene_key_anchored_trains_the_task_with_its_rest_example():
     data["task"]["anchored"] = "yes"
     with pytest.raises(SceneError, match="anchored"):
         parse_scene(data, "s.toml")
+
+
+def test_regression_learned_on_few_examples_predicts_a_held_out_example():
+    from continuum_vs_network.learning import regression_task
+
+    rng = np.random.default_rng(4)
+    net = triangular_lattice(6, 6, noise=0.1, rng=rng)
+    train_set, test_set, gain_map = regression_task(net, 4, 3, rng, gain=0.5)
+    assert gain_map.shape == (1, 2)
+    for t in train_set.tasks + test_set.tasks:  # the desired strains are the map's output
+        assert np.allclose(t.target_strain, gain_map @ t.source_strain)
+    assert len({tuple(t.sources) for t in train_set.tasks + test_set.tasks}) == 1
+
+    def test_error(network):
+        return test_set.error(network, [_free(network, t).positions for t in test_set.tasks])
+
+    # the slope of a linear response is set by the stiffnesses (rest lengths change it
+    # only through prestress, at second order): learn k
+    rule = CoupledLearning(100.0, 0.1, dof="stiffness", min_stiffness=0.3)
+    h = train(net, train_set, rule, 150, progress=False)
+    train_ratio = h.error_initial[0, -1] / h.error_initial[0, 0]
+    test_ratio = test_error(h.final[0]) / test_error(net)
+    assert train_ratio < 0.8 and test_ratio < 0.8
+    with pytest.raises(ValueError, match="n_test"):
+        regression_task(net, 2, 0, rng)

@@ -20,6 +20,11 @@ example, so the task is non-trivial by construction.
 
 :func:`examples_task` draws a dataset for a capacity study (Rocks et al. 2019: how many
 independent responses a network of a given size can hold).
+
+:func:`regression_task` draws a regression dataset on fixed source and target springs: the
+desired target strains are a fixed linear map of the source strains, ``S_T = M S_S``; train
+on the training examples, measure the summed error of held-out test examples
+(generalisation).
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ from .tasks import (
     check_strain_reference,
 )
 
-__all__ = ["TaskSet", "anchored", "examples_task", "symmetric"]
+__all__ = ["TaskSet", "anchored", "examples_task", "regression_task", "symmetric"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -250,3 +255,50 @@ def examples_task(
             )
         )
     return TaskSet(tuple(tasks))
+
+
+def regression_task(
+    net: SpringNetwork,
+    n_train: int,
+    n_test: int,
+    rng: np.random.Generator,
+    *,
+    n_sources: int = 2,
+    n_targets: int = 1,
+    source_std: float = 0.1,
+    gain: float = 1.0,
+    candidates: ArrayLike | None = None,
+) -> tuple[TaskSet, TaskSet, NDArray]:
+    """A linear regression task on one network: ``(train, test, M)``.
+
+    One set of ``n_sources`` source and ``n_targets`` target springs (drawn as in
+    :func:`~.tasks.stern_task`); a random map ``M`` of shape ``(n_targets, n_sources)``
+    with entries ``N(0, gain^2 / n_sources)``; ``n_train + n_test`` examples with source
+    strains ``N(0, source_std)`` (each > -1) and desired target strains ``M S_S``. The
+    first ``n_train`` are the training set, the rest the held-out test set (same pins).
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise check.ArgumentError("rng", rng, "a numpy.random.Generator")
+    n_train = check.integer("n_train", n_train, low=1)
+    n_test = check.integer("n_test", n_test, low=1)
+    n_sources = check.integer("n_sources", n_sources, low=1)
+    n_targets = check.integer("n_targets", n_targets, low=1)
+    source_std = check.real("source_std", source_std, low=0, low_open=True)
+    gain = check.real("gain", gain, low=0, low_open=True)
+    pool = _candidates(net, candidates)
+    per = n_sources + n_targets
+    if pool.size < per:
+        raise ValueError(f"need {per} candidate springs, the network offers {pool.size}")
+    springs = rng.choice(pool, size=per, replace=False)
+    pins = default_pins(net, avoid=springs)
+    gain_map = rng.normal(0.0, gain / np.sqrt(n_sources), (n_targets, n_sources))
+    tasks = []
+    for _ in range(n_train + n_test):
+        s = _positive_normal(rng, 0.0, source_std, n_sources)
+        t = gain_map @ s
+        if np.any(t <= -1.0):
+            raise ValueError("a desired target strain is <= -1: lower gain or source_std")
+        tasks.append(
+            AllosteryTask.create(net, springs[:n_sources], s, springs[n_sources:], t, pinned=pins)
+        )
+    return TaskSet(tuple(tasks[:n_train])), TaskSet(tuple(tasks[n_train:])), gain_map
