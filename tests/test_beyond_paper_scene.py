@@ -97,6 +97,10 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
     assert claims[f"{key} (the paper's task)"] == "not comparable"
     assert any(c.startswith("a larger network holds more") for c in claims)
     assert "gcl learns a node-displacement task" in claims
+    reg = units["beyond/regression"].meta
+    assert reg["n_train"] == 4 and reg["n_test"] == 3
+    assert np.isfinite(reg["test_initial"]) and reg["test_initial"] > 0
+    assert any(c.startswith("a network trained on a few examples of a linear map") for c in claims)
     assert {"beyond/thermal/T1/gcl_eta0.01", "beyond/thermal/T0/exact"} <= set(units)
     assert units["beyond/thermal/T1/gcl_eta0.01"].meta["temperature"] == 1e-6
     assert "GCL's error floor grows with the temperature at every nudge" in claims

@@ -128,7 +128,7 @@ def estimate(scene: Scene) -> Estimate:
         n = max(net.sizes)
         nodes = n * n
         est.add("network", "sizes", nodes * SOLVE_BYTES_PER_NODE, f"solving a {n} x {n} lattice")
-        runs = len(net.sizes) * len(L.examples) + 2 * len(L.rules) + 1
+        runs = len(net.sizes) * len(L.examples) + 2 * len(L.rules) + 2
         est.add(
             "learning", "steps", runs * _history_bytes(L.steps, 2 * max(L.examples)),
             f"{runs} histories of {L.steps} steps",

@@ -4,7 +4,8 @@ Computed from the scene's stored units by the rules stated in the text (it runs 
 directed aging against GPC, GCL and the exact gradient on the paper's and Stern's task
 (final error, coupling, outcome; the identity of rest-length aging and GPC at uniform
 stiffness), the capacity of a network trained on several examples at once (final error
-against the number of examples, two sizes), and symmetric training.
+against the number of examples, two sizes), a regression task (training and held-out
+error: generalisation) and symmetric training.
 """
 
 from __future__ import annotations
@@ -62,6 +63,7 @@ def section(doc: Document, result) -> None:
     _nodes(doc, scene, units)
     _capacity(doc, scene, units)
     _thermal(doc, scene, units)
+    _regression(doc, units)
     _symmetric(doc, units)
 
 
@@ -409,5 +411,48 @@ def _symmetric(doc, units) -> None:
             measured={"forward": after[0] / total, "backward": after[1] / total},
             verdict=REPRODUCED if both and m["outcome"].startswith("learned") else NOT_REPRODUCED,
             rule=f"reproduced when both are <= {MET_AT:g} and the network is not decoupled",
+        )
+    )
+
+
+# -- regression -----------------------------------------------------------------------------
+#: a regression *generalises* when the held-out C/C0 is below 1 and within this factor of
+#: the training C/C0
+GENERALISES_WITHIN = 2.0
+
+
+def _regression(doc, units) -> None:
+    u = units.get("beyond/regression")
+    if u is None:
+        return
+    m = u.meta
+    doc.heading("A regression task: generalisation", 3)
+    train_ratio = m["train_final"] / m["train_initial"] if m["train_initial"] > 0 else np.nan
+    test_ratio = m["test_final"] / m["test_initial"] if m["test_initial"] > 0 else np.nan
+    doc.add(
+        "The seed paper's proposed next step: desired target strain a fixed linear map of two "
+        f"source strains, S_T = M S_S (random M, gain {_g(m['gain'])}); GCL of the "
+        f"stiffnesses on {m['n_train']} training examples, {m['completed']} steps; the summed "
+        f"error of {m['n_test']} held-out examples is measured before and after. Training "
+        f"C/C0 {_g(train_ratio)}, held-out C/C0 {_g(test_ratio)} "
+        f"({_g(m['seconds'], 2)} s).",
+        "",
+    )
+    finite = bool(np.isfinite(train_ratio) and np.isfinite(test_ratio))
+    if not finite:
+        verdict = NOT_COMPARABLE
+    elif test_ratio < 1.0 and test_ratio <= GENERALISES_WITHIN * train_ratio:
+        verdict = REPRODUCED
+    else:
+        verdict = NOT_REPRODUCED
+    doc.finding(
+        Finding(
+            claim="a network trained on a few examples of a linear map predicts held-out "
+            "examples better than before training (generalises)",
+            metric="summed error of the training and of the held-out examples, final over initial",
+            measured={"train C/C0": float(train_ratio), "held-out C/C0": float(test_ratio)},
+            verdict=verdict,
+            rule=f"reproduced when held-out C/C0 < 1 and <= {GENERALISES_WITHIN:g} x the "
+            "training C/C0; not comparable when training stopped",
         )
     )
