@@ -434,8 +434,9 @@ def _regression(doc, units) -> None:
         f"source strains, S_T = M S_S (random M, gain {_g(m['gain'])}); GCL of the "
         f"stiffnesses on {m['n_train']} training examples, {m['completed']} steps; the summed "
         f"error of {m['n_test']} held-out examples is measured before and after. Training "
-        f"C/C0 {_g(train_ratio)}, held-out C/C0 {_g(test_ratio)} "
-        f"({_g(m['seconds'], 2)} s).",
+        f"C/C0 {_g(train_ratio)}, held-out C/C0 {_g(test_ratio)}; coupling of the trained "
+        f"network (smallest source share over the training examples) "
+        f"{_g(m['source_share'], 2)} ({m['coupling']}); {_g(m['seconds'], 2)} s.",
         "",
     )
     finite = bool(np.isfinite(train_ratio) and np.isfinite(test_ratio))
