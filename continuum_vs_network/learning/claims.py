@@ -301,7 +301,7 @@ def check_claims(
                             f"{list(verdicts).count(major)}/{len(verdicts)} trials)"
                         )
                     else:
-                        reason = f"coupling: {major} (majority of trials)"
+                        reason = f"coupling: {major} (most common verdict over trials)"
             out.append(
                 ClaimCheck(
                     experiment=exp.name,

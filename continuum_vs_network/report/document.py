@@ -57,6 +57,7 @@ class Document:
         self.lines: list[str] = []
         self.files: list[Path] = []
         self.findings: list[Finding] = []
+        self._shown: set[int] = set()  # indices of findings already tabulated in the text
         self.summaries: dict[str, dict[str, Any]] = {}
         self._section = ""
 
@@ -68,10 +69,12 @@ class Document:
         if level <= 2:
             self._section = text
 
-    def finding(self, finding: Finding) -> Finding:
+    def finding(self, finding: Finding, *, shown: bool = False) -> Finding:
         """Register a finding (it goes to ``report.json`` and the index); return it.
 
-        An empty ``finding.section`` becomes the current level-2 heading.
+        An empty ``finding.section`` becomes the current level-2 heading. ``shown``: the
+        section states this verdict in a table of its own; every other finding not passed to
+        :meth:`findings_table` is tabulated at the end of the report (:meth:`unshown`).
         """
         if not isinstance(finding, Finding):
             raise TypeError(f"finding must be a Finding, not {type(finding).__name__}")
@@ -79,8 +82,14 @@ class Document:
             from dataclasses import replace
 
             finding = replace(finding, section=self._section)
+        if shown:
+            self._shown.add(len(self.findings))
         self.findings.append(finding)
         return finding
+
+    def unshown(self) -> list[Finding]:
+        """The registered findings whose verdict the text does not state yet."""
+        return [f for i, f in enumerate(self.findings) if i not in self._shown]
 
     def summary(
         self, key: str, title: str, headers: Sequence[str], rows: Sequence[Sequence]
@@ -102,6 +111,10 @@ class Document:
         """
         if not findings:
             return
+        keys = {(f.claim, f.verdict, f.rule) for f in findings}
+        self._shown.update(
+            i for i, f in enumerate(self.findings) if (f.claim, f.verdict, f.rule) in keys
+        )
         rules = {f.rule for f in findings}
         one = len(rules) == 1
         headers = ["claim", "metric", "measured", "verdict"] + ([] if one else ["rule"])

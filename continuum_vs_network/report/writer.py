@@ -81,6 +81,11 @@ def write_report(
         + (" (a built-in scene; `cvn scenes` lists them)." if builtin else "."),
     )
     SECTIONS[scene.kind](doc, result)
+    unshown = doc.unshown()
+    if unshown:
+        doc.heading("Findings")
+        doc.add("Every verdict of this report not tabulated above, with its rule:", "")
+        doc.findings_table(unshown)
     if meshes:
         doc.heading("Meshes for ParaView")
         root = folder.resolve().parent.parent

@@ -138,7 +138,9 @@ def section(doc: Document, result) -> None:
         f"{scene.task.source_std:g}) and N(0, {scene.task.target_std:g}). The same rule "
         "object trains both media; the network learns rest lengths, the continuum its "
         "eigenstrain field (per unit area, so the rate means the same on every mesh). "
-        f"{L.steps} steps. A run *learns the task* when C / C0 <= {TOLERANCE:g}."
+        f"{L.steps} steps. A run *meets* the task when C / C0 <= {TOLERANCE:g}; it *learns* "
+        f"it when it meets it and is not decoupled (source share >= {DECOUPLED_BELOW:g}): a "
+        "decoupled medium met it trivially, by prestressing its targets."
     )
     for rule in L.rules:
         doc.heading(f"Rule `{rule}`", 3)
@@ -279,25 +281,33 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
             ("continuum h", f"continuum_learning/refine0/{rule}"),
         )
     }
-    met = all(v <= TOLERANCE for v in final.values())
-    doc.finding(
-        Finding(
-            claim=f"one rule object ({rule}) meets one task in a lattice and in its continuum",
-            metric="final C/C0 of the network and of the continuum on the lattice triangles",
-            measured={f"C/C0 {k}": v for k, v in final.items()},
-            verdict=REPRODUCED if met else NOT_REPRODUCED,
-            rule=f"reproduced when both reach C/C0 <= {TOLERANCE:g}",
-        )
-    )
     metas = {
         "network": units[f"continuum_learning/network/{rule}"].meta,
         "continuum h": units[f"continuum_learning/refine0/{rule}"].meta,
     }
+    learned = all(v <= TOLERANCE for v in final.values()) and all(
+        m["source_share"] >= DECOUPLED_BELOW for m in metas.values()
+    )
+    doc.finding(
+        Finding(
+            claim=f"one rule object ({rule}) learns one task, not trivially, in a lattice and in "
+            "its continuum",
+            metric="final C/C0 and source share of the network and of the continuum on the "
+            "lattice triangles",
+            measured={
+                **{f"C/C0 {k}": v for k, v in final.items()},
+                **{f"share {k}": m["source_share"] for k, m in metas.items()},
+            },
+            verdict=REPRODUCED if learned else NOT_REPRODUCED,
+            rule=f"reproduced when both reach C/C0 <= {TOLERANCE:g} and neither is decoupled "
+            f"(source share >= {DECOUPLED_BELOW:g}); a decoupled medium met the task by "
+            "prestressing its targets",
+        )
+    )
     same = len({m["coupling"] for m in metas.values()}) == 1
     doc.finding(
         Finding(
-            claim=f"the continuum learns the task the way the network does ({rule}): "
-            "same coupling verdict",
+            claim=f"the continuum gets the network's coupling verdict ({rule})",
             metric="source share of the trained media (learning.coupling; 'coupled' >= "
             f"0.5, 'decoupled' < {DECOUPLED_BELOW:g})",
             measured={f"share {k}": m["source_share"] for k, m in metas.items()},
@@ -308,7 +318,8 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     corr = summary["correlation"][0]
     doc.finding(
         Finding(
-            claim=f"at the lattice's resolution the continuum learns the network's field ({rule})",
+            claim=f"at the lattice's resolution the continuum's learned field matches the "
+            f"network's ({rule})",
             metric="correlation of the learned rest strains on the lattice triangles",
             measured={"correlation": corr},
             verdict=REPRODUCED if corr >= 0.9 else NOT_REPRODUCED,

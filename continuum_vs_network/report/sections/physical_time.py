@@ -205,11 +205,16 @@ def _figures(doc: Document, rules: dict, ratios: np.ndarray) -> None:
     )
 
 
-def _speedups(units) -> list[float]:
+def _speedups(units, *, below_critical: bool = False) -> list[float]:
+    """Learning time at the smallest ratio over the shortest one, per size; with
+    ``below_critical``, only over the ratios below that size's critical ratio."""
     out = []
     for u in units:
         T = np.array([r["T"] for r in u.meta["runs"]], float)
-        out.append(float(T[0] / np.min(T)) if np.isfinite(T[0]) else math.nan)
+        if below_critical and np.isfinite(u.meta["critical_ratio"]):
+            ratio = np.array([r["ratio"] for r in u.meta["runs"]], float)
+            T = T[ratio < u.meta["critical_ratio"]]
+        out.append(float(T[0] / np.min(T)) if T.size and np.isfinite(T[0]) else math.nan)
     return out
 
 
@@ -248,8 +253,10 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
         )
         crit = [u.meta["critical_ratio"] for u in units]
         by = [u.meta["critical_by"] for u in units]
+        below = _speedups(units, below_critical=True)
+        worst_below = min(below) if below and all(np.isfinite(below)) else math.nan
         ok = all(np.isfinite(crit)) and all(b == "oscillation" for b in by)
-        ok = ok and np.isfinite(worst) and worst >= SPEEDUP_YES
+        ok = ok and np.isfinite(worst_below) and worst_below >= SPEEDUP_YES
         findings.append(
             Finding(
                 claim=(
@@ -260,13 +267,13 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                 metric="critical ratio rho* per size, the criterion it met, speed-up below it",
                 measured={
                     **{f"rho* N={u.meta['n_nodes']}": c for u, c in zip(units, crit)},
-                    "smallest speed-up": worst,
+                    "smallest speed-up below rho*": worst_below,
                 },
                 verdict=REPRODUCED if ok else NOT_REPRODUCED,
                 rule=(
                     "reproduced when at every size a critical ratio lies in the tested range, "
-                    "met by oscillation (error rebound >= 2), and the speed-up is "
-                    f">= {SPEEDUP_YES:g}; otherwise not reproduced"
+                    "met by oscillation (error rebound >= 2), and the speed-up over the ratios "
+                    f"below it is >= {SPEEDUP_YES:g}; otherwise not reproduced"
                 ),
             )
         )
