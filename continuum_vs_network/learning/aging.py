@@ -59,24 +59,12 @@ class DirectedAging(Rule):
         return False
 
     def _update(self, net, task, warm, tracker, read, rng) -> Step:
-        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, read, rng)
-        k, L = net.stiffness, net.rest_length
-
-        def local(dof: str):
+        def local(dof: str, k, L, r_c):
             if dof == "rest_length":
                 return self.alpha * (r_c - L)
             return -0.5 * self.alpha * k * (r_c / L - 1.0) ** 2
 
-        raw = self._per_dof(local)
-        return Step(
-            delta=self._delta(net, task, raw),
-            dof=self.dof,
-            free=None,
-            clamped=clamped,
-            clamp_lengths=lengths,
-            measured_clamped=r_c,
-            raw=raw,
-        )
+        return self._clamped_only_step(net, task, warm, tracker, read, rng, local)
 
     def _medium_step(self, medium, task, tracker) -> Step:
         raise ValueError("directed aging is implemented for spring networks only")

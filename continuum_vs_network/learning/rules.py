@@ -386,6 +386,22 @@ class Rule:
         clamped = tracker.solve(net, task.pinned, clamps, x0, key="clamped")
         return clamped, lengths, read.lengths(net, clamped, task.pinned, clamps, rng)
 
+    def _clamped_only_step(self, net, task, warm, tracker, read: Readout, rng, local) -> Step:
+        """A rule that reads the fully clamped state only (GPC, directed aging): ``local(dof,
+        k, L, r_c)`` gives the per-spring update from the clamped spring lengths ``r_c``."""
+        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, read, rng)
+        k, L = net.stiffness, net.rest_length
+        raw = self._per_dof(lambda dof: local(dof, k, L, r_c))
+        return Step(
+            delta=self._delta(net, task, raw),
+            dof=self.dof,
+            free=None,
+            clamped=clamped,
+            clamp_lengths=lengths,
+            measured_clamped=r_c,
+            raw=raw,
+        )
+
     def update(
         self,
         net: SpringNetwork,
@@ -630,24 +646,12 @@ class ProspectiveConfiguration(Rule):
         return False
 
     def _update(self, net, task, warm, tracker, read, rng) -> Step:
-        clamped, lengths, r_c = self._fully_clamped(net, task, warm, tracker, read, rng)
-        k, L = net.stiffness, net.rest_length
-
-        def local(dof: str) -> NDArray:
+        def local(dof: str, k: NDArray, L: NDArray, r_c: NDArray) -> NDArray:
             if dof == "rest_length":
                 return self.alpha * k * (r_c - L)
             return -0.5 * self.alpha * (r_c - L) ** 2
 
-        raw = self._per_dof(local)
-        return Step(
-            delta=self._delta(net, task, raw),
-            dof=self.dof,
-            free=None,
-            clamped=clamped,
-            clamp_lengths=lengths,
-            measured_clamped=r_c,
-            raw=raw,
-        )
+        return self._clamped_only_step(net, task, warm, tracker, read, rng, local)
 
     def _medium_step(self, medium, task, tracker) -> Step:
         clamped = medium.clamped_state(task, task.target_strain, tracker=tracker)
