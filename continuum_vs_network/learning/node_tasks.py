@@ -34,7 +34,7 @@ from .. import _validate as check
 from ..network.constraints import default_pins
 from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
-from .tasks import _candidates, _frozen, _positive_normal
+from .tasks import _candidates, _frozen, _frozen_mask, _positive_normal
 
 __all__ = ["NodeTask", "node_cost_gradient", "node_task"]
 
@@ -74,12 +74,7 @@ class NodeTask:
             object.__setattr__(self, name, _frozen(getattr(self, name), np.int64, name))
         for name in ("source_strain", "source_rest_length", "reference", "displacement"):
             object.__setattr__(self, name, _frozen(getattr(self, name), np.float64, name))
-        pinned = np.asarray(self.pinned)
-        if pinned.dtype != bool or pinned.ndim != 2 or pinned.shape[1] != 2:
-            raise check.ArgumentError("pinned", self.pinned, "a bool mask of shape (n_nodes, 2)")
-        pinned = pinned.copy()
-        pinned.setflags(write=False)
-        object.__setattr__(self, "pinned", pinned)
+        object.__setattr__(self, "pinned", _frozen_mask(self.pinned))
         if not (self.source_strain.shape == self.source_rest_length.shape == self.sources.shape):
             raise ValueError("source_strain and source_rest_length need one entry per source")
         m = self.nodes.shape

@@ -59,6 +59,16 @@ def _frozen(value: ArrayLike, dtype: type, name: str) -> NDArray:
     return arr
 
 
+def _frozen_mask(value: ArrayLike, name: str = "pinned") -> NDArray[np.bool_]:
+    """A read-only copy of a (n_nodes, 2) bool pin mask; anything else is refused."""
+    mask = np.asarray(value)
+    if mask.dtype != bool or mask.ndim != 2 or mask.shape[1] != 2:
+        raise check.ArgumentError(name, value, "a bool mask of shape (n_nodes, 2)")
+    mask = mask.copy()
+    mask.setflags(write=False)
+    return mask
+
+
 @dataclass(frozen=True, eq=False)
 class AllosteryTask:
     """Source springs clamped at strains; target springs that should reach strains.
@@ -105,12 +115,7 @@ class AllosteryTask:
                 self.target_rest_length, np.float64, "target_rest_length"
             ),
         }
-        pinned = np.asarray(self.pinned)
-        if pinned.dtype != bool or pinned.ndim != 2 or pinned.shape[1] != 2:
-            raise check.ArgumentError("pinned", self.pinned, "a bool mask of shape (n_nodes, 2)")
-        pinned = pinned.copy()
-        pinned.setflags(write=False)
-        fields["pinned"] = pinned
+        fields["pinned"] = _frozen_mask(self.pinned)
         for name, value in fields.items():
             object.__setattr__(self, name, value)
         for kind in ("source", "target"):
