@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
 from .energy import HessianPattern, spring_energy_change, spring_gradient
-from .kkt import DENSE_MAX, Factor, factor_spd, range_space
+from .kkt import DENSE_MAX, Factor, factor_spd, range_space, sparse_solver
 from .lagrangian import lagrangian_blocks, pattern_for
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX, StiffSprings, trust_region_newton
@@ -61,11 +61,14 @@ class _SolveFailed(RuntimeError):
 def _reuse_budget(size: int) -> int:
     """Preconditioned CG iterations allowed before a new factorisation of (size, size).
 
-    Measured here on 2D networks, one nested-dissection factorisation costs about
+    Measured here on 2D networks, one SuperLU nested-dissection factorisation costs about
     ``0.15 sqrt(size)`` triangular solves (15 at N = 1e3, 20 at 1e4, 50 at 1e5 nodes); a
     budget of twice that was fastest in benchmarks/bench_relax.py (0.075 and 0.15 were
-    slower). A count, not a timing, so that runs are reproducible bit for bit.
+    slower). PARDISO with its analysis kept refactorises for about 9 solves at 1e5-3e5
+    nodes: twice that, 16. A count, not a timing, so that runs are reproducible bit for bit.
     """
+    if sparse_solver() == "pardiso":
+        return 16
     return max(2, int(0.3 * np.sqrt(size)))
 
 
