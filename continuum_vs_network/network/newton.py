@@ -29,9 +29,11 @@ back to the lengths the linear model predicted (:class:`StiffSprings`). With it 
 8x8 lattices with 20 % of springs 1e9-1e12 times stiffer converge in 5-12 iterations
 instead of creeping.
 
-Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones use
-SuperLU with a symmetric minimum-degree ordering and diagonal pivots, whose ``U`` diagonal
-then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves ``W > 0``.
+Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones
+:func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
+unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
+diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
+``W > 0``.
 """
 
 from __future__ import annotations
@@ -186,9 +188,9 @@ def _projected_pcg(
 def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
     """Minimise ``problem`` from ``x`` (n_nodes, 2) by shifted sparse Newton (see module).
 
-    After a full step with an exact, positive-definite Hessian the next step first tries
-    conjugate gradients preconditioned by that factorisation (a few triangular solves
-    instead of a new factorisation); it refactorises when that fails.
+    After a full step the next step first tries projected conjugate gradients preconditioned
+    by the last factorisation (:func:`_projected_pcg`: a few triangular solves instead of a
+    new factorisation); it refactorises when that fails.
     """
     if problem.free_flat.size <= TR_DENSE_MAX:
         return trust_region_newton(problem, x, stop, trace)
