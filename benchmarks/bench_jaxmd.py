@@ -7,9 +7,10 @@ jax-md``). Without them the script says so and times the package's methods only.
 Problem (identical for every method): a triangular lattice of ~N nodes with 10 % position
 noise, stress-free, ``k = 1``; the spring nearest the centre is strained to ``S`` by moving
 its two nodes apart symmetrically and pinning them there, plus the default pins. All
-methods stop at the package's local rule, relative residual ``<= 1e-10`` (each net force
-against its node's ``sum k L``); jax-md's FIRE runs in jitted chunks of 50 steps in
-float64 on the free coordinates (compile time excluded, standard jax-md parameters with
+methods run on one core (the process is pinned to one CPU where the OS allows) and stop at
+the package's local rule, relative residual ``<= 1e-10`` (each net force against its node's
+``sum k L``); jax-md's FIRE runs in jitted chunks of 50 steps in float64 on the free
+coordinates (compile time excluded, standard jax-md parameters with
 ``dt_start = 0.1 dt_max`` and the same ``dt_max`` as the package's FIRE). Every method is
 timed ``--repeat`` times, in rounds of one run per method (the machine is shared: load falls
 alike on the methods compared); medians are printed, and ratios are medians of the rounds'
@@ -51,6 +52,9 @@ def _parse() -> argparse.Namespace:
 
 def main() -> None:
     args = _parse()
+    cpus = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    if cpus:  # one core for every method (jax starts thread pools of its own)
+        os.sched_setaffinity(0, {cpus[0]})
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false")
@@ -150,6 +154,7 @@ def main() -> None:
 
     print(
         f"# bench_jaxmd: {' '.join(sys.argv[1:])}; jax-md={have_jax}; one BLAS thread; "
+        f"CPUs {sorted(os.sched_getaffinity(0)) if cpus else 'not pinned'}; "
         f"median of {args.repeat}"
     )
     print(
