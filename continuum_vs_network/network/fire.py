@@ -108,26 +108,28 @@ def _fire_inner(
                 x, it, "budget", f"FIRE: time budget of {stop.max_seconds:g} s exceeded"
             )
 
-        # F = -G: power P = F.V, mixing V <- (1 - alpha) V + alpha |V| F / |F|
+        # F = -G: power P = F.V, mixing V <- (1 - alpha) V + alpha |V| F / |F|, then the
+        # step V <- V + dt F, X <- X + dt V (mixing and kick fused: one pass over V)
         P = -float(G @ v)
         if P > 0.0:
             mix = alpha * math.sqrt(v @ v) / math.sqrt(G @ G)
             v *= 1.0 - alpha
-            v -= mix * G
             if n_pos > _N_MIN:
                 dt = min(dt * _F_INC, dt_max)
                 alpha *= _F_ALPHA
             n_pos += 1
-        elif moving:  # uphill (or stopped): freeze, shrink the step, restart the mixing
-            if stats is not None:
-                stats.resets += 1
-                if stats.first_reset_x is None:
-                    stats.first_reset_x = x.copy()
-            n_pos = 0
-            dt *= _F_DEC
-            alpha = _ALPHA_START
-            v[:] = 0.0
-        v -= np.multiply(G, dt, out=step)
+        else:
+            mix = 0.0
+            if moving:  # uphill (or stopped): freeze, shrink the step, restart the mixing
+                if stats is not None:
+                    stats.resets += 1
+                    if stats.first_reset_x is None:
+                        stats.first_reset_x = x.copy()
+                n_pos = 0
+                dt *= _F_DEC
+                alpha = _ALPHA_START
+                v[:] = 0.0
+        v -= np.multiply(G, mix + dt, out=step)
         flat += np.multiply(v, dt, out=step)
         moving = True
     residual = obj.check(x, G)[0]

@@ -135,7 +135,7 @@ class Objective:
 
     def _spring_gradient(self, d: NDArray, r: NDArray) -> NDArray:
         """Flat gradient ``D^T t`` from spring vectors ``d`` and lengths ``r`` (kept)."""
-        w = r - self.L
+        w = r - self.L  # not k - k L / r: that cancels near r = L (rods: k = 1e10)
         w *= self.k
         w /= np.maximum(r, 1e-300)
         return self._DT @ (d * w).ravel()
