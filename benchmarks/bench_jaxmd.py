@@ -28,7 +28,7 @@ uses semi-implicit Euler, and holds its parameters, ``dt`` and ``alpha`` in floa
 iterations of a numpy emulation of jax-md's step (float16 included) and of the same step
 without the ``1e-6``.
 
-    python benchmarks/bench_jaxmd.py --jax-path /tmp/jax --sizes 256,1024,4096
+    python benchmarks/bench_jaxmd.py --jax-path /work/side/jaxmd --sizes 256,1024,4096
 """
 
 from __future__ import annotations
