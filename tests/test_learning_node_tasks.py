@@ -96,7 +96,9 @@ def test_relative_output_is_a_difference_of_coordinates(relative):
     assert task.outputs(x)[0] == x[a, c] - x[b, c]
     assert task.reference[0] == net.positions[a, c] - net.positions[b, c]
     # a rigid translation moves both nodes: the relative output does not change
-    assert task.outputs(x + np.array([0.3, -0.2]))[0] == pytest.approx(task.outputs(x)[0], abs=1e-14)
+    assert task.outputs(x + np.array([0.3, -0.2]))[0] == pytest.approx(
+        task.outputs(x)[0], abs=1e-14
+    )
 
 
 def test_hold_meets_the_values_with_equal_and_opposite_reactions(relative):
