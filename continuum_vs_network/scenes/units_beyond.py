@@ -54,6 +54,7 @@ task set: the smallest source share).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from typing import Any
 
 import numpy as np
@@ -270,9 +271,23 @@ def capacity_unit(scene: Scene, params: dict, ctx: UnitContext):
     arrays, meta = _record(h, net, tasks.tasks)
     meta.update(
         n_nodes=net.n_nodes, n_springs=net.n_springs, examples=params["examples"],
-        seed=params["seed"], **CAPACITY, **GCL_K,
+        seed=params["seed"], worst_example=_worst_example(h, tasks), **CAPACITY, **GCL_K,
     )  # fmt: skip
     return arrays, meta
+
+
+def _worst_example(h, tasks) -> float:
+    """Largest final-over-initial error of one example of a task set (NaN if stopped)."""
+    if int(h.completed[0]) != h.steps:
+        return float("nan")
+    miss = (np.asarray(h.target_strain[0], dtype=float) - tasks.target_strain) ** 2
+    edges = np.cumsum([0, *(t.n_targets for t in tasks.tasks)])
+    ratios = [
+        miss[-1, a:b].sum() / miss[0, a:b].sum()
+        for a, b in itertools.pairwise(edges)
+        if miss[0, a:b].sum() > 0
+    ]
+    return float(max(ratios)) if ratios else float("nan")
 
 
 #: the regression task of ``beyond/regression``: training and held-out examples, GCL rate
