@@ -33,7 +33,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
-from .energy import spring_energy_change, spring_gradient
+from .energy import _scatter_nodes, spring_energy_change, spring_gradient
 from .lagrangian import Frame, lagrangian_blocks
 from .stopping import Outcome, StopRule, Trace
 
@@ -164,8 +164,8 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     lo, hi = low, low + np.linalg.norm(gt) / radius + abs(float(vals[-1])) + tiny
     shift = hi
     for _ in range(60):
-        den = vals + shift
-        norm2 = float(np.sum(g2 / den**2))
+        inv = 1.0 / (vals + shift)
+        norm2 = float(g2 @ (inv * inv))
         norm = np.sqrt(norm2)
         if abs(norm - radius) <= 1e-6 * radius:
             break
@@ -173,8 +173,9 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
             lo = shift
         else:
             hi = shift
-        derivative = -float(np.sum(g2 / den**3)) / norm  # d|p| / d shift
-        trial = shift - (1.0 / radius - 1.0 / norm) / (-derivative / norm2)
+        # Newton on phi = 1/radius - 1/|p|, which is nearly linear in the shift
+        slope = float(g2 @ (inv * inv * inv)) / (norm2 * norm)  # -d(phi)/d(shift)
+        trial = shift + (1.0 / radius - 1.0 / norm) / slope
         shift = trial if lo < trial < hi else 0.5 * (lo + hi)
     return vecs @ step(shift), shift
 
@@ -210,10 +211,7 @@ def _bending(x: NDArray, step: NDArray, coords: NDArray, springs, k, L) -> NDArr
     dd = full[springs[:, 1]] - full[springs[:, 0]]
     perp = dd[:, 0] * u[:, 1] - dd[:, 1] * u[:, 0]
     t = (k * perp * perp / r)[:, None] * u
-    g = np.zeros_like(x)
-    np.add.at(g, springs[:, 1], t)
-    np.subtract.at(g, springs[:, 0], t)
-    return g.ravel()[coords]
+    return _scatter_nodes(t, springs, x.shape[0]).ravel()[coords]
 
 
 class _Model(NamedTuple):
