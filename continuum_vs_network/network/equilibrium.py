@@ -242,12 +242,15 @@ def relax(
         iterations += outcome.iterations
         if not outcome.converged:
             break
+    if floating:  # second order judged without pins (rigid motions removed), then placed
+        outcome, extra = _second_order(unpinned, outcome, solve, stop, trace, iterations)
+        iterations += extra
     if floating and outcome.converged:
-        outcome = replace(outcome, x=_place(outcome.x, x, problem.free))
+        outcome = replace(outcome, x=_place(outcome.x, x, problem.free), certified=True)
         placed = problem.residual(outcome.x)
         if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
             trace.base = iterations
-            outcome = solve(problem, outcome.x, stop, trace)
+            outcome = replace(solve(problem, outcome.x, stop, trace), certified=True)
             iterations += outcome.iterations
     # Default pins only remove rigid motion, so they must carry no load. After a large
     # deformation two of them can line up and act as a strut: choose them anew at the

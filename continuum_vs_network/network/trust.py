@@ -51,7 +51,13 @@ from .energy import _scatter_nodes, spring_energy_change, spring_gradient
 from .lagrangian import Frame, lagrangian_blocks
 from .stopping import Outcome, StopRule, Trace
 
-__all__ = ["TR_DENSE_MAX", "StiffSprings", "rigid_motions", "trust_region_newton"]
+__all__ = [
+    "TR_DENSE_MAX",
+    "StiffSprings",
+    "null_basis",
+    "rigid_motions",
+    "trust_region_newton",
+]
 
 TR_DENSE_MAX = 400  # free coordinates; above, the sparse shifted Newton of newton.py (faster there)
 _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
@@ -206,7 +212,7 @@ def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
     return full[:, coords]
 
 
-def _null_basis(M: NDArray) -> NDArray:
+def null_basis(M: NDArray) -> NDArray:
     """Orthonormal basis (n, n - rank) of the null space of ``M`` (k, n)."""
     _, sv, vt = np.linalg.svd(M)
     rank = int(np.sum(sv > 1e-12 * max(float(sv[0]), 1e-300))) if sv.size else 0
@@ -343,7 +349,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             rows = [A[:m]] if m else []
             if rigid:
                 rows.append(rigid_motions(x, coords))
-            Q = _null_basis(np.vstack(rows) / root_d[None, :])
+            Q = null_basis(np.vstack(rows) / root_d[None, :])
             H = Q.T @ Ws @ Q
             gr = Q.T @ gs
         else:
