@@ -47,9 +47,9 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
-from .energy import _scatter_nodes, spring_energy_change, spring_gradient
-from .lagrangian import Frame, lagrangian_blocks
+from .lagrangian import Frame
 from .stopping import Outcome, StopRule, Trace
+from .trust_kernels import SparseKernels, kernels
 
 __all__ = [
     "TR_DENSE_MAX",
@@ -180,9 +180,14 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
             return vecs @ p, low
     # safeguarded Newton on the secular equation 1/|p(shift)| = 1/radius (More-Sorensen),
     # bracketed by bisection
+    # Started from a shift that is provably below the root (each component alone
+    # ``|gt_i| / (vals_i + shift)`` already reaches the radius there), where Newton on the
+    # concave secular function converges monotonically: 3-5 steps instead of ~10 from above.
     g2 = gt * gt
     lo, hi = low, low + np.linalg.norm(gt) / radius + abs(float(vals[-1])) + tiny
-    shift = hi
+    shift = max(low, float(np.max(np.abs(gt) / radius - vals)))
+    if not ((shift > lo or lowest > 0) and shift < hi):
+        shift = hi
     for _ in range(60):
         inv = 1.0 / (vals + shift)
         norm2 = float(g2 @ (inv * inv))
@@ -219,21 +224,6 @@ def null_basis(M: NDArray) -> NDArray:
     return vt[rank:].T
 
 
-def _bending(x: NDArray, step: NDArray, coords: NDArray, springs, k, L) -> NDArray:
-    """``J^T (k r_vv)`` at ``coords``: the force of every spring's second-order length
-    change ``r_vv = |dd_perp|^2 / r`` along ``step`` (geodesic acceleration's right side)."""
-    full = np.zeros(x.size)
-    full[coords] = step
-    full = full.reshape(x.shape)
-    d = x[springs[:, 1]] - x[springs[:, 0]]
-    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
-    u = d / r[:, None]
-    dd = full[springs[:, 1]] - full[springs[:, 0]]
-    perp = dd[:, 0] * u[:, 1] - dd[:, 1] * u[:, 0]
-    t = (k * perp * perp / r)[:, None] * u
-    return _scatter_nodes(t, springs, x.shape[0]).ravel()[coords]
-
-
 class _Model(NamedTuple):
     """The quadratic model of one iteration, in scaled reduced coordinates."""
 
@@ -246,6 +236,7 @@ class _Model(NamedTuple):
     gt: NDArray  # the same in the eigenbasis
     root_d: NDArray  # (n,) sqrt of the node stiffness per coordinate
     coords: NDArray  # (n,) flat coordinates
+    terms: SparseKernels  # the spring terms, evaluated at x
 
 
 def _trial(
@@ -261,14 +252,13 @@ def _trial(
     a stiff spring does not stretch it. Then stiff springs are put back to the lengths the
     linear model predicted and the clamps met again.
     """
-    x, Q, H, vals, vecs, gr, gt, root_d, coords = model
-    all_springs = problem.all_springs()
+    x, Q, H, vals, vecs, gr, gt, root_d, coords, terms = model
     ps, shift = _subproblem(vals, vecs, gt, radius)
     predicted = float(gr @ ps + 0.5 * ps @ H @ ps)
     step = (Q @ ps if Q is not None else ps) / root_d
     y = x.copy()
     y.ravel()[coords] += step
-    b = _bending(x, step, coords, *all_springs) / root_d
+    b = terms.bending(step) / root_d
     bt = vecs.T @ (Q.T @ b if Q is not None else b)
     den = vals + shift
     ok = den > 1e-12 * max(float(np.abs(vals).max()), 1e-300)
@@ -283,7 +273,7 @@ def _trial(
     length = float(np.linalg.norm(ps))
     if not np.all(np.isfinite(y)):
         return y, length, predicted, np.inf
-    return y, length, predicted, spring_energy_change(y, x, *all_springs)
+    return y, length, predicted, terms.energy_change(y)
 
 
 def _onto_clamps(problem: Problem, y: NDArray, coords: NDArray) -> NDArray:
@@ -304,9 +294,9 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     coords = frame.coords
     n = coords.size
     m = problem.n_clamps if problem.exact else 0
-    all_springs = problem.all_springs()
     stiff = StiffSprings.find(problem, coords, contrast=_CONTRAST)
     root_d = np.sqrt(_node_stiffness(problem)[coords])
+    terms = kernels(problem, frame, 1.0 / root_d)
     x = _onto_clamps(problem, np.array(x, dtype=np.float64), coords)
     if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
         return Outcome(
@@ -321,7 +311,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     radius = 0.25 * float(np.mean(net.rest_length)) * float(np.sqrt(np.median(root_d**2) * n))
     lowest = -np.inf  # smallest eigenvalue of the last reduced Hessian
     for it in range(stop.max_iter + 1):
-        g = spring_gradient(x, *all_springs).ravel()[coords]
+        g = terms.gradient(x)
         if not np.all(np.isfinite(g)):
             return Outcome(x, it, False, "forces became non-finite (the network blew up)")
         if problem.n_clamps:
@@ -342,8 +332,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             return Outcome(x, it, False, f"no convergence in {stop.max_iter} iterations")
         if trace.elapsed() > stop.max_seconds:
             return Outcome(x, it, False, f"time budget of {stop.max_seconds:g} s exceeded")
-        blocks = lagrangian_blocks(problem, x, mu[:m] if m else np.empty(0), 0.0)
-        Ws = frame.pattern.assemble_dense(blocks) / root_d[:, None] / root_d[None, :]
+        Ws = terms.hessian(mu)
         gs = g / root_d
         if m or rigid:
             rows = [A[:m]] if m else []
@@ -360,7 +349,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         gt = vecs.T @ gr
         accepted = False
 
-        model = _Model(x, Q, H, vals, vecs, gr, gt, root_d, coords)
+        model = _Model(x, Q, H, vals, vecs, gr, gt, root_d, coords, terms)
 
         accepted = False
         for _ in range(40):
