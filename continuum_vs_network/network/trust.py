@@ -45,6 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
+from scipy.linalg import lapack
 
 from .constraints import Problem, clamp_tensions
 from .lagrangian import Frame
@@ -205,6 +206,12 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     return vecs @ step(shift), shift
 
 
+def _eigh(H: NDArray) -> tuple[NDArray, NDArray]:
+    """``np.linalg.eigh`` (the same LAPACK driver), without its per-call overhead."""
+    vals, vecs, info = lapack.dsyevd(H)
+    return (vals, vecs) if info == 0 else np.linalg.eigh(H)
+
+
 def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
     """The rigid motions of ``x`` (n_nodes, 2) at flat coordinates ``coords``, (3, n):
     the two translations and the rotation about the centroid."""
@@ -219,7 +226,9 @@ def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
 
 def null_basis(M: NDArray) -> NDArray:
     """Orthonormal basis (n, n - rank) of the null space of ``M`` (k, n)."""
-    _, sv, vt = np.linalg.svd(M)
+    _, sv, vt, info = lapack.dgesdd(M)  # numpy's SVD, without its per-call overhead
+    if info != 0:
+        _, sv, vt = np.linalg.svd(M)
     rank = int(np.sum(sv > 1e-12 * max(float(sv[0]), 1e-300))) if sv.size else 0
     return vt[rank:].T
 
@@ -344,7 +353,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         else:
             Q, H, gr = None, Ws, gs
         H = 0.5 * (H + H.T)
-        vals, vecs = np.linalg.eigh(H)
+        vals, vecs = _eigh(H)
         lowest = float(vals[0]) if vals.size else np.inf
         gt = vecs.T @ gr
         accepted = False
