@@ -39,8 +39,6 @@ the model.
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -50,7 +48,7 @@ from scipy.linalg import lapack
 from .constraints import Problem, clamp_tensions
 from .lagrangian import Frame
 from .stopping import Outcome, StopRule, Trace
-from .trust_kernels import SparseKernels, kernels
+from .trust_kernels import kernels
 
 __all__ = [
     "TR_DENSE_MAX",
@@ -65,6 +63,7 @@ _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
 _GROW = 2.0  # radius growth after a good step that reached the boundary
 _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model holds
 _ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
+_CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
 _CONTRAST = 10.0  # springs this much stiffer than the median are put back (StiffSprings)
 
 
@@ -233,19 +232,49 @@ def null_basis(M: NDArray) -> NDArray:
     return vt[rank:].T
 
 
-class _Model(NamedTuple):
-    """The quadratic model of one iteration, in scaled reduced coordinates."""
+class _Model:
+    """The quadratic model of one iteration, in scaled reduced coordinates.
 
-    x: NDArray  # (n_nodes, 2) the iterate
-    Q: NDArray | None  # (n, r) basis of the clamps' (and rigid motions') tangent space
-    H: NDArray  # (r, r) reduced scaled Hessian
-    vals: NDArray  # its eigenvalues (r,)
-    vecs: NDArray  # and eigenvectors (r, r)
-    gr: NDArray  # reduced scaled gradient (r,)
-    gt: NDArray  # the same in the eigenbasis
-    root_d: NDArray  # (n,) sqrt of the node stiffness per coordinate
-    coords: NDArray  # (n,) flat coordinates
-    terms: SparseKernels  # the spring terms, evaluated at x
+    ``H`` is first factored (Cholesky) with a shift ``sigma = max(1e-8, 1e-12 |H|)``:
+    when that succeeds every eigenvalue exceeds ``sigma`` (the second-order certificate,
+    and every eigen-component of the steps below is kept), and the Newton step comes from
+    the Cholesky factor of ``H``. The eigen-decomposition (the boundary step, negative
+    curvature) is computed only when a trial needs it: a Newton step that fits the radius
+    does not, and then the iteration costs two small factorisations instead of one.
+    """
+
+    def __init__(self, x, Q, H, gr, root_d, coords, terms) -> None:
+        self.x, self.Q, self.H, self.gr = x, Q, H, gr  # (n_nodes, 2), (n, r), (r, r), (r,)
+        self.root_d, self.coords, self.terms = root_d, coords, terms
+        self._eigen: tuple[NDArray, NDArray, NDArray] | None = None
+        self.factor, self.newton, self.newton_length = _positive_factor(H, gr)
+        self.certified = self.factor is not None  # every eigenvalue > _CURVATURE
+
+    def eigen(self) -> tuple[NDArray, NDArray, NDArray]:
+        """Eigenvalues (r,), eigenvectors (r, r) and the gradient in the eigenbasis (r,)."""
+        if self._eigen is None:
+            vals, vecs = _eigh(self.H)
+            self._eigen = (vals, vecs, vecs.T @ self.gr)
+            self.certified = bool(vals.size == 0 or vals[0] > _CURVATURE)
+        return self._eigen
+
+
+def _positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | None, float]:
+    """Cholesky factor of ``H`` (r, r), the Newton step and its length, when
+    ``H - sigma I`` is positive definite (see :class:`_Model`); else ``(None, None, inf)``."""
+    if not H.size:
+        return None, None, np.inf
+    sigma = max(_CURVATURE, 1e-12 * float(np.max(np.sum(np.abs(H), axis=1))))
+    _, info = lapack.dpotrf(H - sigma * np.eye(H.shape[0]))
+    if info != 0:
+        return None, None, np.inf
+    factor, info = lapack.dpotrf(H)
+    if info != 0:
+        return None, None, np.inf
+    step, info = lapack.dpotrs(factor, gr)
+    if info != 0 or not np.all(np.isfinite(step)):
+        return None, None, np.inf
+    return factor, -step, float(np.sqrt(step @ step))
 
 
 def _trial(
@@ -261,17 +290,28 @@ def _trial(
     a stiff spring does not stretch it. Then stiff springs are put back to the lengths the
     linear model predicted and the clamps met again.
     """
-    x, Q, H, vals, vecs, gr, gt, root_d, coords, terms = model
-    ps, shift = _subproblem(vals, vecs, gt, radius)
+    x, Q, H, gr, root_d, coords, terms = (
+        model.x, model.Q, model.H, model.gr, model.root_d, model.coords, model.terms
+    )  # fmt: skip
+    newton = model.newton is not None and model.newton_length <= radius
+    if newton:
+        ps, shift = model.newton, 0.0
+    else:
+        vals, vecs, gt = model.eigen()
+        ps, shift = _subproblem(vals, vecs, gt, radius)
     predicted = float(gr @ ps + 0.5 * ps @ H @ ps)
     step = (Q @ ps if Q is not None else ps) / root_d
     y = x.copy()
     y.ravel()[coords] += step
     b = terms.bending(step) / root_d
-    bt = vecs.T @ (Q.T @ b if Q is not None else b)
-    den = vals + shift
-    ok = den > 1e-12 * max(float(np.abs(vals).max()), 1e-300)
-    accel = vecs @ np.where(ok, -bt / np.where(ok, den, 1.0), 0.0)
+    br = Q.T @ b if Q is not None else b
+    if newton:  # every eigenvalue > 1e-12 max|eigenvalue|: none is dropped below
+        accel = -lapack.dpotrs(model.factor, br)[0]
+    else:
+        bt = vecs.T @ br
+        den = vals + shift
+        ok = den > 1e-12 * max(float(np.abs(vals).max()), 1e-300)
+        accel = vecs @ np.where(ok, -bt / np.where(ok, den, 1.0), 0.0)
     accel = (Q @ accel if Q is not None else accel) / root_d
     if np.linalg.norm(accel) <= _ACCEL_MAX * np.linalg.norm(step):
         y.ravel()[coords] += 0.5 * accel
@@ -318,7 +358,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         )
     rigid = not problem.free_flat.size < problem.free.size  # nothing pinned
     radius = 0.25 * float(np.mean(net.rest_length)) * float(np.sqrt(np.median(root_d**2) * n))
-    lowest = -np.inf  # smallest eigenvalue of the last reduced Hessian
+    model: _Model | None = None  # the last iteration's model (its certificate)
     for it in range(stop.max_iter + 1):
         g = terms.gradient(x)
         if not np.all(np.isfinite(g)):
@@ -336,7 +376,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             clamp_error = stop.clamp_error(problem.clamp_violation(x) if m else np.empty(0))
         trace.record(residual, it)
         if stop.met(residual, clamp_error):
-            return Outcome(x, it, True, certified=lowest > 1e-8)
+            return Outcome(x, it, True, certified=model is not None and model.certified)
         if it == stop.max_iter:
             return Outcome(x, it, False, f"no convergence in {stop.max_iter} iterations")
         if trace.elapsed() > stop.max_seconds:
@@ -353,12 +393,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         else:
             Q, H, gr = None, Ws, gs
         H = 0.5 * (H + H.T)
-        vals, vecs = _eigh(H)
-        lowest = float(vals[0]) if vals.size else np.inf
-        gt = vecs.T @ gr
-        accepted = False
-
-        model = _Model(x, Q, H, vals, vecs, gr, gt, root_d, coords, terms)
+        model = _Model(x, Q, H, gr, root_d, coords, terms)
 
         accepted = False
         for _ in range(40):
