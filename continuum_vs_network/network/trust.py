@@ -95,7 +95,7 @@ class StiffSprings:
         positive = k[k > 0]
         if not positive.size:
             return None
-        stiff = np.flatnonzero(k > contrast * float(np.median(positive)))
+        stiff = np.flatnonzero(k > contrast * _median(positive))
         if not stiff.size:
             return None
         if problem.exact:  # clamps are infinitely stiff springs: restored the same way
@@ -205,6 +205,12 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     return vecs @ step(shift), shift
 
 
+def _median(a: NDArray) -> float:
+    """``np.median`` of a non-empty 1-d array (the same value), without its overhead."""
+    s = np.sort(a)
+    return float((s[(s.size - 1) // 2] + s[s.size // 2]) / 2)
+
+
 def _eigh(H: NDArray) -> tuple[NDArray, NDArray]:
     """``np.linalg.eigh`` (the same LAPACK driver), without its per-call overhead."""
     vals, vecs, info = lapack.dsyevd(H)
@@ -215,12 +221,12 @@ def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
     """The rigid motions of ``x`` (n_nodes, 2) at flat coordinates ``coords``, (3, n):
     the two translations and the rotation about the centroid."""
     c = x - x.mean(axis=0)
-    full = np.zeros((3, x.size))
-    full[0, 0::2] = 1.0
-    full[1, 1::2] = 1.0
-    full[2, 0::2] = -c[:, 1]
-    full[2, 1::2] = c[:, 0]
-    return full[:, coords]
+    full = np.zeros((3, x.shape[0], 2))
+    full[0, :, 0] = 1.0
+    full[1, :, 1] = 1.0
+    full[2] = c[:, ::-1]
+    full[2, :, 0] *= -1.0
+    return full.reshape(3, -1)[:, coords]
 
 
 def null_basis(M: NDArray) -> NDArray:
@@ -357,7 +363,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             "triangle of clamped springs that violates the triangle inequality",
         )
     rigid = not problem.free_flat.size < problem.free.size  # nothing pinned
-    radius = 0.25 * float(np.mean(net.rest_length)) * float(np.sqrt(np.median(root_d**2) * n))
+    radius = 0.25 * float(np.mean(net.rest_length)) * float(np.sqrt(_median(root_d**2) * n))
     model: _Model | None = None  # the last iteration's model (its certificate)
     for it in range(stop.max_iter + 1):
         g = terms.gradient(x)

@@ -14,6 +14,8 @@ agree to round-off.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -79,19 +81,9 @@ class DenseKernels(SparseKernels):
 
     def __init__(self, problem: Problem, frame: Frame, inv_root: NDArray) -> None:
         super().__init__(problem, frame, inv_root)
-        springs, k, L = self.springs
+        _, k, L = self.springs
         n_nodes = problem.net.n_nodes
-        s = len(springs)
-        rows = np.arange(s)
-        E = np.zeros((s, n_nodes))
-        E[rows, springs[:, 1]] += 1.0
-        E[rows, springs[:, 0]] -= 1.0
-        self.E, self.Et = E, np.ascontiguousarray(E.T)
-        # node-pair outer products: W_nodes (N*N, 4) = pairs @ blocks (s, 4)
-        self.pairs = np.ascontiguousarray((E[:, :, None] * E[:, None, :]).reshape(s, -1).T)
-        p = self.coords
-        self.take = ((p[:, None] // 2) * n_nodes + p[None, :] // 2) * 4 + (p[:, None] % 2) * 2
-        self.take = self.take + p[None, :] % 2
+        self.E, self.Et, self.pairs, self.take = _incidence(problem, self.coords)
         self.weight = inv_root[:, None] * inv_root[None, :]
         self.k, self.L = k, L
         self.clamps = problem.clamp_springs if self.m else None
@@ -134,6 +126,35 @@ class DenseKernels(SparseKernels):
         r = np.hypot(d[:, 0], d[:, 1])
         dr = np.einsum("ij,ij->i", du, d + d0) / np.maximum(r + r0, _TINY)
         return float(0.5 * np.dot(self.k, dr * (r + r0 - 2.0 * self.L)))
+
+
+_CACHE: dict[int, dict] = {}
+
+
+def _incidence(problem: Problem, coords: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    """The constant arrays of :class:`DenseKernels`, cached while the springs array lives
+    (networks made with ``with_*`` share it): the signed incidence ``E`` (s, N) and its
+    transpose, the node-pair outer products (N*N, s) and the index of each ``(coords,
+    coords)`` entry in the products' ravelled (N, N, 2, 2) result."""
+    springs = problem.all_springs()[0]
+    net = problem.net
+    key_array = id(net.springs)
+    if key_array not in _CACHE:
+        _CACHE[key_array] = {}
+        weakref.finalize(net.springs, _CACHE.pop, key_array, None)
+    key = (net.n_nodes, coords.tobytes(), springs.tobytes())
+    per = _CACHE[key_array]
+    if key not in per:
+        n_nodes, s = net.n_nodes, len(springs)
+        rows = np.arange(s)
+        E = np.zeros((s, n_nodes))
+        E[rows, springs[:, 1]] += 1.0
+        E[rows, springs[:, 0]] -= 1.0
+        pairs = np.ascontiguousarray((E[:, :, None] * E[:, None, :]).reshape(s, -1).T)
+        p = coords
+        take = ((p[:, None] // 2) * n_nodes + p[None, :] // 2) * 4 + (p[:, None] % 2) * 2
+        per[key] = (E, np.ascontiguousarray(E.T), pairs, take + p[None, :] % 2)
+    return per[key]
 
 
 def kernels(problem: Problem, frame: Frame, inv_root: NDArray) -> SparseKernels:
