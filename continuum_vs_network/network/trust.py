@@ -253,8 +253,15 @@ class _Model:
         self.x, self.Q, self.H, self.gr = x, Q, H, gr  # (n_nodes, 2), (n, r), (r, r), (r,)
         self.root_d, self.coords, self.terms = root_d, coords, terms
         self._eigen: tuple[NDArray, NDArray, NDArray] | None = None
+        # (n, r) scaled basis: a reduced step p moves the free coordinates by basis @ p
+        self.basis = Q / root_d[:, None] if Q is not None else None
+        terms.set_basis(self.basis)
         self.factor, self.newton, self.newton_length = _positive_factor(H, gr)
         self.certified = self.factor is not None  # every eigenvalue > _CURVATURE
+
+    def lift(self, p: NDArray) -> NDArray:
+        """The move (n,) of the free coordinates for a reduced scaled step ``p`` (r,)."""
+        return self.basis @ p if self.basis is not None else p / self.root_d
 
     def eigen(self) -> tuple[NDArray, NDArray, NDArray]:
         """Eigenvalues (r,), eigenvectors (r, r) and the gradient in the eigenbasis (r,)."""
@@ -296,9 +303,7 @@ def _trial(
     a stiff spring does not stretch it. Then stiff springs are put back to the lengths the
     linear model predicted and the clamps met again.
     """
-    x, Q, H, gr, root_d, coords, terms = (
-        model.x, model.Q, model.H, model.gr, model.root_d, model.coords, model.terms
-    )  # fmt: skip
+    x, H, gr, coords, terms = model.x, model.H, model.gr, model.coords, model.terms
     newton = model.newton is not None and model.newton_length <= radius
     if newton:
         ps, shift = model.newton, 0.0
@@ -306,11 +311,10 @@ def _trial(
         vals, vecs, gt = model.eigen()
         ps, shift = _subproblem(vals, vecs, gt, radius)
     predicted = float(gr @ ps + 0.5 * ps @ H @ ps)
-    step = (Q @ ps if Q is not None else ps) / root_d
+    step = model.lift(ps)
     y = x.copy()
     y.ravel()[coords] += step
-    b = terms.bending(step) / root_d
-    br = Q.T @ b if Q is not None else b
+    br = terms.reduced_bending(ps, step)
     if newton:  # every eigenvalue > 1e-12 max|eigenvalue|: none is dropped below
         accel = -lapack.dpotrs(model.factor, br)[0]
     else:
@@ -318,14 +322,14 @@ def _trial(
         den = vals + shift
         ok = den > 1e-12 * max(float(np.abs(vals).max()), 1e-300)
         accel = vecs @ np.where(ok, -bt / np.where(ok, den, 1.0), 0.0)
-    accel = (Q @ accel if Q is not None else accel) / root_d
-    if np.linalg.norm(accel) <= _ACCEL_MAX * np.linalg.norm(step):
+    accel = model.lift(accel)
+    if np.sqrt(accel @ accel) <= _ACCEL_MAX * np.sqrt(step @ step):
         y.ravel()[coords] += 0.5 * accel
     if stiff is not None:
         z = stiff.restore(y, x, step)
         y = z if z is not None else y
     y = _onto_clamps(problem, y, coords)
-    length = float(np.linalg.norm(ps))
+    length = float(np.sqrt(ps @ ps))
     if not np.all(np.isfinite(y)):
         return y, length, predicted, np.inf
     return y, length, predicted, terms.energy_change(y)

@@ -71,6 +71,15 @@ class SparseKernels:
         t = (k * perp * perp / r)[:, None] * u
         return _scatter_nodes(t, springs, x.shape[0]).ravel()[self.coords]
 
+    def set_basis(self, basis: NDArray | None) -> None:
+        """The model's scaled basis (n, r) (None: ``D^-1/2`` itself), after :meth:`hessian`."""
+        self.basis = basis
+
+    def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
+        """``basis^T`` :meth:`bending` ``(step)`` (r,) for ``step = basis @ p``."""
+        b = self.bending(step)
+        return self.basis.T @ b if self.basis is not None else b * self.inv_root
+
     def energy_change(self, y: NDArray) -> float:
         """``E(y) - E(x)`` from the last ``x``, free of cancellation."""
         return spring_energy_change(y, self.x, *self.springs)
@@ -83,7 +92,7 @@ class DenseKernels(SparseKernels):
         super().__init__(problem, frame, inv_root)
         _, k, L = self.springs
         n_nodes = problem.net.n_nodes
-        self.E, self.Et, self.pairs, self.take = _incidence(problem, self.coords)
+        self.E, self.Et, self.pairs, self.take, self.G = _incidence(problem, self.coords)
         self.weight = inv_root[:, None] * inv_root[None, :]
         self.k, self.L = k, L
         self.clamps = problem.clamp_springs if self.m else None
@@ -119,6 +128,23 @@ class DenseKernels(SparseKernels):
         t = (self.k * perp * perp / self.r_safe)[:, None] * u
         return (self.Et @ t).ravel()[self.coords]
 
+    def set_basis(self, basis: NDArray | None) -> None:
+        # length Jacobian J (s, n) and the perpendicular one at the last x, onto the basis:
+        # the bending force of a reduced step p is (J B)^T (k/r (P B p)^2)
+        u0, u1 = self.u[:, 0, None], self.u[:, 1, None]
+        G0, G1 = self.G
+        J, P = u0 * G0 + u1 * G1, u1 * G0 - u0 * G1
+        if basis is None:
+            J, P = J * self.inv_root, P * self.inv_root
+        else:
+            J, P = J @ basis, P @ basis
+        self.JT, self.P = np.ascontiguousarray(J.T), P
+        self.k_r = self.k / self.r_safe
+
+    def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
+        perp = self.P @ p
+        return self.JT @ (self.k_r * perp * perp)
+
     def energy_change(self, y: NDArray) -> float:
         d0, r0 = self.d, self.r
         du = self.E @ (y - self.x)
@@ -131,11 +157,12 @@ class DenseKernels(SparseKernels):
 _CACHE: dict[int, dict] = {}
 
 
-def _incidence(problem: Problem, coords: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+def _incidence(problem: Problem, coords: NDArray) -> tuple:
     """The constant arrays of :class:`DenseKernels`, cached while the springs array lives
     (networks made with ``with_*`` share it): the signed incidence ``E`` (s, N) and its
     transpose, the node-pair outer products (N*N, s) and the index of each ``(coords,
-    coords)`` entry in the products' ravelled (N, N, 2, 2) result."""
+    coords)`` entry in the products' ravelled (N, N, 2, 2) result, and ``E`` on the x and the
+    y components of ``coords`` (two (s, n) arrays)."""
     springs = problem.all_springs()[0]
     net = problem.net
     key_array = id(net.springs)
@@ -153,7 +180,8 @@ def _incidence(problem: Problem, coords: NDArray) -> tuple[NDArray, NDArray, NDA
         pairs = np.ascontiguousarray((E[:, :, None] * E[:, None, :]).reshape(s, -1).T)
         p = coords
         take = ((p[:, None] // 2) * n_nodes + p[None, :] // 2) * 4 + (p[:, None] % 2) * 2
-        per[key] = (E, np.ascontiguousarray(E.T), pairs, take + p[None, :] % 2)
+        G = tuple(E[:, p // 2] * (p % 2 == c) for c in (0, 1))
+        per[key] = (E, np.ascontiguousarray(E.T), pairs, take + p[None, :] % 2, G)
     return per[key]
 
 
