@@ -162,13 +162,14 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     lowest = float(vals[0])
     if lowest > 0:
         p = step(0.0)
-        if np.linalg.norm(p) <= radius:
+        if np.sqrt(p @ p) <= radius:
             return vecs @ p, 0.0
     low = max(0.0, -lowest)
+    tiny = 1e-12 * max(abs(lowest), abs(float(vals[-1])), 1e-300)  # vals ascending
+    g_norm = float(np.sqrt(gt @ gt))
     # hard case: the gradient has (almost) no component on the lowest eigenvectors
-    tiny = 1e-12 * max(float(np.abs(vals).max()), 1e-300)
-    on_low = np.abs(vals - lowest) <= tiny
-    if lowest <= 0 and np.linalg.norm(gt[on_low]) <= 1e-10 * max(np.linalg.norm(gt), 1e-300):
+    on_low = np.abs(vals - lowest) <= tiny if lowest <= 0 else None
+    if lowest <= 0 and np.linalg.norm(gt[on_low]) <= 1e-10 * max(g_norm, 1e-300):
         shifted = vals + low
         safe = ~on_low
         p = np.zeros_like(gt)
@@ -184,7 +185,7 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     # ``|gt_i| / (vals_i + shift)`` already reaches the radius there), where Newton on the
     # concave secular function converges monotonically: 3-5 steps instead of ~10 from above.
     g2 = gt * gt
-    lo, hi = low, low + np.linalg.norm(gt) / radius + abs(float(vals[-1])) + tiny
+    lo, hi = low, low + g_norm / radius + abs(float(vals[-1])) + tiny
     shift = max(low, float(np.max(np.abs(gt) / radius - vals)))
     if not ((shift > lo or lowest > 0) and shift < hi):
         shift = hi
@@ -320,7 +321,7 @@ def _trial(
     else:
         bt = vecs.T @ br
         den = vals + shift
-        ok = den > 1e-12 * max(float(np.abs(vals).max()), 1e-300)
+        ok = den > 1e-12 * max(abs(float(vals[0])), abs(float(vals[-1])), 1e-300)
         accel = vecs @ np.where(ok, -bt / np.where(ok, den, 1.0), 0.0)
     accel = model.lift(accel)
     if np.sqrt(accel @ accel) <= _ACCEL_MAX * np.sqrt(step @ step):
