@@ -230,20 +230,19 @@ def relax(
     # itself when nothing is pinned (a pin pair whose lever shortens in a large deformation
     # leaves a nearly free rotation that it would otherwise creep along); the result is
     # then placed rigidly on the default pins.
-    unpinned = problem.with_free(np.ones_like(problem.free))
-    floating = pinned is None and method == "newton" and unpinned.free_flat.size <= TR_DENSE_MAX
-    solved = unpinned if floating else problem
+    floating = pinned is None and method == "newton" and problem.free.size <= TR_DENSE_MAX
+    solved = problem.with_free(np.ones_like(problem.free)) if floating else problem
     for step in range(1, int(ramp) + 1):
         frac = step / ramp
         lengths = start_lengths + frac * (problem.clamp_lengths - start_lengths)
-        stage = solved.with_clamp_lengths(lengths)
+        stage = solved.with_clamp_lengths(lengths) if problem.n_clamps else solved
         trace.base = iterations
         outcome = solve(stage, stage.start(outcome.x), stop, trace)
         iterations += outcome.iterations
         if not outcome.converged:
             break
     if floating:  # second order judged without pins (rigid motions removed), then placed
-        outcome, extra = _second_order(unpinned, outcome, solve, stop, trace, iterations)
+        outcome, extra = _second_order(solved, outcome, solve, stop, trace, iterations)
         iterations += extra
     if floating and outcome.converged:
         outcome = replace(outcome, x=_place(outcome.x, x, problem.free), certified=True)
