@@ -8,12 +8,18 @@ median iterations and the time per iteration, and the same with explicit default
 
     python benchmarks/bench_patch.py
     python benchmarks/bench_patch.py --count 50 --repeats 20
+    python benchmarks/bench_patch.py --against /path/to/other/checkout   # old vs new
+
+``--against DIR`` also times the package found in ``DIR`` (another checkout, e.g. the
+commit before a change) in a subprocess of the same run and prints the time ratio.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import subprocess
+import sys
 import time
 
 
@@ -21,6 +27,7 @@ def _parse() -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--count", type=int, default=20)
     p.add_argument("--repeats", type=int, default=10)
+    p.add_argument("--against", default=None, help="another checkout to time side by side")
     return p.parse_args()
 
 
@@ -55,6 +62,19 @@ def main() -> None:
         print(f"{name:14s} median {ms:6.2f} ms  iterations {its:5.1f}  {per:6.3f} ms/iteration")
     ratio = rows["explicit pins"][0] / rows["default pins"][0]
     print(f"explicit / default pins time: {ratio:.2f}; target <= 1 ms")
+    if args.against:
+        env = dict(os.environ, PYTHONPATH=os.path.abspath(args.against))
+        cmd = [sys.executable, __file__, "--count", str(args.count), "--repeats", str(args.repeats)]
+        out = subprocess.run(cmd, env=env, capture_output=True, text=True, check=True).stdout
+        other = {}
+        for line in out.splitlines():
+            for name in rows:
+                if line.startswith(name):
+                    other[name] = float(line.split("median")[1].split("ms")[0])
+        print(f"--against {args.against}:")
+        for name, (ms, _, _) in rows.items():
+            print(f"{name:14s} {other[name]:6.2f} ms there, {ms:6.2f} ms here: "
+                  f"{other[name] / ms:.2f}x faster here")  # fmt: skip
 
 
 if __name__ == "__main__":
