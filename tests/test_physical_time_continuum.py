@@ -145,3 +145,49 @@ def test_bad_continuum_input_is_named(body_task):
     with pytest.raises(ValueError, match="explicit learning step too long"):
         learn_in_time(body, task, CoupledLearning(50.0, 0.1, **BULK), viscosity=DRAG,
                       duration=1.0, dt=1.0)  # fmt: skip
+
+
+def test_continuum_scene_bisects_the_critical_ratio(tmp_path):
+    """A physical_time scene with the continuum medium: the critical ratio lies between
+    the last ratio run (grid or bisection) before it and the first past it, and the report
+    names the continuum rows."""
+    pytest.importorskip("matplotlib")
+    import tomllib
+
+    from continuum_vs_network.report.writer import write_report
+    from continuum_vs_network.scenes.runner import run_scene
+    from continuum_vs_network.scenes.schema import parse_scene
+    from continuum_vs_network.scenes.units_time import OSCILLATION, SLOWDOWN
+
+    text = """
+name = "ptc"
+description = "tiny"
+kind = "physical_time"
+[network]
+builder = "triangular"
+sizes = [6]
+[task]
+kind = "stern"
+n_sources = 2
+n_targets = 1
+[physical_time]
+rules = ["gcl"]
+media = ["continuum"]
+ratios = [0.3, 100.0]
+bisections = 3
+relaxation_times = 1.5
+learning_times = 3.0
+"""
+    scene = parse_scene(tomllib.loads(text), "ptc.toml")
+    result = run_scene(scene, tmp_path / "results")
+    (unit,) = result.select("physical_time/").values()
+    m = unit.meta
+    assert m["medium"] == "continuum" and m["tau"] > 0
+    assert len(m["bisection"]) == 3
+    rows = sorted(m["runs"] + m["bisection"], key=lambda r: r["ratio"])
+    past = [r["slowdown"] >= SLOWDOWN or r["rebound"] >= OSCILLATION for r in rows]
+    j = past.index(True)
+    assert j > 0 and rows[j - 1]["ratio"] <= m["critical_ratio"] <= rows[j]["ratio"]
+    assert rows[j]["ratio"] / rows[j - 1]["ratio"] < (100 / 0.3) ** (1 / 8) * 1.0001
+    text = write_report(result, tmp_path / "report", render=False).read_text()
+    assert "GCL, twin continua" in text
