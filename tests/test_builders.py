@@ -8,11 +8,11 @@ import pytest
 import continuum_vs_network as cvn
 from continuum_vs_network.network.builders import (
     diluted_lattice,
-    jammed_network,
     paper_network,
     strain_tunable,
     triangular_lattice,
 )
+from continuum_vs_network.network.jammed import jammed_network
 from continuum_vs_network.network.rigidity import (
     is_rigid,
     rigidity_matrix,

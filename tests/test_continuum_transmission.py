@@ -10,6 +10,7 @@ pytest.importorskip("skfem")
 
 import continuum_vs_network as cvn
 from continuum_vs_network.continuum.body import elastic_body
+from continuum_vs_network.continuum.inclusion import eshelby_inclusion, solve_inclusion
 from continuum_vs_network.continuum.materials import Material, lattice_lame
 from continuum_vs_network.continuum.mesh import disk_mesh, network_faces, network_mesh
 from continuum_vs_network.continuum.probes import (
@@ -23,12 +24,10 @@ from continuum_vs_network.continuum.static import solve_static
 from continuum_vs_network.continuum.transmission import (
     continuum_transmission,
     decay_exponent,
-    eshelby_inclusion,
     network_dirichlet,
     network_patch_source,
     network_transmission,
     patch_source,
-    solve_inclusion,
     strain_profile,
 )
 from continuum_vs_network.network.builders import triangular_lattice

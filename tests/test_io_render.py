@@ -19,11 +19,10 @@ from continuum_vs_network.io import render
 from continuum_vs_network.io.render import (
     SOURCE_COLOR,
     diverging_colors,
-    render_continuum,
     render_network,
-    render_side_by_side,
     rendering_available,
 )
+from continuum_vs_network.io.render_continuum import render_continuum, render_side_by_side
 
 pytestmark = pytest.mark.render
 

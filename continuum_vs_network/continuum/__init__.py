@@ -34,6 +34,7 @@ from .body import (
     strain_energy,
     vertex_displacement,
 )
+from .inclusion import InclusionField, InclusionSolution, eshelby_inclusion, solve_inclusion
 from .learnable import LearnableBody, learnable_body
 from .learned_fields import (
     coarse_average,
@@ -77,18 +78,14 @@ from .probes import (
 from .static import Dirichlet, Factorisation, StaticSolution, factorise, fix, solve_static
 from .transmission import (
     DecayFit,
-    InclusionField,
-    InclusionSolution,
     StrainProfile,
     Transmission,
     continuum_transmission,
     decay_exponent,
-    eshelby_inclusion,
     network_dirichlet,
     network_patch_source,
     network_transmission,
     patch_source,
-    solve_inclusion,
     strain_profile,
 )
 from .viscoelastic import (

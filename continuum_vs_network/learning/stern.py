@@ -47,7 +47,7 @@ def stern_network(
     removed, kept rigid) or ``"jammed"`` (the contact network of a jammed packing,
     ``k = 1/L``; somewhat fewer nodes than asked, rattlers removed).
     """
-    from ..network import builders
+    from ..network import builders, jammed
 
     if kind in ("lattice", "diluted"):
         nx = max(2, round(math.sqrt(n_nodes)))
@@ -56,7 +56,7 @@ def stern_network(
             return builders.triangular_lattice(nx, ny, noise=noise, rng=rng)
         return builders.diluted_lattice(nx, ny, 0.2, rng, noise=noise)
     if kind == "jammed":
-        return builders.jammed_network(n_nodes, rng)
+        return jammed.jammed_network(n_nodes, rng)
     raise ValueError(f"kind must be 'lattice', 'diluted' or 'jammed', got {kind!r}")
 
 

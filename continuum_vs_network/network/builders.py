@@ -1,4 +1,6 @@
-"""Network builders: the paper patch, triangular lattices (full and diluted), jammed packings.
+"""Network builders: the paper patch, triangular lattices (full and diluted).
+
+Jammed packings are in :mod:`.jammed`.
 
 Every builder returns a :class:`SpringNetwork`. Randomness comes only from the
 ``numpy.random.Generator`` passed in, so the same seed gives the same network. Lengths are
@@ -8,12 +10,10 @@ diameter for jammed packings.
 
 from __future__ import annotations
 
-import logging
 import math
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 from .. import _validate as check
 from .model import SpringNetwork
@@ -21,13 +21,11 @@ from .rigidity import is_rigid, self_stress_support
 
 __all__ = [
     "diluted_lattice",
-    "jammed_network",
     "paper_network",
     "strain_tunable",
     "triangular_lattice",
 ]
 
-_log = logging.getLogger(__name__)
 _ROW_HEIGHT = math.sqrt(3.0) / 2.0
 
 
@@ -410,262 +408,3 @@ def _greedy_removal(basis: NDArray, order: NDArray, n_remove: int) -> NDArray[np
             "the lattice positions may be degenerate"
         )
     return np.array(removed, dtype=np.int64)
-
-
-# -- jammed packings ----------------------------------------------------------------------
-def _diameters(n: int, rng: np.random.Generator, polydispersity: float | None) -> NDArray:
-    if polydispersity is None:
-        big = rng.permutation(n) < n // 2
-        return np.where(big, 1.4, 1.0)
-    delta = float(polydispersity)
-    half_width = math.sqrt(3.0) * delta
-    if not (math.isfinite(delta) and 0 < half_width < 1):
-        raise ValueError(
-            f"polydispersity must be None (bidisperse) or in (0, {1 / math.sqrt(3):.4f}), "
-            f"got {polydispersity}"
-        )
-    return rng.uniform(1.0 - half_width, 1.0 + half_width, size=n)
-
-
-class _PackingEnergy:
-    """Harmonic overlap energy of soft discs in a square box with soft walls.
-
-    ``E = sum_pairs (d_ij - r_ij)_+^2 / 2 + sum_discs sum_walls (overlap with wall)_+^2 / 2``
-    with ``d_ij`` the mean diameter. A Verlet list with a skin is rebuilt when a disc has
-    moved more than half the skin, so the function is exact at every call.
-    """
-
-    def __init__(self, diameters: NDArray, box: float, skin: float = 0.3) -> None:
-        self.d = diameters
-        self.r = diameters / 2
-        self.box = box
-        self.skin = skin
-        self.cutoff = float(diameters.max()) + skin
-        self.ref: NDArray | None = None
-        self.pairs = np.empty((0, 2), dtype=np.int64)
-
-    def _update(self, x: NDArray) -> None:
-        if self.ref is None or np.max(np.abs(x - self.ref)) > 0.5 * self.skin / math.sqrt(2):
-            self.pairs = cKDTree(x).query_pairs(self.cutoff, output_type="ndarray")
-            self.ref = x.copy()
-
-    def overlaps(self, x: NDArray) -> tuple[NDArray, NDArray, NDArray]:
-        """Pairs with positive overlap, their separation vectors and overlaps."""
-        self._update(x)
-        i, j = self.pairs[:, 0], self.pairs[:, 1]
-        dvec = x[j] - x[i]
-        dist = np.hypot(dvec[:, 0], dvec[:, 1])
-        ov = 0.5 * (self.d[i] + self.d[j]) - dist
-        hit = ov > 0
-        return self.pairs[hit], dvec[hit], ov[hit]
-
-    def __call__(self, flat: NDArray) -> tuple[float, NDArray]:
-        x = flat.reshape(-1, 2)
-        n = x.shape[0]
-        pairs, dvec, ov = self.overlaps(x)
-        dist = 0.5 * (self.d[pairs[:, 0]] + self.d[pairs[:, 1]]) - ov
-        t = (ov / np.maximum(dist, 1e-300))[:, None] * dvec  # dE/dx_i = +t, dE/dx_j = -t
-        g = np.zeros((n, 2))
-        for c in range(2):
-            g[:, c] = np.bincount(pairs[:, 0], t[:, c], n) - np.bincount(pairs[:, 1], t[:, c], n)
-        low = np.maximum(self.r[:, None] - x, 0.0)
-        high = np.maximum(x + self.r[:, None] - self.box, 0.0)
-        g += high - low
-        e = 0.5 * (np.dot(ov, ov) + np.sum(low**2) + np.sum(high**2))
-        return float(e), g.ravel()
-
-
-def _prune(springs: NDArray, n_nodes: int, keep_nodes: NDArray, min_degree: int) -> NDArray:
-    """Node mask after repeatedly removing nodes with fewer than ``min_degree`` springs."""
-    keep_nodes = keep_nodes.copy()
-    while True:
-        live = keep_nodes[springs].all(axis=1)
-        deg = np.bincount(springs[live].ravel(), minlength=n_nodes)
-        weak = keep_nodes & (deg < min_degree)
-        if not weak.any():
-            return keep_nodes
-        keep_nodes &= ~weak
-
-
-def _subnetwork(pos: NDArray, springs: NDArray, keep_nodes: NDArray) -> tuple[NDArray, NDArray]:
-    live = keep_nodes[springs].all(axis=1)
-    new_index = np.cumsum(keep_nodes) - 1
-    return pos[keep_nodes], new_index[springs[live]]
-
-
-def _lbfgs(
-    fg, x: NDArray, *, gtol: float, max_iter: int, memory: int = 10, max_step: float = 0.1
-) -> tuple[NDArray, int, bool]:
-    """Minimise ``fg(x) -> (f, grad)`` with L-BFGS and a backtracking Armijo line search.
-
-    Each step moves no coordinate by more than ``max_step``. Stops when the largest
-    gradient entry is ``<= gtol`` (returns converged True), after ``max_iter`` steps, or
-    when even a steepest-descent step cannot lower ``f`` (round-off; converged False).
-    Returns ``(x, iterations, converged)``.
-    """
-    f, g = fg(x)
-    pairs: list[tuple[NDArray, NDArray, float]] = []
-    for it in range(max_iter):
-        if np.max(np.abs(g)) <= gtol:
-            return x, it, True
-        d = -g.copy()
-        alphas = []
-        for s, y, rho in reversed(pairs):
-            a = rho * np.dot(s, d)
-            d -= a * y
-            alphas.append(a)
-        if pairs:
-            s, y, _ = pairs[-1]
-            d *= np.dot(s, y) / np.dot(y, y)
-        for (s, y, rho), a in zip(pairs, reversed(alphas)):
-            d += (a - rho * np.dot(y, d)) * s
-        slope = float(np.dot(g, d))
-        if slope >= 0:
-            pairs.clear()
-            d, slope = -g, -float(np.dot(g, g))
-        step = min(1.0, max_step / float(np.max(np.abs(d))))
-        for _ in range(50):
-            x_new = x + step * d
-            f_new, g_new = fg(x_new)
-            if f_new <= f + 1e-4 * step * slope:
-                break
-            step *= 0.5
-        else:
-            if not pairs:
-                return x, it, False
-            pairs.clear()
-            continue
-        s, y = x_new - x, g_new - g
-        sy = float(np.dot(s, y))
-        if sy > 1e-12 * float(np.linalg.norm(s) * np.linalg.norm(y)):
-            pairs.append((s, y, 1.0 / sy))
-            if len(pairs) > memory:
-                pairs.pop(0)
-        x, f, g = x_new, f_new, g_new
-    return x, max_iter, bool(np.max(np.abs(g)) <= gtol)
-
-
-def jammed_network(
-    n_nodes: int,
-    rng: np.random.Generator,
-    *,
-    phi: float = 0.88,
-    polydispersity: float | None = None,
-    stiffness: str | float = "inverse_length",
-    force_tol: float = 1e-6,
-    max_iter: int = 20_000,
-    max_attempts: int = 5,
-) -> SpringNetwork:
-    """The contact network of a jammed packing of soft discs in a box with hard walls.
-
-    ``n_nodes`` discs (bidisperse: half of diameter 1, half 1.4; or polydisperse) are put
-    at uniformly random positions in a square box sized so that the disc area fraction is
-    ``phi``, then the harmonic overlap energy of disc pairs and of discs with the four
-    walls is minimised (an instantaneous quench, as in O'Hern et al. 2003) with the
-    package's own L-BFGS (``_lbfgs``) until the largest force is below ``force_tol`` times
-    the mean contact force. For ``phi`` above jamming (about 0.84 for this mixture) the
-    packing is jammed, with more than 4 contacts per disc on average (about 4.5 at 0.88).
-
-    Overlapping disc pairs become springs with rest length equal to their distance in the
-    packing, so the network is stress-free at the returned positions. Wall contacts are
-    dropped: hard walls rather than a cut from a periodic packing, because fewer boundary
-    nodes lose contacts and the network fills the square ``[0, B]^2``. Rattlers, nodes
-    with fewer than 3 springs, are removed repeatedly. If what is left is not rigid
-    (``rank R = 2N - 3``; not seen at the default ``phi``, possible close to jamming), the
-    packing is drawn again from ``rng``, up to ``max_attempts`` times. The network has
-    somewhat fewer than ``n_nodes`` nodes (typically 90-95 %), renumbered ``0..N-1`` in
-    the order of the packed discs. Lengths are in units of the small (bidisperse) or mean
-    (polydisperse) diameter.
-
-    Parameters
-    ----------
-    n_nodes : int
-        Number of discs packed (>= 8).
-    rng : numpy.random.Generator
-        Draws the diameters and then the initial positions (again for each attempt).
-    phi : float
-        Packing fraction in (0.8, 1).
-    polydispersity : None or float
-        None: 50:50 bidisperse, diameter ratio 1.4. A float ``delta``: diameters uniform
-        with mean 1 and relative standard deviation ``delta`` (< 1/sqrt(3)).
-    stiffness : "inverse_length" or float
-        ``k = 1 / L`` (as in the coupled-learning and allostery literature), or a uniform
-        positive stiffness.
-    force_tol, max_iter :
-        Relative force tolerance and iteration budget of the packing minimisation; a
-        packing that does not reach the tolerance raises RuntimeError.
-    max_attempts : int
-        Packings tried before giving up with RuntimeError.
-
-    Returns
-    -------
-    SpringNetwork
-    """
-    n_nodes = check.integer("n_nodes", n_nodes, low=8)
-    check.memory("n_nodes", n_nodes, n_nodes * _PACKING_BYTES_PER_NODE, "the packing")
-    _check_generator(rng)
-    phi = check.real("phi", phi)
-    if not (0.8 < phi < 1.0):
-        raise ValueError(f"phi must be in (0.8, 1) so that the packing jams, got {phi}")
-    if isinstance(stiffness, str):
-        if stiffness != "inverse_length":
-            raise ValueError(f"stiffness must be 'inverse_length' or a number, got {stiffness!r}")
-    else:
-        stiffness = _check_positive("stiffness", stiffness)
-    force_tol = _check_positive("force_tol", force_tol)
-    max_iter = check.integer("max_iter", max_iter, low=1)
-    max_attempts = check.integer("max_attempts", max_attempts, low=1)
-    _diameters(2, np.random.default_rng(0), polydispersity)  # validate before any work
-    for attempt in range(int(max_attempts)):
-        net = _jammed_attempt(
-            int(n_nodes), rng, phi, polydispersity, stiffness, force_tol, int(max_iter)
-        )
-        if net is not None:
-            return net
-        _log.info("jammed_network: attempt %d not rigid, drawing a new packing", attempt + 1)
-    raise RuntimeError(
-        f"no rigid contact network in {max_attempts} packings at phi={phi}; raise phi"
-    )
-
-
-def _jammed_attempt(
-    n_nodes: int,
-    rng: np.random.Generator,
-    phi: float,
-    polydispersity: float | None,
-    stiffness: str | float,
-    force_tol: float,
-    max_iter: int,
-) -> SpringNetwork | None:
-    """One packing and its pruned contact network; None when that network is not rigid."""
-    diam = _diameters(n_nodes, rng, polydispersity)
-    box = math.sqrt(np.sum(np.pi * diam**2 / 4) / phi)
-    x0 = rng.uniform(0.0, box, size=(n_nodes, 2))
-    fun = _PackingEnergy(diam, box)
-    # Contact forces are overlaps (unit stiffness); a first pass to 1e-3 sets their scale,
-    # a few % of a diameter well above jamming, and so the final tolerance.
-    flat, it1, _ = _lbfgs(fun, x0.ravel(), gtol=1e-3, max_iter=max_iter)
-    _, _, ov = fun.overlaps(flat.reshape(-1, 2))
-    gtol = force_tol * float(np.mean(ov)) if ov.size else force_tol
-    flat, it2, ok = _lbfgs(fun, flat, gtol=gtol, max_iter=max_iter)
-    if not ok:
-        force = float(np.max(np.abs(fun(flat)[1])))
-        raise RuntimeError(
-            f"packing minimisation stopped at max force {force:.2e} > {gtol:.1e} "
-            f"(force_tol={force_tol} x mean contact force) after {it1 + it2} iterations; "
-            f"raise force_tol or max_iter"
-        )
-    x = flat.reshape(-1, 2)
-    pairs, _, _ = fun.overlaps(x)
-    springs = np.sort(pairs, axis=1)
-    springs = springs[np.lexsort((springs[:, 1], springs[:, 0]))]
-    keep = _prune(springs, n_nodes, np.ones(n_nodes, dtype=bool), 3)
-    if keep.sum() < 3:
-        return None
-    pos, sub = _subnetwork(x, springs, keep)
-    d = pos[sub[:, 1]] - pos[sub[:, 0]]
-    L = np.hypot(d[:, 0], d[:, 1])
-    k = 1.0 / L if isinstance(stiffness, str) else np.full(len(L), stiffness)
-    net = SpringNetwork(pos, sub, k, L)
-    _log.debug("jammed_network: %d of %d discs kept", net.n_nodes, n_nodes)
-    return net if is_rigid(net) else None

@@ -244,7 +244,7 @@ def _renders(doc, units, rule: str, R: int, render: bool, reason: str) -> None:
     if not render:
         doc.add(f"Renders skipped: {reason}.")
         return
-    from ...io.render import render_continuum
+    from ...io.render_continuum import render_continuum
 
     shown = [
         ("network", units[f"continuum_learning/network/{rule}"].arrays, "coarse"),

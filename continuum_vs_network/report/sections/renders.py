@@ -81,7 +81,8 @@ def side_by_side(doc: Document, result, prefix: str, what: str) -> None:
     if not render:
         doc.add(f"Renders skipped: {reason}.")
         return
-    from ...io.render import render_network, render_side_by_side
+    from ...io.render import render_network
+    from ...io.render_continuum import render_side_by_side
     from ...network.model import SpringNetwork
 
     u = units[-1]
