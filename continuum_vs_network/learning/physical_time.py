@@ -4,7 +4,12 @@ The paper writes its rules as differential equations that can run with the mater
 (Sec. 5, Eq. 17-18) and then assumes quasi-staticity. Here the nodes and the learning
 degrees of freedom evolve together as one system of ODEs; the material is a visco-elastic
 network (:mod:`~continuum_vs_network.network.viscous`: node drag, spring dashpots, Maxwell
-arms) and never has to reach equilibrium. The rule objects supply ``alpha``, ``eta``,
+arms) or a learning medium such as the elastic continuum
+(:class:`~continuum_vs_network.continuum.learnable.LearnableBody` against drag and/or
+Kelvin-Voigt viscosity, :mod:`~continuum_vs_network.continuum.damped_states`), and never
+has to reach equilibrium. One loop serves both media; what it needs from each (a damped
+step under the clamps, the rule's local update per spring or element) is in
+:mod:`.time_media`. The rule objects supply ``alpha``, ``eta``,
 ``dof``, the learning mask and floors, and the strain convention; ``alpha`` is a rate (per
 time unit), so one quasi-static step of the rule with rate ``alpha`` is one explicit-Euler
 step of length 1 of the ODE.
@@ -29,7 +34,14 @@ Forms (``form``)
 
 The exact gradient stays quasi-static (use :func:`~.train.train`).
 
-Clamps are prescribed displacements of the clamped springs' end nodes, as in
+In the continuum the clamps are exact constraints on the material springs' strains
+(Lagrange multipliers), sources and targets are read from them, the learning unit is the
+element (eigenstrain, or modulus), its update the rule's per-area local one (forward
+Euler: ``alpha c_max dt_learn <= 1``, ``c_max`` the largest eigenvalue of an element's
+elastic tensor, checked), ``quasistatic=True`` an exact equilibrium; quasi-static learning
+in time with ``dt = 1`` is :func:`~.train.train` step for step.
+
+In a network, clamps are prescribed displacements of the clamped springs' end nodes, as in
 :func:`~continuum_vs_network.network.dynamics.simulate` (set symmetrically along the
 spring's current direction, then held); task pins are held. ``quasistatic=True`` replaces
 every physical step by the equilibrium with the same held nodes (a backward-Euler step of
@@ -85,10 +97,14 @@ class TimeHistory:
     error : (T,) float array
         Eq. 26 at the equilibrium free state of the parameters learned by then.
     rest_length, stiffness : (T, n_springs) float arrays
+        The learning arrays (a body: its eigenstrain (T, n_elements, 3) and modulus
+        (T, n_elements) fields).
     target_length : (T, n_targets) float array
-        Target lengths of the moving network (the free copy for ``"twin"``).
+        Target lengths of the moving medium (the free copy for ``"twin"``; a body: its
+        target material springs).
     positions : (T, n_nodes, 2) float array
-        The moving network (the free copy for ``"twin"``), for export.
+        The moving medium (the free copy for ``"twin"``; a body: its deformed vertices),
+        for export.
     seconds : (T,) float array
         Wall-clock seconds at each output.
     rule, form : str
@@ -162,17 +178,19 @@ def learn_in_time(
     quasistatic: bool = False,
     tol: float = 1e-10,
 ) -> TimeHistory:
-    """Learn ``task`` with ``rule`` while the network moves (module docstring).
+    """Learn ``task`` with ``rule`` while the medium moves (module docstring).
 
     Parameters
     ----------
-    net : SpringNetwork
-        Starting network (its positions are the starting state).
-    task : AllosteryTask
+    net : SpringNetwork or LearnableBody
+        Starting network (its positions are the starting state) or learning medium (at
+        rest, zero displacement).
+    task : AllosteryTask (a network) or MaterialTask (a body)
     rule : ProspectiveConfiguration or CoupledLearning
         Rates and options; ``alpha`` is per time unit.
-    viscosity : Viscosity
-        Dissipation of the material.
+    viscosity : Viscosity or Damping
+        Dissipation of the material (a body: a continuum Damping, or a network Viscosity
+        mapped by :func:`~continuum_vs_network.continuum.viscoelastic.lattice_damping`).
     duration : float
         Physical time to run (> 0).
     dt : float
