@@ -223,8 +223,9 @@ def _figures(doc: Document, rules: dict, ratios: np.ndarray) -> None:
     doc.figure(
         "physical_time_critical",
         [Panel(series, "critical ratio", "N (nodes)", "rho*", xscale="log", yscale="log")],
-        f"Critical ratio against size (ratios tested: {', '.join(f'{r:g}' for r in ratios)}; "
-        "none past the regime: not drawn).",
+        f"Critical ratio against size (grid ratios: {', '.join(f'{r:g}' for r in ratios)}, "
+        "then bisected between the bracketing ones where the scene asks; none past the "
+        "regime: not drawn).",
     )
 
 
