@@ -15,6 +15,7 @@ from continuum_vs_network.learning import (
     anchored,
     cost_gradient,
     examples_task,
+    gain_examples,
     stern_task,
     symmetric,
     train,
@@ -230,3 +231,20 @@ def test_regression_learned_on_few_examples_predicts_a_held_out_example():
     assert train_ratio < 0.8 and test_ratio < 0.8
     with pytest.raises(ValueError, match="n_test"):
         regression_task(net, 2, 0, rng)
+
+
+def test_gain_examples_ask_each_response_to_change_by_the_fraction(lattice):
+    net, tasks = lattice
+    changed = gain_examples(tasks, net, np.random.default_rng(0), change=0.5)
+    assert changed.n_examples == tasks.n_examples
+    for old, new in zip(tasks.tasks, changed.tasks):
+        assert np.array_equal(old.sources, new.sources)
+        r0 = net.lengths(_free(net, old).positions)[old.targets]
+        s0 = old.target_strains(net, r0)
+        # desired = S0 (1 +- 0.5): the untrained error is (0.5 S0)^2 / 2, whatever the sign
+        assert np.allclose(np.abs(new.target_strain - s0), 0.5 * np.abs(s0), rtol=1e-9)
+        assert new.error(net, _free(net, new).positions) == pytest.approx(
+            0.5 * np.sum((0.5 * s0) ** 2), rel=1e-6
+        )
+    with pytest.raises(ValueError, match="change"):
+        gain_examples(tasks, net, np.random.default_rng(0), change=0.0)

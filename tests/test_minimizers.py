@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 import continuum_vs_network as cvn
-from continuum_vs_network.network import minimizers
+from continuum_vs_network.network import fire as fire_module
 from continuum_vs_network.network.constraints import Problem
 from continuum_vs_network.network.equilibrium import METHODS
+from continuum_vs_network.network.objective import Objective
 from continuum_vs_network.network.stopping import Trace
 
 
@@ -91,14 +92,34 @@ def test_fire_power_is_force_dot_velocity():
     # From rest at x = 1.3 in the well of minimum x = 1: with P = F.V the node runs
     # downhill (P > 0) and the first reset comes only once it has overshot the minimum.
     problem, x = _one_spring_problem(1.3)
-    obj = minimizers._Objective(problem)
-    stats = minimizers._FireStats()
+    obj = Objective(problem)
+    stats = fire_module._FireStats()
     stop = problem.stop_rule(1e-12, max_iter=10_000, max_seconds=10.0)
-    res = minimizers._fire_inner(obj, x, 0.0, stop, Trace(), stop.max_iter, stats)
+    res = fire_module._fire_inner(obj, x, 0.0, stop, Trace(), stop.max_iter, stats)
     assert res.status == "stop"
     assert abs(res.x[1, 0] - 1.0) < 1e-11
     assert stats.resets >= 1
     assert stats.first_reset_x[1, 0] < 1.0  # past the minimum, on the far side
+
+
+def test_objective_gradient_and_stop_test_match_the_problem():
+    # The first-order methods' gradient (a sparse incidence matvec) and their stop test
+    # (cheap part every iteration, clamp projection on demand) against the network's own
+    # gradient and Problem.residual, at a strained state far from equilibrium.
+    rng = np.random.default_rng(17)
+    net = _lattice(7, rng, random_rest=True)
+    c = _central_spring(net)
+    for clamp in ("exact", "rod"):
+        problem = Problem.build(net, clamped={c: float(net.clamp_length(c, 0.4))}, clamp=clamp)
+        obj = Objective(problem)
+        x = problem.start(net.positions + rng.normal(0.0, 0.05, net.positions.shape))
+        G = obj.grad(x)  # augmented terms vanish while lam = rho = 0
+        assert np.allclose(G, problem.gradient(x).ravel(), rtol=1e-12, atol=1e-12)
+        imbalance, clamp_error = obj.check(x, G)
+        res = problem.residual(x)
+        assert imbalance == pytest.approx(res.imbalance, rel=1e-9)
+        assert clamp_error == pytest.approx(res.clamp, rel=1e-9)
+        assert 0.0 < obj.rest_imbalance(G) <= imbalance
 
 
 def test_fire_two_spring_chain_closed_form():

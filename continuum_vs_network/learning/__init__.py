@@ -3,9 +3,9 @@
 Light to import (numpy and scipy only). The main names:
 
 * tasks: :class:`AllosteryTask`, :func:`paper_task`, :func:`stern_task`; several examples
-  at once: :class:`TaskSet`, :func:`examples_task`, :func:`regression_task`,
-  :func:`symmetric`, :func:`anchored`; node displacements as outputs: :class:`NodeTask`,
-  :func:`node_task`;
+  at once: :class:`TaskSet`, :func:`examples_task`, :func:`gain_examples`,
+  :func:`regression_task`, :func:`symmetric`, :func:`anchored`; node displacements
+  (absolute or relative to another node) as outputs: :class:`NodeTask`, :func:`node_task`;
 * rules: :class:`CoupledLearning`, :class:`ProspectiveConfiguration`,
   :class:`ExactGradient`, :class:`DirectedAging` (frozen dataclasses with
   ``update(net, task, ...) -> Step``);
@@ -19,7 +19,14 @@ from __future__ import annotations
 
 from .aging import DirectedAging
 from .coupling import Coupling, measure_coupling
-from .examples import TaskSet, anchored, examples_task, regression_task, symmetric
+from .examples import (
+    TaskSet,
+    anchored,
+    examples_task,
+    gain_examples,
+    regression_task,
+    symmetric,
+)
 from .history import History
 from .node_tasks import NodeTask, node_cost_gradient, node_task
 from .physical_time import TimeHistory, learn_in_time, network_relaxation_time
@@ -58,6 +65,7 @@ __all__ = [
     "anchored",
     "cost_gradient",
     "examples_task",
+    "gain_examples",
     "gcl_limit",
     "learn_in_time",
     "measure_coupling",

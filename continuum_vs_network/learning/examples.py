@@ -1,7 +1,8 @@
 """Several examples at once: a dataset of input/output pairs trained together.
 
 A :class:`TaskSet` is a tuple of :class:`~.tasks.AllosteryTask` examples on one network
-(the same pins): different source strains, each with its own desired target strains
+(the same pins), or of :class:`~.node_tasks.NodeTask` examples (outputs are node
+displacements; one kind per set): different source strains, each with its own desired target strains
 (a multifunctional network), or different source and target springs (symmetric training,
 :func:`symmetric`). Every rule takes a task set where it takes a task: one learning step
 is the **sum of the per-example updates** (each example's own free / nudged / clamped
@@ -12,14 +13,20 @@ side (``n_targets`` is the total over the examples).
 
 Bulk learning freezes the union of every example's sources and targets.
 
-:func:`anchored` adds the **rest example** to a task: the sources clamped at zero strain,
-the targets asked to stay where the untrained network puts them with the sources off. A
+:func:`anchored` adds the **rest example** to a task (spring or node task): the sources
+clamped at zero strain, the targets (outputs) asked to stay where the untrained network puts
+them with the sources off. A
 network that meets both examples must *transmit* the source strains; prestressing the
 targets into place (a decoupled, trivial solution, :mod:`.coupling`) fails the rest
 example, so the task is non-trivial by construction.
 
 :func:`examples_task` draws a dataset for a capacity study (Rocks et al. 2019: how many
 independent responses a network of a given size can hold).
+
+:func:`gain_examples` turns a spring-task set into Rocks et al.'s kind of task: each
+example's desired target strains are its untrained response changed by a given fraction,
+up or down at random (a network that meets it changes how the sources drive the targets; a
+stiffness-learning network at rest cannot meet it by prestress).
 
 :func:`regression_task` draws a regression dataset on fixed source and target springs: the
 desired target strains are a fixed linear map of the source strains, ``S_T = M S_S``; train
@@ -37,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _validate as check
 from ..network.constraints import default_pins
 from ..network.model import SpringNetwork
+from .node_tasks import NodeTask
 from .states import Solver, Tracker
 from .tasks import (
     AllosteryTask,
@@ -46,7 +54,14 @@ from .tasks import (
     check_strain_reference,
 )
 
-__all__ = ["TaskSet", "anchored", "examples_task", "regression_task", "symmetric"]
+__all__ = [
+    "TaskSet",
+    "anchored",
+    "examples_task",
+    "gain_examples",
+    "regression_task",
+    "symmetric",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,17 +70,18 @@ class TaskSet:
 
     Attributes
     ----------
-    tasks : tuple of AllosteryTask
-        The examples, at least one; all with the same ``pinned`` mask.
+    tasks : tuple of AllosteryTask, or tuple of NodeTask
+        The examples, at least one, all of one kind; all with the same ``pinned`` mask.
     """
 
-    tasks: tuple[AllosteryTask, ...]
+    tasks: tuple[AllosteryTask, ...] | tuple[NodeTask, ...]
 
     def __post_init__(self) -> None:
         tasks = tuple(self.tasks) if isinstance(self.tasks, list | tuple) else None
-        if not tasks or not all(isinstance(t, AllosteryTask) for t in tasks):
+        kinds = {type(t) for t in tasks or ()}
+        if not tasks or not (kinds == {AllosteryTask} or kinds == {NodeTask}):
             raise check.ArgumentError(
-                "tasks", self.tasks, "a non-empty sequence of AllosteryTask examples"
+                "tasks", self.tasks, "a non-empty sequence of AllosteryTask or of NodeTask examples"
             )
         pins = tasks[0].pinned
         for e, t in enumerate(tasks[1:], 1):
@@ -81,6 +97,11 @@ class TaskSet:
     @property
     def pinned(self) -> NDArray[np.bool_]:
         return self.tasks[0].pinned
+
+    @property
+    def node_outputs(self) -> bool:
+        """True when the examples are node tasks (outputs are node displacements)."""
+        return isinstance(self.tasks[0], NodeTask)
 
     @property
     def sources(self) -> NDArray[np.int64]:
@@ -112,7 +133,10 @@ class TaskSet:
     def desired_lengths(
         self, net: SpringNetwork, strain_reference: StrainReference = "initial"
     ) -> NDArray:
-        """Every example's desired target lengths, concatenated."""
+        """Every example's desired target lengths (node examples: desired outputs),
+        concatenated."""
+        if self.node_outputs:
+            return np.concatenate([t.desired for t in self.tasks])
         return np.concatenate([t.desired_lengths(net, strain_reference) for t in self.tasks])
 
     def error(
@@ -166,7 +190,7 @@ def symmetric(task: AllosteryTask) -> TaskSet:
 
 
 def anchored(
-    task: AllosteryTask,
+    task: AllosteryTask | NodeTask,
     net: SpringNetwork,
     *,
     strain_reference: StrainReference = "initial",
@@ -177,15 +201,16 @@ def anchored(
     The rest example has ``task``'s sources clamped at zero strain and its targets desired
     at the strains they show in ``net`` (the untrained network) in that state: zero change
     when the sources are off. Strains in ``strain_reference`` (the two conventions agree
-    when ``net`` is the network ``task`` was made on).
+    when ``net`` is the network ``task`` was made on). For a :class:`~.node_tasks.NodeTask`
+    the rest example's outputs are desired at their values in that state.
 
     Raises
     ------
     EquilibriumError
         The state of ``net`` with the sources off cannot be found.
     """
-    if not isinstance(task, AllosteryTask):
-        raise check.ArgumentError("task", task, "an AllosteryTask")
+    if not isinstance(task, AllosteryTask | NodeTask):
+        raise check.ArgumentError("task", task, "an AllosteryTask or a NodeTask")
     if not isinstance(net, SpringNetwork):
         raise check.ArgumentError("net", net, "a SpringNetwork")
     check_strain_reference(strain_reference)
@@ -194,6 +219,11 @@ def anchored(
     eq = Tracker(solver or Solver()).solve(
         net, task.pinned, off.source_clamps(net, strain_reference), None, key="free"
     )
+    if isinstance(task, NodeTask):
+        import dataclasses
+
+        rest_node = dataclasses.replace(off, displacement=off.outputs(eq.positions) - off.reference)
+        return TaskSet((task, rest_node))
     rest = off.with_target_strain(
         off.target_strains(net, net.lengths(eq.positions)[task.targets], strain_reference)
     )
@@ -302,3 +332,41 @@ def regression_task(
             AllosteryTask.create(net, springs[:n_sources], s, springs[n_sources:], t, pinned=pins)
         )
     return TaskSet(tuple(tasks[:n_train])), TaskSet(tuple(tasks[n_train:])), gain_map
+
+
+def gain_examples(
+    tasks: TaskSet,
+    net: SpringNetwork,
+    rng: np.random.Generator,
+    *,
+    change: float = 0.5,
+    solver: Solver | None = None,
+) -> TaskSet:
+    """``tasks`` with every example's desired target strains set to ``S^0 (1 +- change)``.
+
+    ``S^0`` are the target strains of ``net`` (the untrained network) with the example's
+    sources clamped, in the ``"initial"`` convention; the sign is drawn per target
+    (Rocks et al. 2019: each response's ratio of target to source strain to be changed by
+    a relative amount).
+
+    Raises
+    ------
+    EquilibriumError
+        A free state of ``net`` cannot be found.
+    """
+    if not isinstance(tasks, TaskSet) or tasks.node_outputs:
+        raise check.ArgumentError("tasks", tasks, "a TaskSet of AllosteryTask examples")
+    if not isinstance(net, SpringNetwork):
+        raise check.ArgumentError("net", net, "a SpringNetwork")
+    if not isinstance(rng, np.random.Generator):
+        raise check.ArgumentError("rng", rng, "a numpy.random.Generator")
+    change = check.real("change", change, low=0, low_open=True)
+    tracker = Tracker(solver or Solver())
+    out = []
+    for task in tasks.tasks:
+        task.check(net)
+        eq = tracker.solve(net, task.pinned, task.source_clamps(net), None, key="free")
+        s0 = task.target_strains(net, net.lengths(eq.positions)[task.targets])
+        sign = rng.choice([-1.0, 1.0], size=s0.size)
+        out.append(task.with_target_strain(s0 * (1.0 + sign * change)))
+    return TaskSet(tuple(out))

@@ -374,11 +374,10 @@ class Rule:
         clamp lengths, measured spring lengths)``."""
         ref = self.strain_reference
         x0 = warm.clamped if warm.clamped is not None else warm.free
-        if isinstance(task, NodeTask):  # target coordinates pinned at the desired values
+        if isinstance(task, NodeTask):  # outputs held at the desired values
             lengths = task.desired
-            pinned, start = task.node_clamps(net.positions if x0 is None else x0, lengths)
-            clamps = task.source_clamps(net)
-            clamped = tracker.solve(net, pinned, clamps, start, key="clamped")
+            start = net.positions if x0 is None else x0
+            clamped = task.hold(net, tracker, start, lengths, key="clamped")
             return clamped, lengths, net.lengths(clamped.positions)
         lengths = task.desired_lengths(net, ref)
         clamps = task.source_clamps(net, ref)
@@ -452,7 +451,8 @@ class Rule:
         temperature = check.real("temperature", temperature, low=0)
         if (noise > 0 or temperature > 0) and not isinstance(rng, np.random.Generator):
             raise ValueError("noise > 0 or temperature > 0 needs rng, a numpy.random.Generator")
-        if isinstance(task, NodeTask) and (noise > 0 or temperature > 0):
+        node = isinstance(task, NodeTask) or (isinstance(task, TaskSet) and task.node_outputs)
+        if node and (noise > 0 or temperature > 0):
             raise ValueError(
                 "read-out noise and temperature are implemented for spring tasks: node tasks "
                 "take noise 0 and temperature 0"
@@ -585,12 +585,11 @@ class CoupledLearning(Rule):
         )
 
     def _node_states(self, net, task, warm, tracker):
-        """Free state and the state with the target coordinates nudged (node clamps)."""
+        """Free state and the state with the outputs nudged and held (NodeTask.hold)."""
         free = self._free(net, task, tracker, warm)
         out = task.outputs(free.positions)
         nudge = out + self.eta * (task.desired - out)
-        pinned, start = task.node_clamps(free.positions, nudge)
-        nudged = tracker.solve(net, pinned, task.source_clamps(net), start, key="nodes")
+        nudged = task.hold(net, tracker, free.positions, nudge, key="nodes")
         return free, nudged, nudge, net.lengths(free.positions), net.lengths(nudged.positions)
 
     def _states(self, net, task, warm, tracker, read, rng):

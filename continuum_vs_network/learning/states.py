@@ -195,6 +195,7 @@ class Tracker:
         *,
         key: str = "free",
         guess: NDArray | None = None,
+        load: NDArray | None = None,
     ) -> Equilibrium:
         """Equilibrium of ``net`` with ``pinned`` coordinates and ``clamped`` springs.
 
@@ -212,6 +213,11 @@ class Tracker:
             A predicted equilibrium (extrapolated from earlier steps) for the fast path to
             start from; ``relax`` always starts from ``x0``. Pinned coordinates are taken
             from ``x0``.
+        load : (n_nodes, 2) float array, optional
+            Constant external forces on the nodes (force units; a node task's two-node
+            constraint, :meth:`~.node_tasks.NodeTask.hold`). The state then balances
+            ``grad E = load``; ``energy`` reports the springs' energy only. Loads need the
+            fast path (``Solver.fast`` and ``x0``); where it fails the solve raises.
 
         Raises
         ------
@@ -220,6 +226,8 @@ class Tracker:
         """
         t0 = time.perf_counter()
         self.stats.solves += 1
+        if load is not None:
+            return self._loaded(net, pinned, clamped, x0, key, guess, load, t0)
         try:
             if self.solver.fast and x0 is not None:
                 start = np.asarray(x0, float)
@@ -235,6 +243,29 @@ class Tracker:
             return self._relax(net, pinned, clamped, x0, key)
         finally:
             self.stats.seconds += time.perf_counter() - t0
+
+    def _loaded(self, net, pinned, clamped, x0, key, guess, load, t0) -> Equilibrium:
+        """A solve with external ``load``: the chord iteration only (``relax`` takes none)."""
+        load = np.asarray(load, dtype=float)
+        if load.shape != (net.n_nodes, 2) or not np.all(np.isfinite(load)):
+            raise ValueError(f"load must be a finite ({net.n_nodes}, 2) array")
+        if not self.solver.fast or x0 is None:
+            raise ValueError(
+                "external loads need Solver(method='newton', clamp='exact', reuse=True) and x0"
+            )
+        start = np.asarray(x0, float)
+        if guess is not None:
+            start = np.where(pinned, start, np.asarray(guess, float))
+        try:
+            state = self._chord(net, pinned, clamped, start, key, load=load)
+        except (np.linalg.LinAlgError, FloatingPointError, RuntimeError):
+            state = None
+        finally:
+            self.stats.seconds += time.perf_counter() - t0
+        if state is None:
+            self._lin.pop(key, None)
+            raise EquilibriumError("loaded equilibrium: the chord iteration did not converge")
+        return state
 
     # -- robust path ------------------------------------------------------------------
     def _relax(
@@ -352,8 +383,10 @@ class Tracker:
         clamped: dict[int, float],
         x: NDArray,
         key: str,
+        load: NDArray | None = None,
     ) -> Equilibrium | None:
-        """Chord SQP from ``x``; None when it fails (the caller then relaxes)."""
+        """Chord SQP from ``x`` (``grad E - load = 0``); None when it fails (the caller
+        then relaxes)."""
         s = self.solver
         problem = Problem.build(net, pinned=pinned, clamped=clamped, clamp="exact")
         lin = self._lin.get(key)
@@ -368,12 +401,15 @@ class Tracker:
         refactors = 0  # factorisations made by this call
         x = x.copy()
         previous = np.inf
+        minus_load = None if load is None else -frame.take(load)
         xs: list[NDArray] = []  # Anderson memory: free coordinates and chord steps
         fs: list[NDArray] = []
         for it in range(30):
             if not np.all(np.isfinite(x)):
                 return None
             g, r = frame.gradient_and_lengths(net, x)
+            if minus_load is not None:
+                g = g + minus_load
             if clamps.size:
                 A = frame.dense_rows(net, x, clamps)
                 viol = r[clamps] - problem.clamp_lengths

@@ -392,16 +392,25 @@ def _record_examples(rec, t, net, tasks: TaskSet, rule, free, mask) -> None:
     """A task set: summed errors and energies, the examples' target values side by side,
     ``|sum_e dE_e/dtheta|`` and the largest residual."""
     ref = rule.strain_reference
-    rec["target_rest_length"][t] = net.rest_length[tasks.targets]
+    node = tasks.node_outputs  # node examples: outputs and displacements, as _record_nodes
+    if not node:
+        rec["target_rest_length"][t] = net.rest_length[tasks.targets]
     rec["desired_length"][t] = tasks.desired_lengths(net, ref)
     if free is None:
         return
     xs = [f.positions for f in free]
-    r_t = np.concatenate([net.lengths(x)[k.targets] for x, k in zip(xs, tasks.tasks)])
-    rec["target_length"][t] = r_t
-    rec["target_strain"][t] = np.concatenate(
-        [k.target_strains(net, net.lengths(x)[k.targets], ref) for x, k in zip(xs, tasks.tasks)]
-    )
+    if node:
+        out = [k.outputs(x) for x, k in zip(xs, tasks.tasks)]
+        rec["target_length"][t] = np.concatenate(out)
+        rec["target_strain"][t] = np.concatenate(
+            [o - k.reference for o, k in zip(out, tasks.tasks)]
+        )
+    else:
+        r_t = np.concatenate([net.lengths(x)[k.targets] for x, k in zip(xs, tasks.tasks)])
+        rec["target_length"][t] = r_t
+        rec["target_strain"][t] = np.concatenate(
+            [k.target_strains(net, net.lengths(x)[k.targets], ref) for x, k in zip(xs, tasks.tasks)]
+        )
     rec["error_current"][t] = tasks.error(net, xs, "current")
     rec["error_initial"][t] = tasks.error(net, xs, "initial")
     rec["energy_free"][t] = float(sum(f.energy for f in free))

@@ -11,16 +11,25 @@
   as :func:`~continuum_vs_network.learning.stern.stern_rules` matches step sizes) for unit
   stiffness: the k-weighted rules run at ``alpha / mean(k)`` (:func:`per_stiffness`; the
   paper's network has ``mean(k)`` about 25, the lattices 1).
-* ``beyond/capacity/size<n>/examples<m>``: GCL on ``m`` independent examples trained
-  together (:func:`~continuum_vs_network.learning.examples.examples_task`: each example
-  its own source and target spring, strains from ``[task] source_std`` and
-  ``target_std``) on every lattice of ``[network] sizes``, for every ``m`` of
-  ``[learning] examples``.
-* ``beyond/node/<rule>``: every rule on a node task
+* ``beyond/capacity/size<n>/examples<m>/seed<s>``: GCL of the stiffnesses on ``m``
+  independent examples trained together on every lattice of ``[network] sizes``, for every
+  ``m`` of ``[learning] examples`` and ``[learning] capacity_seeds`` seeds: each example
+  its own source and target spring (source strain ``N(0, [task] source_std)``,
+  :func:`~continuum_vs_network.learning.examples.examples_task`), its desired target strain
+  the untrained response changed by ``CAPACITY["change"]`` up or down
+  (:func:`~continuum_vs_network.learning.examples.gain_examples`, Rocks et al. 2019),
+  :func:`gcl_k`. A network at rest that learns only stiffnesses cannot meet
+  a task by prestress, so a met task is a changed response (the coupling is measured all
+  the same).
+* ``beyond/node/<outputs>/<rule>``: every rule, and ``gcl_k`` (:func:`gcl_k`: GCL of the
+  stiffnesses at rate ``GCL_K["alpha"] / mean(k)``, floor ``GCL_K["floor"] mean(k)``), on a
+  node task
   (:func:`~continuum_vs_network.learning.node_tasks.node_task`: ``[task] n_sources``
-  sources, ``n_targets`` target node coordinates asked to move by ``N(0, target_std)``
-  mean rest lengths) on the first lattice; its coupling is the source share of the target
-  displacements (sources on and off, as :mod:`~continuum_vs_network.learning.coupling`).
+  sources, ``n_targets`` outputs asked to move by ``N(0, target_std)`` mean rest lengths)
+  on the first lattice, for every kind of ``[task] node_outputs``: ``absolute`` (node
+  coordinates) or ``relative`` (a node's coordinate relative to another node's); its
+  coupling is the source share of the output displacements (sources on and off, as
+  :mod:`~continuum_vs_network.learning.coupling`).
 * ``beyond/thermal/T<i>/<run>``: learning at temperature ``T = [learning]
   temperatures[i]`` (every state the rule reads is one harmonic Boltzmann draw,
   :mod:`~continuum_vs_network.learning.thermal`) on Stern's task of the first lattice: GCL
@@ -45,6 +54,7 @@ task set: the smallest source share).
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from typing import Any
 
 import numpy as np
@@ -52,7 +62,7 @@ import numpy as np
 from .schema import Scene
 from .units import Unit, UnitContext
 
-__all__ = ["beyond_rules", "plan_beyond_paper"]
+__all__ = ["beyond_rules", "gcl_k", "node_rules", "plan_beyond_paper"]
 
 TASKS = ("paper", "stern")
 
@@ -76,6 +86,11 @@ def beyond_rules(scene: Scene) -> dict[str, Any]:
     return {name: table[name] for name in scene.learning.rules}
 
 
+def node_rules(scene: Scene) -> tuple[str, ...]:
+    """The rules of the node task: ``[learning] rules`` and ``gcl_k``."""
+    return (*scene.learning.rules, "gcl_k")
+
+
 def plan_beyond_paper(scene: Scene) -> list[Unit]:
     d = scene.to_dict()
     depends = {k: d[k] for k in ("seed", "network", "task", "learning") if k in d}
@@ -93,13 +108,14 @@ def plan_beyond_paper(scene: Scene) -> list[Unit]:
     ]
     units += [
         Unit(
-            key=f"beyond/node/{rule}",
+            key=f"beyond/node/{outputs}/{rule}",
             func=node_unit,
-            params={"rule": rule},
+            params={"rule": rule, "outputs": outputs},
             depends=depends,
             weight=steps,
         )
-        for rule in scene.learning.rules
+        for outputs in scene.task.node_outputs
+        for rule in node_rules(scene)
     ]
     L = scene.learning
     for i, T in enumerate(L.temperatures):
@@ -115,15 +131,16 @@ def plan_beyond_paper(scene: Scene) -> list[Unit]:
             )
     for n in scene.network.sizes:
         for m in scene.learning.examples:
-            units.append(
-                Unit(
-                    key=f"beyond/capacity/size{n}/examples{m}",
-                    func=capacity_unit,
-                    params={"size": n, "examples": m},
-                    depends=depends,
-                    weight=steps,
+            for seed in range(L.capacity_seeds):
+                units.append(
+                    Unit(
+                        key=f"beyond/capacity/size{n}/examples{m}/seed{seed}",
+                        func=capacity_unit,
+                        params={"size": n, "examples": m, "seed": seed},
+                        depends=depends,
+                        weight=steps * m,
+                    )
                 )
-            )
     units.append(
         Unit(key="beyond/regression", func=regression_unit, params={}, depends=depends,
              weight=steps)
@@ -219,21 +236,58 @@ def per_stiffness(rule, net):
     return dataclasses.replace(rule, alpha=rule.alpha / float(np.mean(net.stiffness)))
 
 
+#: GCL of the stiffnesses (``gcl_k`` of the node tasks, the capacity study): rate for unit
+#: stiffness (its updates scale with squared strains, ~ 1e-3 here) and floor (of mean k)
+GCL_K = {"alpha": 1e5, "floor": 0.1}
+
+#: the capacity study: relative change of each example's response
+CAPACITY = {"change": 0.5}
+
+
+def gcl_k(scene: Scene, net):
+    """GCL of the stiffnesses at ``GCL_K`` (the scene's nudge)."""
+    k = float(np.mean(net.stiffness))
+    return dataclasses.replace(
+        _table(scene)["gcl"], alpha=GCL_K["alpha"] / k, dof="stiffness",
+        min_stiffness=GCL_K["floor"] * k,
+    )  # fmt: skip
+
+
 def capacity_unit(scene: Scene, params: dict, ctx: UnitContext):
-    """GCL on ``examples`` independent examples at once on an ``n x n`` lattice."""
-    from ..learning.examples import examples_task
+    """GCL of the stiffnesses on ``examples`` response-change examples at once on an
+    ``n x n`` lattice (one seed)."""
+    from ..learning.examples import examples_task, gain_examples
     from ..learning.train import train
 
     t = scene.task
-    net, rng = _lattice(scene, params["size"], 2)
-    tasks = examples_task(
+    net, _ = _lattice(scene, params["size"], 2)
+    rng = np.random.default_rng([scene.seed, params["size"], 2, params["seed"], 1])
+    drawn = examples_task(
         net, params["examples"], rng, source_std=t.source_std, target_std=t.target_std
     )
-    rule = _table(scene)["gcl"]
+    tasks = gain_examples(drawn, net, rng, change=CAPACITY["change"])
+    rule = gcl_k(scene, net)
     h = train(net, tasks, rule, scene.learning.steps, progress=False, callback=_callback(ctx))
     arrays, meta = _record(h, net, tasks.tasks)
-    meta.update(n_nodes=net.n_nodes, n_springs=net.n_springs, examples=params["examples"])
+    meta.update(
+        n_nodes=net.n_nodes, n_springs=net.n_springs, examples=params["examples"],
+        seed=params["seed"], worst_example=_worst_example(h, tasks), **CAPACITY, **GCL_K,
+    )  # fmt: skip
     return arrays, meta
+
+
+def _worst_example(h, tasks) -> float:
+    """Largest final-over-initial error of one example of a task set (NaN if stopped)."""
+    if int(h.completed[0]) != h.steps:
+        return float("nan")
+    miss = (np.asarray(h.target_strain[0], dtype=float) - tasks.target_strain) ** 2
+    edges = np.cumsum([0, *(t.n_targets for t in tasks.tasks)])
+    ratios = [
+        miss[-1, a:b].sum() / miss[0, a:b].sum()
+        for a, b in itertools.pairwise(edges)
+        if miss[0, a:b].sum() > 0
+    ]
+    return float(max(ratios)) if ratios else float("nan")
 
 
 #: the regression task of ``beyond/regression``: training and held-out examples, GCL rate
@@ -318,12 +372,16 @@ def node_unit(scene: Scene, params: dict, ctx: UnitContext):
     from ..network.equilibrium import EquilibriumError, relax
 
     t = scene.task
-    net, rng = _lattice(scene, scene.network.sizes[0], 4)
+    relative = params["outputs"] == "relative"
+    net, rng = _lattice(scene, scene.network.sizes[0], 6 if relative else 4)
     task = node_task(
         net, rng, n_sources=t.n_sources, n_targets=t.n_targets, source_std=t.source_std,
-        displacement_std=t.target_std,
+        displacement_std=t.target_std, relative=relative,
     )  # fmt: skip
-    rule = per_stiffness(beyond_rules(scene)[params["rule"]], net)
+    if params["rule"] == "gcl_k":
+        rule = gcl_k(scene, net)
+    else:
+        rule = per_stiffness(beyond_rules(scene)[params["rule"]], net)
     h = train(net, task, rule, scene.learning.steps, progress=False, callback=_callback(ctx))
     e = np.asarray(h.error_initial[0], dtype=float)
     done = int(h.completed[0]) == h.steps
@@ -356,6 +414,8 @@ def node_unit(scene: Scene, params: dict, ctx: UnitContext):
         "seconds": float(np.nanmax(h.seconds[0])),
         "rule": h.settings,
         "n_targets": task.n_targets,
+        "outputs": params["outputs"],
+        "learns": rule.dof,
     }
     return {"error": e, "seconds": np.asarray(h.seconds[0], dtype=float)}, meta
 

@@ -139,6 +139,15 @@ class TaskSpec:
             "by stern tasks in learning scenes",
         ),
     )
+    node_outputs: tuple[str, ...] = _key(
+        "list[str]",
+        ("absolute", "relative"),
+        "outputs of the node task, one run per entry and rule: node coordinates "
+        "('absolute') or a node's coordinate relative to another node's ('relative')",
+        choices=("absolute", "relative"),
+        check=_unique_nonempty,
+        used=_kinds("beyond_paper"),
+    )
     strain: float = _key(
         "float",
         0.1,
@@ -224,6 +233,13 @@ class LearningSpec:
         (1, 2, 4, 8),
         "numbers of examples trained together, one capacity run per entry and lattice size",
         check=_all(_unique_nonempty, _each(_at_least(1)), _increasing),
+        used=_kinds("beyond_paper"),
+    )
+    capacity_seeds: int = _key(
+        "int",
+        3,
+        "draws of the examples per lattice size and number of examples (capacity study)",
+        check=_at_least(1),
         used=_kinds("beyond_paper"),
     )
     floor: float = _key(
