@@ -139,7 +139,7 @@ def section(doc: Document, result) -> None:
         c = np.array([u.meta["critical_ratio"] for u in units], float)
         ok = np.isfinite(c)
         if ok.sum() >= 2:
-            fits[name] = float(np.polyfit(np.log(N[ok]), np.log(c[ok]), 1)[0])
+            fits[name] = _slope(np.log(N[ok]), np.log(c[ok]))
         for u in units:
             m = u.meta
             crit_rows.append(
@@ -157,12 +157,30 @@ def section(doc: Document, result) -> None:
     if fits:
         doc.add(
             "Critical ratio against N, least-squares fit of log rho* on log N over the sizes "
-            "with a critical ratio: "
-            + "; ".join(f"{_NAMES[k]}: rho* ~ N^{v:.2f}" for k, v in fits.items())
+            "with a critical ratio (exponent +- its standard error; 'no trend' when the "
+            "exponent is within two standard errors of 0, 'no error estimate' from two sizes): "
+            + "; ".join(f"{_NAMES[k]}: {_describe_fit(*v)}" for k, v in fits.items())
             + "."
         )
     _figures(doc, rules, ratios)
     _findings(doc, rules, ratios)
+
+
+def _slope(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of ``y`` on ``x`` and its standard error (nan from two points)."""
+    coef, residuals, *_ = np.polyfit(x, y, 1, full=True)
+    if x.size < 3:
+        return float(coef[0]), math.nan
+    rss = float(residuals[0]) if residuals.size else 0.0
+    spread = float(np.sum((x - x.mean()) ** 2))
+    return float(coef[0]), math.sqrt(rss / (x.size - 2) / spread)
+
+
+def _describe_fit(slope: float, error: float) -> str:
+    if not math.isfinite(error):
+        return f"rho* ~ N^{slope:.2f} (no error estimate)"
+    trend = "no trend" if abs(slope) <= 2 * error else ("grows" if slope > 0 else "falls")
+    return f"rho* ~ N^({slope:.2f} +- {error:.2f}), {trend}"
 
 
 def _figures(doc: Document, rules: dict, ratios: np.ndarray) -> None:
