@@ -86,6 +86,7 @@ def exact_optimum(
     from scipy.optimize import minimize
 
     from .rules import ExactGradient
+    from .states import Tracker
 
     if not isinstance(net, SpringNetwork):
         raise check.ArgumentError("net", net, "a SpringNetwork")
@@ -97,6 +98,7 @@ def exact_optimum(
     tasks.check(net)
 
     rule = ExactGradient(1.0, dof="stiffness", cost="strain")
+    tracker = Tracker(rule.solver)  # one per search: its factorisations are reused
     mask = rule.learning_mask(net, tasks)
     k0 = net.stiffness.copy()
     scale = float(np.mean(k0))
@@ -106,7 +108,7 @@ def exact_optimum(
         k = k0.copy()
         k[mask] = z * scale
         trial = net.with_stiffness(k)
-        step = rule.update(trial, tasks, warm=state["warm"])
+        step = rule.update(trial, tasks, warm=state["warm"], tracker=tracker)
         state["warm"], state["evals"] = step.warm, state["evals"] + 1
         errors = [t.error(trial, s.free.positions) for t, s in zip(tasks.tasks, step.examples)]
         grad = -np.asarray(step.raw)[mask] * scale  # raw = -dC/dk at alpha = 1
