@@ -46,6 +46,9 @@ def _parse() -> argparse.Namespace:
     p.add_argument("--strains", default="0.05,1")
     p.add_argument("--jax-path", default="")
     p.add_argument("--max-seconds", type=float, default=120.0)
+    p.add_argument(
+        "--side", action="append", default=[], help="folder with optional packages (pypardiso)"
+    )
     p.add_argument("--repeat", type=int, default=5, help="timings per method (median)")
     return p.parse_args()
 
@@ -56,10 +59,12 @@ def main() -> None:
     if cpus:  # one core for every method (jax starts thread pools of its own)
         os.sched_setaffinity(0, {cpus[0]})
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    os.environ.setdefault("MKL_NUM_THREADS", "1")
     os.environ.setdefault("JAX_PLATFORMS", "cpu")
     os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false")
     if args.jax_path:
         sys.path.append(args.jax_path)
+    sys.path.extend(args.side)
     import numpy as np
 
     import continuum_vs_network as cvn
@@ -152,10 +157,12 @@ def main() -> None:
         grad(warm.position).block_until_ready()
         return run, exact
 
+    from continuum_vs_network.network.kkt import sparse_solver
+
     print(
         f"# bench_jaxmd: {' '.join(sys.argv[1:])}; jax-md={have_jax}; one BLAS thread; "
         f"CPUs {sorted(os.sched_getaffinity(0)) if cpus else 'not pinned'}; "
-        f"median of {args.repeat}"
+        f"median of {args.repeat}; sparse solver {sparse_solver()}"
     )
     print(
         f"{'N':>6} {'S':>5} {'method':>8} {'seconds':>9} {'iters':>7} {'us/iter':>8} {'exact':>7}"

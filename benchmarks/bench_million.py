@@ -9,6 +9,10 @@ end, C/C0 per step from the history.
     python benchmarks/bench_million.py --nodes 10000 --steps 20
     python benchmarks/bench_million.py                    # 1e6 nodes (target: C/C0 <=
                                                           # 1e-3 in <= 15 min, <= 12 GB)
+    python benchmarks/bench_million.py --side /work/side/pardiso   # pypardiso from a folder
+
+``--sparse-solver``: the factorisation (:func:`~continuum_vs_network.network.kkt.
+set_sparse_solver`); ``auto`` is PARDISO when ``pypardiso`` imports.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 import resource
+import sys
 import time
 
 
@@ -26,6 +31,8 @@ def _parse() -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--alpha", type=float, default=0.5)
     p.add_argument("--eta", type=float, default=0.1)
+    p.add_argument("--sparse-solver", default="auto", help="auto, pardiso or superlu")
+    p.add_argument("--side", action="append", default=[], help="folder with optional packages")
     return p.parse_args()
 
 
@@ -36,11 +43,16 @@ def _peak_gb() -> float:
 def main() -> None:
     args = _parse()
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "2")
+    os.environ.setdefault("MKL_NUM_THREADS", "2")
+    sys.path.extend(args.side)
     import numpy as np
 
     from continuum_vs_network.learning.stern import stern_network, stern_rules
     from continuum_vs_network.learning.tasks import stern_task
     from continuum_vs_network.learning.train import train
+    from continuum_vs_network.network.kkt import set_sparse_solver, sparse_solver
+
+    set_sparse_solver(args.sparse_solver)
 
     t0 = time.perf_counter()
     rng = np.random.default_rng(args.seed)
@@ -49,7 +61,8 @@ def main() -> None:
     rule = stern_rules(alpha=args.alpha, eta=args.eta)["GCL"]
     print(
         f"# {net.n_nodes} nodes, {net.n_springs} springs; built in "
-        f"{time.perf_counter() - t0:.1f} s, peak {_peak_gb():.2f} GB"
+        f"{time.perf_counter() - t0:.1f} s, peak {_peak_gb():.2f} GB; sparse solver "
+        f"{sparse_solver()}"
     )
     start = time.perf_counter()
 

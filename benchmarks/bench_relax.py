@@ -5,11 +5,19 @@ or with random rest lengths with ``--random-rest``), one clamped spring near the
 held at the strain, default pins. Methods: ``newton``, ``fire``, ``lbfgs`` (time to
 ``tol = 1e-10``; capped by ``--max-seconds``), ``paper`` (the residual it reaches in 10x
 Newton's time), and the limit "one Hessian assembly + one sparse factorisation" of the same
-problem, measured in the same run.
+problem, measured in the same run. With PARDISO (``--sparse-solvers``) the kept symbolic
+analysis is dropped before the limit and before every timed run, so each pays one.
 
     python benchmarks/bench_relax.py                 # N ~ 10, 1e3, 1e4
     python benchmarks/bench_relax.py --sizes 10,1024
     python benchmarks/bench_relax.py --big           # adds N ~ 1e5 (316 x 316)
+    python benchmarks/bench_relax.py --random-rest --methods newton \
+        --sparse-solvers superlu,pardiso --side /work/side/pardiso   # solvers side by side
+
+``--sparse-solvers``: the sparse factorisations (:func:`~continuum_vs_network.network.kkt.
+set_sparse_solver`) to time Newton and the limit with, each against its own limit; the
+other methods run with the first. ``--side DIR`` appends a folder holding optional
+packages (pypardiso) to ``sys.path``.
 
 BLAS is pinned to one thread (``--blas-threads``) before numpy is imported: on a shared
 2-core machine multithreaded OpenBLAS made scipy's L-BFGS-B 10-30x slower.
@@ -42,6 +50,8 @@ def _parse() -> argparse.Namespace:
         help="rest lengths uniform in 0.9-1.1 x the noisy lengths (prestressed)",
     )
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--sparse-solvers", default="auto", help="e.g. superlu,pardiso")
+    p.add_argument("--side", action="append", default=[], help="folder with optional packages")
     p.add_argument("--blas-threads", default="1")
     return p.parse_args()
 
@@ -51,6 +61,7 @@ def main() -> None:
     os.environ.setdefault("OPENBLAS_NUM_THREADS", args.blas_threads)
     os.environ.setdefault("OMP_NUM_THREADS", args.blas_threads)
     os.environ.setdefault("MKL_NUM_THREADS", args.blas_threads)
+    sys.path.extend(args.side)
 
     import numpy as np
 
@@ -58,12 +69,14 @@ def main() -> None:
     from continuum_vs_network.network.builders import paper_network, triangular_lattice
     from continuum_vs_network.network.constraints import Problem
     from continuum_vs_network.network.energy import spring_hessian_blocks
+    from continuum_vs_network.network.kkt import set_sparse_solver, sparse_solver
     from continuum_vs_network.network.newton import factor_pd, pattern_for
 
     sizes = [int(s) for s in args.sizes.split(",") if s]
     if args.big and 100_000 not in sizes:
         sizes.append(100_000)
     strains = [float(s) for s in args.strains.split(",") if s]
+    solvers = [s for s in args.sparse_solvers.split(",") if s]
     methods = [m for m in args.methods.split(",") if m]
     have_torch = False
     if "paper" in methods:
@@ -86,6 +99,13 @@ def main() -> None:
             net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
         return net
 
+    def forget() -> None:
+        """Drop PARDISO's kept analyses: the limit and each timed run pay their own."""
+        if sparse_solver() == "pardiso":
+            from continuum_vs_network.network import pardiso
+
+            pardiso.forget()
+
     def limit(net: cvn.SpringNetwork, clamp: dict) -> tuple[float, float]:
         problem = Problem.build(net, clamped=clamp)
         x = problem.start(net.positions)
@@ -93,6 +113,7 @@ def main() -> None:
         ordered = bool(getattr(pattern, "ordered", False))
         best_a = best_f = np.inf
         for _ in range(3):
+            forget()
             t0 = time.perf_counter()
             W = pattern.assemble(
                 spring_hessian_blocks(x, net.springs, net.stiffness, net.rest_length)
@@ -103,6 +124,41 @@ def main() -> None:
             best_a, best_f = min(best_a, t1 - t0), min(best_f, t2 - t1)
         return best_a, best_f
 
+    def run(net, clamp: dict, strain: float, todo: list[str], tag: str, times: dict) -> None:
+        for method in todo:
+            try:  # warm-up (pattern and ordering caches, lazy imports), not timed
+                cvn.relax(net, clamped=clamp, method=method, max_iter=2)
+            except cvn.EquilibriumError:
+                pass
+            kw: dict = {}
+            if method == "paper":
+                kw = {"max_seconds": 10 * times.get("newton" + tag, 1.0), "max_iter": 10**9}
+            elif method != "newton":
+                kw = {"max_seconds": args.max_seconds, "max_iter": 10**9}
+            name = method + (tag if method == "newton" else "")
+            forget()
+            t0 = time.perf_counter()
+            try:
+                eq = cvn.relax(net, clamped=clamp, method=method, tol=1e-10, **kw)
+                note = "converged"
+            except cvn.EquilibriumError as err:
+                eq = err.state
+                note = f"not converged in {time.perf_counter() - t0:.3g} s"
+                if eq is None:
+                    print(f"{net.n_nodes:>7} {strain:>5g} {name:>16} failed: {err}")
+                    continue
+            except ValueError as err:
+                print(f"{net.n_nodes:>7} {strain:>5g} {name:>16} refused: {err}")
+                continue
+            seconds = time.perf_counter() - t0
+            if eq.converged:
+                times[name] = seconds
+            print(
+                f"{net.n_nodes:>7} {strain:>5g} {name:>16} {seconds:>9.4f} "
+                f"{eq.iterations:>7} {eq.relative_residual:>11.2e}  {note}"
+                + (f", clamp error {eq.clamp_error:.1e}" if not eq.converged else "")
+            )
+
     print(
         f"# bench_relax: {' '.join(sys.argv[1:]) or '(defaults)'}; cores={os.cpu_count()}, "
         f"BLAS threads={os.environ['OPENBLAS_NUM_THREADS']}, torch={have_torch}"
@@ -111,9 +167,12 @@ def main() -> None:
         "# target: relative residual 1e-10 (each net force against its node's sum k L); "
         f"fire/lbfgs capped at {args.max_seconds:g} s; paper given 10x newton's time"
     )
-    header = f"{'N':>7} {'S':>5} {'method':>8} {'seconds':>9} {'iters':>7} {'rel. resid':>11}  note"
+    header = (
+        f"{'N':>7} {'S':>5} {'method':>16} {'seconds':>9} {'iters':>7} {'rel. resid':>11}  note"
+    )
     print(header)
     summary = []
+    tags = [f"@{s}" if len(solvers) > 1 else "" for s in solvers]
     for n_nodes in sizes:
         rng = np.random.default_rng(args.seed)
         net = build(n_nodes, rng)
@@ -122,54 +181,30 @@ def main() -> None:
         for strain in strains:
             clamp = {centre: float(net.clamp_length(centre, strain))}
             times: dict[str, float] = {}
-            t_assemble, t_factor = limit(net, clamp)
-            times["limit"] = t_assemble + t_factor
-            print(
-                f"{net.n_nodes:>7} {strain:>5g} {'limit':>8} {times['limit']:>9.4f} {'':>7} "
-                f"{'':>11}  assembly {t_assemble:.4f} s + factorisation {t_factor:.4f} s"
-            )
-            for method in methods:
-                try:  # warm-up (pattern and ordering caches, lazy imports), not timed
-                    cvn.relax(net, clamped=clamp, method=method, max_iter=2)
-                except cvn.EquilibriumError:
-                    pass
-                kw: dict = {}
-                if method == "paper":
-                    kw = {"max_seconds": 10 * times.get("newton", 1.0), "max_iter": 10**9}
-                elif method != "newton":
-                    kw = {"max_seconds": args.max_seconds, "max_iter": 10**9}
-                t0 = time.perf_counter()
-                try:
-                    eq = cvn.relax(net, clamped=clamp, method=method, tol=1e-10, **kw)
-                    note = "converged"
-                except cvn.EquilibriumError as err:
-                    eq = err.state
-                    note = f"not converged in {time.perf_counter() - t0:.3g} s"
-                    if eq is None:
-                        print(f"{net.n_nodes:>7} {strain:>5g} {method:>8} failed: {err}")
-                        continue
-                except ValueError as err:
-                    print(f"{net.n_nodes:>7} {strain:>5g} {method:>8} refused: {err}")
-                    continue
-                seconds = time.perf_counter() - t0
-                if eq.converged:
-                    times[method] = seconds
+            for which, (solver, tag) in enumerate(zip(solvers, tags, strict=True)):
+                set_sparse_solver(solver)
+                t_assemble, t_factor = limit(net, clamp)
+                times["limit" + tag] = t_assemble + t_factor
                 print(
-                    f"{net.n_nodes:>7} {strain:>5g} {method:>8} {seconds:>9.4f} "
-                    f"{eq.iterations:>7} {eq.relative_residual:>11.2e}  {note}"
-                    + (f", clamp error {eq.clamp_error:.1e}" if not eq.converged else "")
+                    f"{net.n_nodes:>7} {strain:>5g} {'limit' + tag:>16} "
+                    f"{times['limit' + tag]:>9.4f} {'':>7} {'':>11}  assembly "
+                    f"{t_assemble:.4f} s + factorisation {t_factor:.4f} s ({sparse_solver()})"
                 )
+                todo = [m for m in methods if m == "newton" or not which]
+                run(net, clamp, strain, todo, tag, times)
+            set_sparse_solver(solvers[0])
             summary.append((net.n_nodes, strain, times))
 
-    print("\n# ratios (same run): newton/limit, fire/newton, lbfgs/newton")
+    print("\n# ratios (same run): newton/limit per sparse solver, fire/newton, lbfgs/newton")
     for n_nodes, strain, times in summary:
 
         def ratio(a: str, b: str, times=times) -> str:
             return f"{times[a] / times[b]:8.1f}" if a in times and b in times else f"{'-':>8}"
 
+        per_solver = " ".join(f"{ratio('newton' + t, 'limit' + t)}" for t in tags)
         print(
-            f"{n_nodes:>7} {strain:>5g} {ratio('newton', 'limit')} {ratio('fire', 'newton')} "
-            f"{ratio('lbfgs', 'newton')}"
+            f"{n_nodes:>7} {strain:>5g} {per_solver} {ratio('fire', 'newton' + tags[0])} "
+            f"{ratio('lbfgs', 'newton' + tags[0])}"
         )
 
 

@@ -6,7 +6,24 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from continuum_vs_network.network.kkt import Inertia, factor_kkt, factor_spd, schur_solve
+from continuum_vs_network.network import kkt as kkt_module
+from continuum_vs_network.network.kkt import (
+    Inertia,
+    factor_kkt,
+    factor_spd,
+    schur_solve,
+    set_sparse_solver,
+    sparse_solver,
+)
+
+
+@pytest.fixture
+def solver_choice():
+    """Restores the sparse solver choice after a test that changes it."""
+    previous = set_sparse_solver("auto")
+    set_sparse_solver(previous)
+    yield
+    set_sparse_solver(previous)
 
 
 def _laplacian_2d(side: int) -> sp.csr_matrix:
@@ -110,7 +127,8 @@ def test_schur_reuse_for_a_subset_of_rows_matches_a_fresh_factorisation():
     np.testing.assert_allclose(A[rows] @ x, c, atol=1e-10)
 
 
-def test_uncertified_factor_solves_the_same_but_does_not_detect_indefiniteness():
+def test_uncertified_factor_solves_the_same_but_does_not_detect_indefiniteness(solver_choice):
+    set_sparse_solver("superlu")  # PARDISO's Cholesky always certifies
     W = _laplacian_2d(22).tolil()
     b = np.arange(W.shape[0], dtype=float)
     spd = factor_spd(W.tocsr(), certify=False)
@@ -118,3 +136,36 @@ def test_uncertified_factor_solves_the_same_but_does_not_detect_indefiniteness()
     W[0, 0] = -5.0  # one negative eigenvalue
     assert factor_spd(W.tocsr()) is None
     assert factor_spd(W.tocsr(), certify=False) is not None
+
+
+def test_sparse_solver_choice_is_checked(solver_choice):
+    with pytest.raises(ValueError, match="name must be one of"):
+        set_sparse_solver("umfpack")
+    assert set_sparse_solver("superlu") in kkt_module.SPARSE_SOLVERS
+    assert sparse_solver() == "superlu"
+    set_sparse_solver("pardiso")
+    if kkt_module._pardiso() is None:
+        with pytest.raises(ImportError, match="pypardiso"):
+            factor_spd(_laplacian_2d(22))
+
+
+def test_pardiso_agrees_with_superlu_and_refuses_indefinite_matrices(solver_choice):
+    """Solutions of both backends agree; both refuse a matrix with one negative eigenvalue;
+    more live factorisations of one structure than PARDISO keeps slots still solve right."""
+    pytest.importorskip("pypardiso")
+    from continuum_vs_network.network import pardiso
+
+    rng = np.random.default_rng(3)
+    W = _laplacian_2d(30)
+    B = rng.standard_normal((W.shape[0], 2))
+    set_sparse_solver("superlu")
+    reference = factor_spd(W).solve(B)
+    set_sparse_solver("pardiso")
+    np.testing.assert_allclose(factor_spd(W).solve(B), reference, rtol=1e-10)
+    bad = W.tolil()
+    bad[7, 7] = -1.0
+    assert factor_spd(bad.tocsr()) is None
+    shifted = [W + s * sp.identity(W.shape[0], format="csr") for s in range(pardiso.MAXFCT + 3)]
+    factors = [factor_spd(M) for M in shifted]
+    for M, f in zip(shifted, factors, strict=True):
+        np.testing.assert_allclose(M @ f.solve(B), B, atol=1e-9)

@@ -29,9 +29,11 @@ back to the lengths the linear model predicted (:class:`StiffSprings`). With it 
 8x8 lattices with 20 % of springs 1e9-1e12 times stiffer converge in 5-12 iterations
 instead of creeping.
 
-Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones use
-SuperLU with a symmetric minimum-degree ordering and diagonal pivots, whose ``U`` diagonal
-then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves ``W > 0``.
+Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones
+:func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
+unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
+diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
+``W > 0``.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
 from .energy import HessianPattern, spring_energy_change, spring_gradient
-from .kkt import DENSE_MAX, Factor, factor_spd, range_space
+from .kkt import DENSE_MAX, Factor, factor_spd, range_space, sparse_solver
 from .lagrangian import lagrangian_blocks, pattern_for
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX, StiffSprings, trust_region_newton
@@ -61,11 +63,14 @@ class _SolveFailed(RuntimeError):
 def _reuse_budget(size: int) -> int:
     """Preconditioned CG iterations allowed before a new factorisation of (size, size).
 
-    Measured here on 2D networks, one nested-dissection factorisation costs about
+    Measured here on 2D networks, one SuperLU nested-dissection factorisation costs about
     ``0.15 sqrt(size)`` triangular solves (15 at N = 1e3, 20 at 1e4, 50 at 1e5 nodes); a
     budget of twice that was fastest in benchmarks/bench_relax.py (0.075 and 0.15 were
-    slower). A count, not a timing, so that runs are reproducible bit for bit.
+    slower). PARDISO with its analysis kept refactorises for about 9 solves at 1e5-3e5
+    nodes: twice that, 16. A count, not a timing, so that runs are reproducible bit for bit.
     """
+    if sparse_solver() == "pardiso":
+        return 16
     return max(2, int(0.3 * np.sqrt(size)))
 
 
@@ -113,12 +118,79 @@ def _pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int
     return Factor(solve, W.shape[0])
 
 
+def _projected_pcg(
+    W: sp.csr_matrix,
+    preconditioner: Factor,
+    grad: NDArray,
+    A: sp.spmatrix | None,
+    viol: NDArray,
+    *,
+    rtol: float,
+    max_iter: int,
+) -> tuple[NDArray, NDArray]:
+    """The Newton step of ``[[W, A^T], [A, 0]] [step; lam] = [-grad; -viol]`` by projected
+    conjugate gradients with the constraint preconditioner ``[[W0, A^T], [A, 0]]``.
+
+    ``W0`` is an earlier factorisation (``preconditioner``), ``A`` the current clamp
+    Jacobian (m, n). Every iterate satisfies ``A step = -viol`` and the search stays in
+    the null space of ``A`` (Gould, Hribar & Nocedal 2001), so one CG run (one solve with
+    ``W0`` an iteration, after one m-column solve for the preconditioner's Schur
+    complement) replaces the ``m + 1`` separate CG runs of a range-space solve. Stops when
+    the step's force residual ``grad + W step + A^T lam`` (``lam`` by least squares) is
+    ``rtol`` times the force at ``step = 0``; the residual is kept projected, as Gould et al.
+    recommend (the clamp-force part of ``grad``, 1e9 times the tolerance near convergence,
+    otherwise spoils the preconditioned residual by round-off).
+
+    Raises :class:`_SolveFailed` on negative curvature in the null space or when
+    ``max_iter`` iterations do not reach ``rtol``.
+    """
+    if A is None:
+        return -np.asarray(_pcg(W, preconditioner, rtol=rtol, max_iter=max_iter).solve(grad)), (
+            np.empty(0)
+        )
+    m = A.shape[0]
+    kkt = range_space(preconditioner, A)
+    gram = A @ A.T
+    gram = gram.toarray() if sp.issparse(gram) else np.asarray(gram)
+    zero = np.zeros(m)
+
+    def multipliers(v: NDArray) -> NDArray:
+        """``lam`` minimising ``|v + A^T lam|``."""
+        return -np.linalg.solve(gram, A @ v)
+
+    tol = rtol * float(np.linalg.norm(grad + A.T @ multipliers(grad)))
+    x = kkt.solve(-grad, -viol)[0]
+    r = W @ x + grad
+    d = np.zeros_like(x)
+    rg_old = np.inf
+    for it in range(max_iter + 1):
+        # keep the residual projected (its large clamp-force part removed): otherwise its
+        # round-off through the preconditioner swamps a tight tolerance (Gould et al.)
+        r = r + A.T @ multipliers(r)
+        if np.linalg.norm(r) <= tol:
+            return x, multipliers(W @ x + grad)
+        if it == max_iter:
+            break
+        g = kkt.solve(r, zero)[0]  # projected, preconditioned residual: A g = 0
+        rg = float(r @ g)
+        d = -g + (rg / rg_old) * d
+        Wd = W @ d
+        curvature = float(d @ Wd)
+        if curvature <= 0:
+            raise _SolveFailed("negative curvature")
+        alpha = rg / curvature
+        x = x + alpha * d
+        r = r + alpha * Wd
+        rg_old = rg
+    raise _SolveFailed("no convergence")
+
+
 def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
     """Minimise ``problem`` from ``x`` (n_nodes, 2) by shifted sparse Newton (see module).
 
-    After a full step with an exact, positive-definite Hessian the next step first tries
-    conjugate gradients preconditioned by that factorisation (a few triangular solves
-    instead of a new factorisation); it refactorises when that fails.
+    After a full step the next step first tries projected conjugate gradients preconditioned
+    by the last factorisation (:func:`_projected_pcg`: a few triangular solves instead of a
+    new factorisation); it refactorises when that fails.
     """
     if problem.free_flat.size <= TR_DENSE_MAX:
         return trust_region_newton(problem, x, stop, trace)
@@ -161,13 +233,16 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
 
         step = lam = None
         if reusable is not None:
-            # inexact Newton: a relative solve error eta leaves a residual ~ eta * residual
-            eta = min(1e-2, residual)
+            # inexact Newton (Eisenstat-Walker-like forcing term): a relative solve error eta
+            # leaves a residual ~ eta * residual, superlinear with eta = sqrt(residual); at
+            # N = 1e4 it needed 31-41 solves against 45-63 with eta = residual, same iterations
+            eta = min(1e-1, np.sqrt(residual))
             budget = _reuse_budget(pattern.size)
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             try:
-                solver = _pcg(W, reusable, rtol=eta, max_iter=budget)
-                step, lam = _kkt_step(solver, grad, A if m else None, viol, m)
+                step, lam = _projected_pcg(
+                    W, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
+                )
             except (_SolveFailed, np.linalg.LinAlgError):
                 step = None
         if step is None:
@@ -187,8 +262,9 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                     "complement): two clamps fix the same length?",
                 )
             # reuse only pays above the dense size; with rods the gradient's huge axial part
-            # makes CG's relative tolerance meaningless for the rest
-            reuse = exact_ok and pattern.size > DENSE_MAX and problem.clamp == "exact"
+            # makes CG's relative tolerance meaningless for the rest. A shifted factor also
+            # preconditions the exact Hessian (negative curvature makes CG fail: refactorise)
+            reuse = pattern.size > DENSE_MAX and problem.clamp == "exact"
             reusable = factor if reuse else None
         x, alpha = _line_search(
             problem,

@@ -1,0 +1,68 @@
+"""The sparse Newton's reuse step: projected CG preconditioned by an earlier factorisation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from continuum_vs_network.network import newton as nw
+from continuum_vs_network.network.builders import triangular_lattice
+from continuum_vs_network.network.constraints import Problem
+from continuum_vs_network.network.kkt import factor_spd, range_space
+from continuum_vs_network.network.lagrangian import lagrangian_blocks, pattern_for
+
+
+def _problem_and_two_points():
+    rng = np.random.default_rng(4)
+    net = triangular_lattice(18, 18, noise=0.1, rng=rng)
+    net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
+    clamped = {40: float(net.clamp_length(40, 0.3)), 200: float(net.clamp_length(200, -0.2))}
+    problem = Problem.build(net, clamped=clamped)
+    x0 = problem.start(net.positions)
+    x1 = x0 + 0.02 * rng.standard_normal(x0.shape) * problem.free  # a later Newton iterate
+    return problem, x0, x1
+
+
+def _w(problem, pattern, x, lam):
+    return pattern.assemble(
+        lagrangian_blocks(problem, x, lam, float(np.max(problem.net.stiffness)))
+    )
+
+
+def test_projected_cg_step_equals_the_exact_kkt_step():
+    """Preconditioned by W at another point, the step solves the current KKT system: it
+    agrees with a fresh factorisation's range-space step and meets A step = -viol."""
+    problem, x0, x1 = _problem_and_two_points()
+    net = problem.net
+    pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
+    coords = pattern.coords
+    lam = np.array([0.3, -0.2])
+    old = factor_spd(_w(problem, pattern, x0, lam), ordered=pattern.ordered)
+    W = _w(problem, pattern, x1, lam)
+    grad = problem.gradient(x1).ravel()[coords]
+    A = problem.clamp_jacobian(x1, coords)
+    viol = problem.clamp_violation(x1)
+    step, mult = nw._projected_pcg(W, old, grad, A, viol, rtol=1e-10, max_iter=200)
+    exact, exact_mult = range_space(factor_spd(W, ordered=pattern.ordered), A).solve(-grad, -viol)
+    np.testing.assert_allclose(A @ step, -viol, atol=1e-12)
+    np.testing.assert_allclose(step, exact, atol=1e-8 * np.abs(exact).max())
+    np.testing.assert_allclose(mult, exact_mult, rtol=1e-7)
+
+
+def test_projected_cg_refuses_negative_curvature_and_a_short_budget():
+    problem, x0, x1 = _problem_and_two_points()
+    net = problem.net
+    pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
+    coords = pattern.coords
+    lam = np.zeros(2)
+    old = factor_spd(_w(problem, pattern, x0, lam), ordered=pattern.ordered)
+    W = _w(problem, pattern, x1, lam)
+    grad = problem.gradient(x1).ravel()[coords]
+    A = problem.clamp_jacobian(x1, coords)
+    viol = problem.clamp_violation(x1)
+    with pytest.raises(nw._SolveFailed, match="no convergence"):
+        nw._projected_pcg(W, old, grad, A, viol, rtol=1e-14, max_iter=1)
+    negative = W - 2.0 * float(W.diagonal().max()) * sp.identity(W.shape[0], format="csr")
+    with pytest.raises(nw._SolveFailed, match="negative curvature"):
+        nw._projected_pcg(negative, old, grad, A, viol, rtol=1e-10, max_iter=50)
