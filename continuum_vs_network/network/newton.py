@@ -44,7 +44,14 @@ from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
 from .energy import HessianPattern, spring_energy_change, spring_gradient
-from .kkt import DENSE_MAX, Factor, factor_spd, range_space, sparse_solver
+from .kkt import (
+    DENSE_MAX,
+    Factor,
+    factor_spd,
+    factor_spd_or_curvature,
+    range_space,
+    sparse_solver,
+)
 from .lagrangian import lagrangian_blocks, pattern_for
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX, StiffSprings, trust_region_newton
@@ -319,7 +326,9 @@ def _factor_lagrangian_hessian(
 
     Order: the exact Hessian (when ``try_exact``), also with a larger augmentation ``rho``
     when there are clamps (at a stable constrained minimum a large enough ``rho`` makes it
-    positive definite, Finsler's lemma, and the step does not depend on ``rho``); then the
+    positive definite, Finsler's lemma, and the step does not depend on ``rho``; that second
+    factorisation is skipped when a direction of negative curvature read off the first,
+    :func:`~.kkt.factor_spd_or_curvature`, stays negative under the larger ``rho``); then the
     exact Hessian plus a Levenberg-Marquardt shift ``mu diag(W)`` that starts at a tenth of
     the last ``mu`` (at least 1e-6) and grows tenfold until the factorisation is positive
     definite. Clipping each spring's negative tangential curvature instead crept
@@ -330,14 +339,21 @@ def _factor_lagrangian_hessian(
     """
     W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
     if shift == 0.0:
-        factor = factor_pd(W, ordered=pattern.ordered)
+        factor, directions = _factor_or_curvature(W, pattern)
         if factor is not None:
             return factor, rho, 0.0, True
         if lam.size:
             d = np.maximum(problem.net.lengths(x)[problem.clamp_springs], 1e-300)
-            rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
+            new_rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
+            # rho A^T A adds (new_rho - rho) |A v|^2 to the curvature along v: if a known
+            # negative direction stays negative, factorising again cannot succeed (the larger
+            # rho is kept: it helps later reuse of the factorisation)
+            futile = directions is not None and _still_negative(
+                W, directions, problem, x, pattern, new_rho - rho
+            )
+            rho = new_rho
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
-            factor = factor_pd(W, ordered=pattern.ordered)
+            factor = None if futile else factor_pd(W, ordered=pattern.ordered)
             if factor is not None:
                 return factor, rho, 0.0, True
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
@@ -352,6 +368,21 @@ def _factor_lagrangian_hessian(
             return factor, rho, shift, False
         shift *= 100
     return None, rho, shift, False
+
+
+def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDArray | None]:
+    """``factor_pd`` of ``W``, with directions of negative curvature when it fails (sparse)."""
+    if isinstance(W, np.ndarray):
+        return factor_pd(W, ordered=pattern.ordered), None
+    return factor_spd_or_curvature(W, ordered=pattern.ordered)
+
+
+def _still_negative(W, directions, problem, x, pattern, extra_rho) -> bool:
+    """True when some direction keeps negative curvature after adding ``extra_rho A^T A``."""
+    A = problem.clamp_jacobian(x, pattern.coords, dense=False)
+    curv = np.einsum("ij,ij->j", directions, W @ directions)
+    Av = A @ directions
+    return bool(np.any(curv + extra_rho * np.einsum("ij,ij->j", Av, Av) < 0))
 
 
 def _line_search(
