@@ -7,7 +7,8 @@
   mistaken for a mechanism. Cached per topology, stiffness pattern, pins and clamps.
 * **Second order** (:func:`lowest_curvature`): the smallest eigenvalue of the reduced
   Hessian of the Lagrangian ``Q^T D^-1/2 W D^-1/2 Q`` (``Q`` a basis of the clamps'
-  tangent space, ``D`` the node stiffness ``sum k``): negative at a saddle.
+  tangent space, and orthogonal to the rigid motions when nothing is pinned; ``D`` the
+  node stiffness ``sum k``): negative at a saddle.
 * **No collapsed spring** (:func:`collapsed_springs`): a spring with ``k > 0`` at length
   ``<= 1e-9 L`` exerts a force whose direction is undefined (taken as zero), so a state
   with one is not an equilibrium however small its residual.
@@ -25,6 +26,7 @@ from .kkt import factor_spd
 from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
 from .model import SpringNetwork
 from .rigidity import zero_modes
+from .trust import null_basis, rigid_motions
 
 __all__ = [
     "CURVATURE_DENSE_MAX",
@@ -92,12 +94,16 @@ def _reduced(problem: Problem, x: NDArray) -> tuple[NDArray, NDArray, Frame, NDA
     inv_root = 1.0 / np.sqrt(np.repeat(kappa, 2)[coords])
     m = problem.n_clamps if problem.exact else 0
     g = problem.gradient(x).ravel()[coords]
+    rows = []
     if m:
         A = problem.clamp_jacobian(x, coords, dense=True)
         mu = clamp_tensions(A, g, problem.scale[coords])
-        Q = np.linalg.svd(A * inv_root[None, :])[2][m:].T
+        rows.append(A)
     else:
-        mu, Q = np.empty(0), np.eye(coords.size)
+        mu = np.empty(0)
+    if problem.free.all():  # nothing pinned: rigid motions are not modes to judge
+        rows.append(rigid_motions(x, coords))
+    Q = null_basis(np.vstack(rows) * inv_root[None, :]) if rows else np.eye(coords.size)
     W = frame.pattern.assemble_dense(lagrangian_blocks(problem, x, mu, 0.0))
     Ws = W * inv_root[:, None] * inv_root[None, :]
     H = Q.T @ Ws @ Q

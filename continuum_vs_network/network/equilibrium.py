@@ -10,7 +10,7 @@ length.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -24,6 +24,7 @@ from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
 from .newton import newton
 from .stopping import Outcome, StopRule, Trace
+from .trust import TR_DENSE_MAX
 
 __all__ = ["METHODS", "Equilibrium", "EquilibriumError", "StopRule", "Trace", "relax"]
 
@@ -141,7 +142,10 @@ def relax(
     net : SpringNetwork
     pinned : sequence of node indices, (n_nodes, 2) bool mask, or None
         Coordinates held at their values in ``x0``. None pins one node fully and one
-        coordinate of a far node, chosen away from the clamped springs.
+        coordinate of a far node, chosen away from the clamped springs; they only remove
+        rigid motion (Newton on up to ``TR_DENSE_MAX`` coordinates removes it itself and
+        places the result on them: the node in place, the coordinate kept, or, when the
+        network shrank below that offset, the pair's start orientation).
     clamped : {spring_index: length}, optional
         Springs held at a length (Eq. 25).
     x0 : (n_nodes, 2) float array, optional
@@ -222,15 +226,32 @@ def relax(
     start_lengths = net.lengths(x)[problem.clamp_springs]
     iterations = 0
     outcome = Outcome(x, 0, True)
+    # Default pins only remove rigid motion. The dense trust-region Newton removes it
+    # itself when nothing is pinned (a pin pair whose lever shortens in a large deformation
+    # leaves a nearly free rotation that it would otherwise creep along); the result is
+    # then placed rigidly on the default pins.
+    unpinned = problem.with_free(np.ones_like(problem.free))
+    floating = pinned is None and method == "newton" and unpinned.free_flat.size <= TR_DENSE_MAX
+    solved = unpinned if floating else problem
     for step in range(1, int(ramp) + 1):
         frac = step / ramp
         lengths = start_lengths + frac * (problem.clamp_lengths - start_lengths)
-        stage = problem.with_clamp_lengths(lengths)
+        stage = solved.with_clamp_lengths(lengths)
         trace.base = iterations
         outcome = solve(stage, stage.start(outcome.x), stop, trace)
         iterations += outcome.iterations
         if not outcome.converged:
             break
+    if floating:  # second order judged without pins (rigid motions removed), then placed
+        outcome, extra = _second_order(unpinned, outcome, solve, stop, trace, iterations)
+        iterations += extra
+    if floating and outcome.converged:
+        outcome = replace(outcome, x=_place(outcome.x, x, problem.free), certified=True)
+        placed = problem.residual(outcome.x)
+        if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
+            trace.base = iterations
+            outcome = replace(solve(problem, outcome.x, stop, trace), certified=True)
+            iterations += outcome.iterations
     # Default pins only remove rigid motion, so they must carry no load. After a large
     # deformation two of them can line up and act as a strut: choose them anew at the
     # deformed positions and relax again from there.
@@ -319,6 +340,41 @@ def _second_order(
         reason = "a saddle or a collapsed spring persists after 3 escapes"
         return Outcome(outcome.x, outcome.iterations, False, reason), extra
     return outcome, extra
+
+
+def _place(x: NDArray, start: NDArray, free: NDArray) -> NDArray:
+    """``x`` (n_nodes, 2) moved rigidly onto the pins of ``free`` (one node fully, one
+    coordinate of another, as :func:`~.constraints.default_pins` gives) at ``start``.
+
+    The fully pinned node goes to its start position; the network is turned about it so
+    that the other pinned coordinate keeps its start value (of the two such turns, the one
+    closer to the start's orientation), or, when the network has shrunk too much for that,
+    so that the pair has its start orientation.
+    """
+    full = np.flatnonzero(~free.any(axis=1))
+    part = np.flatnonzero((~free).sum(axis=1) == 1)
+    if not full.size:
+        return x
+    a = int(full[0])
+    y = x - x[a] + start[a]
+    if not part.size:
+        return y
+    b = int(part[0])
+    c = int(np.flatnonzero(~free[b])[0])
+    d, d0 = y[b] - y[a], start[b] - start[a]
+    r = float(np.hypot(*d))
+    want = float(np.arctan2(d0[1], d0[0]))
+    t = float(d0[c]) / max(r, 1e-300)
+    if abs(t) <= 1.0:
+        base = np.arcsin(t) if c == 1 else np.arccos(t)
+        options = (base, np.pi - base) if c == 1 else (base, -base)
+        want = min(options, key=lambda o: abs(np.angle(np.exp(1j * (o - want)))))
+    turn = want - float(np.arctan2(d[1], d[0]))
+    rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+    y = (y - y[a]) @ rot.T + y[a]
+    y[b, c] = start[b, c] if abs(t) <= 1.0 else y[b, c]  # exact, not to round-off
+    y[a] = start[a]
+    return y
 
 
 def _pin_reaction(problem: Problem, x: NDArray) -> float:

@@ -1,0 +1,61 @@
+"""Time to relax the paper's prestressed N = 10 patch (issue 10 target: <= 1 ms).
+
+``cvn.relax`` at its defaults on ``paper_network(rng)`` (rest lengths U(0.5, 20), stiffness
+U(0.5, 50): strongly prestressed) for ``--count`` seeds; each timed as the best of
+``--repeats`` runs after a warm-up (caches, lazy imports). Prints the median time, the
+median iterations and the time per iteration, and the same with explicit default pins
+(the pinned problem solved directly, rigid motion not removed by the solver), side by side.
+
+    python benchmarks/bench_patch.py
+    python benchmarks/bench_patch.py --count 50 --repeats 20
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+
+def _parse() -> argparse.Namespace:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--count", type=int, default=20)
+    p.add_argument("--repeats", type=int, default=10)
+    return p.parse_args()
+
+
+def main() -> None:
+    args = _parse()
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    import numpy as np
+
+    import continuum_vs_network as cvn
+    from continuum_vs_network.network.builders import paper_network
+
+    nets = [paper_network(np.random.default_rng(seed)) for seed in range(args.count)]
+
+    def measure(pinned: bool) -> tuple[float, float, float]:
+        times, iterations = [], []
+        for net in nets:
+            pins = cvn.default_pins(net) if pinned else None
+            eq = cvn.relax(net, pinned=pins)  # warm-up
+            best = np.inf
+            for _ in range(args.repeats):
+                t0 = time.perf_counter()
+                eq = cvn.relax(net, pinned=pins)
+                best = min(best, time.perf_counter() - t0)
+            times.append(best)
+            iterations.append(eq.iterations)
+        t, i = np.array(times), np.array(iterations)
+        return 1e3 * float(np.median(t)), float(np.median(i)), 1e3 * float(np.median(t / i))
+
+    print(f"paper patch N = 10, {args.count} seeds, best of {args.repeats} runs each")
+    rows = {"default pins": measure(False), "explicit pins": measure(True)}
+    for name, (ms, its, per) in rows.items():
+        print(f"{name:14s} median {ms:6.2f} ms  iterations {its:5.1f}  {per:6.3f} ms/iteration")
+    ratio = rows["explicit pins"][0] / rows["default pins"][0]
+    print(f"explicit / default pins time: {ratio:.2f}; target <= 1 ms")
+
+
+if __name__ == "__main__":
+    main()
