@@ -197,7 +197,9 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
 
     After a full step the next step first tries projected conjugate gradients preconditioned
     by the last factorisation (:func:`_projected_pcg`: a few triangular solves instead of a
-    new factorisation); it refactorises when that fails.
+    new factorisation); it refactorises when that fails. While the Levenberg-Marquardt shift
+    is positive, that solve is of the shifted model the refactorisation would factorise
+    (the exact Hessian, still indefinite, made every reuse fail on negative curvature).
     """
     if problem.free_flat.size <= TR_DENSE_MAX:
         return trust_region_newton(problem, x, stop, trace)
@@ -246,6 +248,8 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             eta = min(1e-1, np.sqrt(residual))
             budget = _reuse_budget(pattern.size)
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
+            if shift > 0.0:  # the damped model a refactorisation would solve now
+                W = W + shift * _marquardt_scaling(W)
             try:
                 step, lam = _projected_pcg(
                     W, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
@@ -358,9 +362,7 @@ def _factor_lagrangian_hessian(
                 return factor, rho, 0.0, True
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
     # not freeze soft springs (stiffness ratios up to 1e12 are supported)
-    diag = np.abs(W.diagonal())  # ndarray and sparse alike
-    scale = np.where(diag > 0, diag, max(float(diag.max(initial=0.0)), 1.0))
-    scaling = np.diag(scale) if isinstance(W, np.ndarray) else sp.diags(scale)
+    scaling = _marquardt_scaling(W)
     shift = max(shift, DAMP_MIN)
     while shift <= 1e8:
         factor = factor_pd(W + shift * scaling, ordered=pattern.ordered)
@@ -368,6 +370,14 @@ def _factor_lagrangian_hessian(
             return factor, rho, shift, False
         shift *= 100
     return None, rho, shift, False
+
+
+def _marquardt_scaling(W: sp.spmatrix | NDArray) -> sp.spmatrix | NDArray:
+    """``diag(|W_ii|)`` (zeros replaced by the largest entry, or 1), the Levenberg-Marquardt
+    shift's metric."""
+    diag = np.abs(W.diagonal())  # ndarray and sparse alike
+    scale = np.where(diag > 0, diag, max(float(diag.max(initial=0.0)), 1.0))
+    return np.diag(scale) if isinstance(W, np.ndarray) else sp.diags(scale)
 
 
 def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDArray | None]:
