@@ -345,6 +345,13 @@ class LearnableBody:
         old = self.modulus
         return np.maximum(old + raw, np.minimum(old, minimum)) - old
 
+    def damped_stepper(self, task: Any, damping: Any, dt: float) -> Any:
+        """Backward-Euler steps of this body against ``damping`` under ``task``'s clamps
+        (:class:`.damped_states.DampedStepper`): learning in physical time."""
+        from .damped_states import DampedStepper
+
+        return DampedStepper(self, task, damping, dt)
+
     def measurements(self, task: Any, free: Any, dof: str, mask: NDArray) -> dict[str, Any]:
         """What :func:`~continuum_vs_network.train` records of a free state (lengths are
         those of the material springs: undeformed ``|ab|``, deformed ``|ab| (1 + S)``)."""

@@ -4,7 +4,12 @@ The paper writes its rules as differential equations that can run with the mater
 (Sec. 5, Eq. 17-18) and then assumes quasi-staticity. Here the nodes and the learning
 degrees of freedom evolve together as one system of ODEs; the material is a visco-elastic
 network (:mod:`~continuum_vs_network.network.viscous`: node drag, spring dashpots, Maxwell
-arms) and never has to reach equilibrium. The rule objects supply ``alpha``, ``eta``,
+arms) or a learning medium such as the elastic continuum
+(:class:`~continuum_vs_network.continuum.learnable.LearnableBody` against drag and/or
+Kelvin-Voigt viscosity, :mod:`~continuum_vs_network.continuum.damped_states`), and never
+has to reach equilibrium. One loop serves both media; what it needs from each (a damped
+step under the clamps, the rule's local update per spring or element) is in
+:mod:`.time_media`. The rule objects supply ``alpha``, ``eta``,
 ``dof``, the learning mask and floors, and the strain convention; ``alpha`` is a rate (per
 time unit), so one quasi-static step of the rule with rate ``alpha`` is one explicit-Euler
 step of length 1 of the ODE.
@@ -29,7 +34,14 @@ Forms (``form``)
 
 The exact gradient stays quasi-static (use :func:`~.train.train`).
 
-Clamps are prescribed displacements of the clamped springs' end nodes, as in
+In the continuum the clamps are exact constraints on the material springs' strains
+(Lagrange multipliers), sources and targets are read from them, the learning unit is the
+element (eigenstrain, or modulus), its update the rule's per-area local one (forward
+Euler: ``alpha c_max dt_learn <= 1``, ``c_max`` the largest eigenvalue of an element's
+elastic tensor, checked), ``quasistatic=True`` an exact equilibrium; quasi-static learning
+in time with ``dt = 1`` is :func:`~.train.train` step for step.
+
+In a network, clamps are prescribed displacements of the clamped springs' end nodes, as in
 :func:`~continuum_vs_network.network.dynamics.simulate` (set symmetrically along the
 spring's current direction, then held); task pins are held. ``quasistatic=True`` replaces
 every physical step by the equilibrium with the same held nodes (a backward-Euler step of
@@ -61,11 +73,13 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ..network.dynamics import _boundary, relaxation_time
+from ..network.dynamics import relaxation_time
 from ..network.model import SpringNetwork
-from ..network.viscous import Stepper, Viscosity, simulate_viscous
-from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule, Step
+from ..network.viscous import Viscosity, simulate_viscous
+from .medium import is_medium
+from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
 from .tasks import AllosteryTask
+from .time_media import BodyTime, NetworkTime
 
 __all__ = ["Form", "TimeHistory", "learn_in_time", "network_relaxation_time"]
 
@@ -83,10 +97,14 @@ class TimeHistory:
     error : (T,) float array
         Eq. 26 at the equilibrium free state of the parameters learned by then.
     rest_length, stiffness : (T, n_springs) float arrays
+        The learning arrays (a body: its eigenstrain (T, n_elements, 3) and modulus
+        (T, n_elements) fields).
     target_length : (T, n_targets) float array
-        Target lengths of the moving network (the free copy for ``"twin"``).
+        Target lengths of the moving medium (the free copy for ``"twin"``; a body: its
+        target material springs).
     positions : (T, n_nodes, 2) float array
-        The moving network (the free copy for ``"twin"``), for export.
+        The moving medium (the free copy for ``"twin"``; a body: its deformed vertices),
+        for export.
     seconds : (T,) float array
         Wall-clock seconds at each output.
     rule, form : str
@@ -145,70 +163,6 @@ def network_relaxation_time(
     raise RuntimeError("the network does not relax after the source step (is it rigid?)")
 
 
-def _equilibrium_stepper(net: SpringNetwork, free: NDArray, tol: float) -> Stepper:
-    """A backward-Euler step of length ``1e12 / k_mean`` with unit drag: its proximal term
-    ``1e-12 k_mean |x - x0|^2 / 2`` is negligible, so one step is the equilibrium with the
-    held coordinates (Newton with a line search, the factorisation reused)."""
-    return Stepper(net, Viscosity(drag=1.0), free, 1e12 / float(np.mean(net.stiffness)), tol=tol)
-
-
-class _Copy:
-    """One moving network: positions, arms, held coordinates, and its stepper."""
-
-    def __init__(self, net, vis, pins, clamps, x, dt, quasistatic, tol) -> None:
-        self.x, self.free = _boundary(net, pins, None, clamps, x)
-        self.pins = pins
-        self.quasistatic = quasistatic
-        self.arm = net.lengths(self.x) if vis.has_arm and not quasistatic else None
-        if quasistatic:  # equilibria: arms relaxed carry no force
-            self.stepper = _equilibrium_stepper(net, self.free, tol)
-        else:
-            self.stepper = Stepper(net, vis, self.free, dt, tol=tol)
-
-    def hold(self, net: SpringNetwork, clamps: dict[int, float]) -> NDArray:
-        """Positions with the clamped nodes moved to ``clamps``' lengths."""
-        return _boundary(net, self.pins, None, clamps, self.x)[0]
-
-    def advance(self, net: SpringNetwork, x_held: NDArray | None = None) -> None:
-        self.x, _, self.arm = self.stepper.step(net, self.x, x_held=x_held, arm=self.arm)
-
-    @property
-    def factorisations(self) -> int:
-        return self.stepper.factorisations
-
-
-def _nudge(task: AllosteryTask, net: SpringNetwork, r_free: NDArray, rule: CoupledLearning):
-    ref = rule.strain_reference
-    s_free = task.target_strains(net, r_free[task.targets], ref)
-    s_nudge = s_free + rule.eta * (task.target_strain - s_free)
-    clamps = task.source_clamps(net, ref)
-    clamps.update(zip(task.targets.tolist(), (task.target_rest(net, ref) * (1 + s_nudge)).tolist()))
-    return clamps
-
-
-def _learn(
-    rule: Rule,
-    net: SpringNetwork,
-    task: AllosteryTask,
-    r_free: NDArray | None,
-    r_clamped: NDArray,
-    dt_learn: float,
-) -> SpringNetwork:
-    """The network after one learning step of length ``dt_learn`` (rates from ``rule``)."""
-    k, L = net.stiffness, net.rest_length
-    if isinstance(rule, ProspectiveConfiguration):
-        if rule.dof == "rest_length":
-            raw = -np.expm1(-rule.alpha * k * dt_learn) * (r_clamped - L)
-        else:
-            raw = -0.5 * rule.alpha * dt_learn * (r_clamped - L) ** 2
-    elif rule.dof == "rest_length":
-        raw = dt_learn * (rule.alpha / rule.eta) * k * (r_clamped - r_free)
-    else:
-        raw = dt_learn * (rule.alpha / (2 * rule.eta)) * ((r_free - L) ** 2 - (r_clamped - L) ** 2)
-    step = Step(delta=rule._delta(net, task, raw), dof=rule.dof, free=None, clamped=None)
-    return step.apply(net)
-
-
 def learn_in_time(
     net: SpringNetwork,
     task: AllosteryTask,
@@ -224,17 +178,19 @@ def learn_in_time(
     quasistatic: bool = False,
     tol: float = 1e-10,
 ) -> TimeHistory:
-    """Learn ``task`` with ``rule`` while the network moves (module docstring).
+    """Learn ``task`` with ``rule`` while the medium moves (module docstring).
 
     Parameters
     ----------
-    net : SpringNetwork
-        Starting network (its positions are the starting state).
-    task : AllosteryTask
+    net : SpringNetwork or LearnableBody
+        Starting network (its positions are the starting state) or learning medium (at
+        rest, zero displacement).
+    task : AllosteryTask (a network) or MaterialTask (a body)
     rule : ProspectiveConfiguration or CoupledLearning
         Rates and options; ``alpha`` is per time unit.
-    viscosity : Viscosity
-        Dissipation of the material.
+    viscosity : Viscosity or Damping
+        Dissipation of the material (a body: a continuum Damping, or a network Viscosity
+        mapped by :func:`~continuum_vs_network.continuum.viscoelastic.lattice_damping`).
     duration : float
         Physical time to run (> 0).
     dt : float
@@ -258,8 +214,6 @@ def learn_in_time(
         raise ValueError(
             f"rule must be ProspectiveConfiguration or CoupledLearning, got {type(rule).__name__}"
         )
-    if not isinstance(viscosity, Viscosity):
-        raise ValueError(f"viscosity must be a Viscosity, got {type(viscosity).__name__}")
     gpc = isinstance(rule, ProspectiveConfiguration)
     form = form or ("continuous" if gpc else "twin")
     allowed = ("continuous",) if gpc else ("twin", "phases")
@@ -272,14 +226,24 @@ def learn_in_time(
         raise ValueError(f"learn_every must be an integer >= 1, got {learn_every}")
     if int(n_outputs) != n_outputs or n_outputs < 1:
         raise ValueError(f"n_outputs must be an integer >= 1, got {n_outputs}")
-    task.check(net)
-    ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()
-    if np.unique(ends).size != ends.size:
-        raise ValueError(
-            "learning in physical time holds every clamp by its two end nodes: the task's "
-            "sources and targets must not share nodes"
-        )
     dt, duration = float(dt), float(duration)
+    if isinstance(net, SpringNetwork):
+        task.check(net)
+        ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()
+        if np.unique(ends).size != ends.size:
+            raise ValueError(
+                "learning in physical time holds every clamp by its two end nodes: the task's "
+                "sources and targets must not share nodes"
+            )
+        media: NetworkTime | BodyTime = NetworkTime(
+            net, task, rule, viscosity, dt, quasistatic, tol
+        )
+    elif is_medium(net):
+        media = BodyTime(net, task, rule, viscosity, dt, quasistatic, tol)
+    else:
+        raise ValueError(
+            f"net must be a SpringNetwork or a learning medium, got {type(net).__name__}"
+        )
     n_steps = max(1, math.ceil(duration / dt - 1e-9))
     if form == "phases":
         if phase is None or not (math.isfinite(float(phase)) and float(phase) > 0):
@@ -291,97 +255,77 @@ def learn_in_time(
     else:
         per_phase = 0
         dt_learn = learn_every * dt
-    if not gpc or rule.dof == "stiffness":
-        bound = rule.alpha * float(np.max(net.stiffness)) * dt_learn
-        if bound > 1.0:
-            raise ValueError(
-                f"explicit learning step too long: alpha k_max dt_learn = {bound:.3g} > 1; "
-                "reduce dt, learn_every or phase"
-            )
+    bound = media.rate_bound(rule, net) * dt_learn
+    if bound > 1.0:
+        raise ValueError(
+            f"explicit learning step too long: alpha c_max dt_learn = {bound:.3g} > 1 "
+            "(c_max: the largest stiffness); reduce dt, learn_every or phase"
+        )
 
-    ref = rule.strain_reference
-    pins = task.pinned
     t_start = time.perf_counter()
-    src = task.source_clamps(net, ref)
-    free_copy = _Copy(net, viscosity, pins, src, net.positions, dt, quasistatic, tol)
+    desired = np.asarray(task.target_strain, float)
+    free_copy = media.copy(net, None)
     copies = [free_copy]
+
+    def nudge(reading):
+        s_free = media.target_strain(net, reading)
+        return s_free + rule.eta * (task.target_strain - s_free)
+
     if gpc:
-        clamps = dict(src)
-        clamps.update(zip(task.targets.tolist(), task.desired_lengths(net, ref).tolist()))
-        moving = _Copy(net, viscosity, pins, clamps, net.positions, dt, quasistatic, tol)
+        moving = media.copy(net, desired)
         copies = [moving]
-    elif form == "twin":
-        moving = free_copy
-        nudged = _Copy(
-            net, viscosity, pins, _nudge(task, net, net.lengths(free_copy.x), rule),
-            free_copy.x, dt, quasistatic, tol,
-        )  # fmt: skip
-        copies.append(nudged)
     else:
         moving = free_copy
-        nudged = _Copy(
-            net, viscosity, pins, _nudge(task, net, net.lengths(free_copy.x), rule),
-            free_copy.x, dt, quasistatic, tol,
-        )  # fmt: skip
-        nudged.x = free_copy.x.copy()  # one network: the nudged mask and stepper share it
+        nudged = media.copy(net, nudge(media.read(net, free_copy)), start=free_copy)
         copies.append(nudged)
 
     every = max(1, n_steps // int(n_outputs))
     rows: list[tuple] = []
-    equilibrium = _equilibrium_stepper(net, free_copy.free, tol)  # the free state
-    x_free_eq = free_copy.x
 
-    def record(t: float, x_now: NDArray) -> None:
-        nonlocal x_free_eq
-        held = free_copy.hold(net, task.source_clamps(net, ref)) if ref == "current" else None
-        x_free_eq = equilibrium.step(net, x_free_eq, x_held=held)[0]
+    def record(t: float, copy) -> None:
+        rest, stiff = media.learning_arrays(net)
         rows.append(
             (
                 t,
-                task.error(net, x_free_eq, ref),
-                net.rest_length.copy(),
-                net.stiffness.copy(),
-                net.lengths(x_now)[task.targets],
-                x_now.copy(),
+                media.error(net),
+                rest,
+                stiff,
+                media.target_length(net, copy),
+                media.positions(net, copy),
                 time.perf_counter() - t_start,
             )
         )
 
-    record(0.0, moving.x)
+    record(0.0, moving)
     in_nudge = False
+    s_nudge = None
     for step in range(1, n_steps + 1):
         if gpc:
-            held = moving.hold(net, clamps) if ref == "current" else None
-            moving.advance(net, held)
+            media.advance(net, moving, desired)
             if step % learn_every == 0:
-                net = _learn(rule, net, task, None, net.lengths(moving.x), dt_learn)
-                if ref == "current":
-                    clamps = dict(task.source_clamps(net, ref))
-                    clamps.update(
-                        zip(task.targets.tolist(), task.desired_lengths(net, ref).tolist())
-                    )
+                net = media.update(rule, net, None, media.read(net, moving), dt_learn)
         elif form == "twin":
-            free_copy.advance(net, free_copy.hold(net, task.source_clamps(net, ref)))
-            nudged.advance(net, nudged.hold(net, _nudge(task, net, net.lengths(free_copy.x), rule)))
+            media.advance(net, free_copy, None)
+            media.advance(net, nudged, nudge(media.read(net, free_copy)))
             if step % learn_every == 0:
-                net = _learn(
-                    rule, net, task, net.lengths(free_copy.x), net.lengths(nudged.x), dt_learn
+                net = media.update(
+                    rule, net, media.read(net, free_copy), media.read(net, nudged), dt_learn
                 )
         else:
             position = (step - 1) % (2 * per_phase)
             if position == per_phase:  # free phase over: read, set the nudge
-                r_free = net.lengths(free_copy.x)
-                nudged.x, nudged.arm = free_copy.x, free_copy.arm
-                held = nudged.hold(net, _nudge(task, net, r_free, rule))
+                r_free = media.read(net, free_copy)
+                media.take(nudged, free_copy)
+                s_nudge = nudge(r_free)
                 in_nudge = True
             elif position == 0 and in_nudge:  # nudged phase over: read, learn, release
-                net = _learn(rule, net, task, r_free, net.lengths(nudged.x), dt_learn)
-                free_copy.x, free_copy.arm = nudged.x, nudged.arm
+                net = media.update(rule, net, r_free, media.read(net, nudged), dt_learn)
+                media.take(free_copy, nudged)
                 in_nudge = False
             moving = nudged if in_nudge else free_copy
-            moving.advance(net, held if (in_nudge and position == per_phase) else None)
+            media.advance(net, moving, s_nudge if in_nudge else None)
         if step % every == 0 or step == n_steps:
-            record(step * dt, moving.x)
+            record(step * dt, moving)
 
     cols = [np.asarray(c) for c in zip(*rows)]
     for c in cols:
@@ -400,5 +344,5 @@ def learn_in_time(
         dt=dt,
         dt_learn=dt_learn,
         quasistatic=bool(quasistatic),
-        factorisations=sum(c.factorisations for c in copies),
+        factorisations=media.factorisations(copies),
     )

@@ -20,7 +20,9 @@
   (:func:`~continuum_vs_network.learning.examples.gain_examples`, Rocks et al. 2019),
   :func:`gcl_k`. A network at rest that learns only stiffnesses cannot meet
   a task by prestress, so a met task is a changed response (the coupling is measured all
-  the same).
+  the same). The same unit finds the examples' exact-gradient optimum (meta ``exact``:
+  L-BFGS-B on the exact gradient, same floor, at most ``EXACT["max_iter"]`` iterations,
+  :mod:`~continuum_vs_network.learning.optimum`): what the network can hold.
 * ``beyond/node/<outputs>/<rule>``: every rule, and ``gcl_k`` (:func:`gcl_k`: GCL of the
   stiffnesses at rate ``GCL_K["alpha"] / mean(k)``, floor ``GCL_K["floor"] mean(k)``), on a
   node task
@@ -138,7 +140,7 @@ def plan_beyond_paper(scene: Scene) -> list[Unit]:
                         func=capacity_unit,
                         params={"size": n, "examples": m, "seed": seed},
                         depends=depends,
-                        weight=steps * m,
+                        weight=(steps + 2 * EXACT["max_iter"]) * m,
                     )
                 )
     units.append(
@@ -272,8 +274,49 @@ def capacity_unit(scene: Scene, params: dict, ctx: UnitContext):
     meta.update(
         n_nodes=net.n_nodes, n_springs=net.n_springs, examples=params["examples"],
         seed=params["seed"], worst_example=_worst_example(h, tasks), **CAPACITY, **GCL_K,
+        exact=_exact_capacity(net, tasks),
     )  # fmt: skip
     return arrays, meta
+
+
+def _exact_capacity(net, tasks) -> dict:
+    """The same examples at the quasi-static optimum of their summed error (L-BFGS-B on the
+    exact gradient, :mod:`~continuum_vs_network.learning.optimum`), same stiffness floor:
+    what the network can hold, whatever a rule reaches in its budget."""
+    import time
+
+    from ..learning.coupling import coupling_verdict, measure_coupling, outcome
+    from ..learning.optimum import exact_optimum
+    from ..learning.rules import LearningError
+    from ..network.equilibrium import EquilibriumError
+
+    start = time.perf_counter()
+    k = float(np.mean(net.stiffness))
+    try:
+        o = exact_optimum(net, tasks, floor=GCL_K["floor"] * k, max_iter=EXACT["max_iter"])
+        shares = [measure_coupling(net, o.net, task).share for task in tasks.tasks]
+    except (EquilibriumError, LearningError) as err:
+        return {"outcome": "stopped", "stop_reason": str(err), "ratio": float("nan"),
+                "worst_example": float("nan"), "source_share": float("nan"),
+                "seconds": time.perf_counter() - start}  # fmt: skip
+    ratio = o.error / o.error_initial
+    verdict = coupling_verdict(min(shares))
+    return {
+        "ratio": float(ratio),
+        "worst_example": float(np.nanmax(o.example_ratio)),
+        "source_share": float(min(shares)),
+        "coupling": verdict,
+        "outcome": outcome(ratio, verdict),
+        "converged": o.converged,
+        "message": o.message,
+        "evaluations": o.evaluations,
+        "seconds": time.perf_counter() - start,
+        **EXACT,
+    }
+
+
+#: the exact-gradient reference of the capacity study: most L-BFGS-B iterations
+EXACT = {"max_iter": 150}
 
 
 def _worst_example(h, tasks) -> float:

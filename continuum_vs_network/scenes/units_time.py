@@ -53,11 +53,17 @@ def plan_time(scene: Scene) -> list[Unit]:
     series = scene.export is not None and scene.export.series
     return [
         Unit(
-            key=f"physical_time/n{n}/{rule}",
+            key=f"physical_time/n{n}/{rule}" + ("" if medium == "network" else f"/{medium}"),
             func=time_unit,
-            params={"n": int(n), "rule": rule, "series": bool(series and n == sizes[-1])},
+            params={
+                "n": int(n),
+                "rule": rule,
+                "medium": medium,
+                "series": bool(series and n == sizes[-1]),
+            },
             depends=depends,
         )
+        for medium in scene.physical_time.media
         for n in sizes
         for rule in rules
     ]
@@ -124,16 +130,11 @@ def _rule(name: str, alpha: float, eta: float):
     return CoupledLearning(alpha, eta, **kw)
 
 
-def time_unit(scene: Scene, params: dict, ctx: UnitContext):
-    """Learning in physical time against the ratio, for one size and rule."""
-    from ..learning.physical_time import learn_in_time, network_relaxation_time
-    from ..learning.rules import LearningError
+def _lattice_task(scene: Scene, n: int):
     from ..learning.tasks import stern_task
-    from ..network.viscous import Viscosity
     from .units_physics import lattice
 
-    spec, t = scene.physical_time, scene.task
-    n, name = params["n"], params["rule"]
+    t = scene.task
     net = lattice(scene, n)
     rng = np.random.default_rng([scene.seed, n])
     for _ in range(200):  # clamps are held end nodes: sources and targets share no node
@@ -142,34 +143,64 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         )
         ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()
         if np.unique(ends).size == ends.size:
-            break
-    else:
-        raise ValueError(
-            f"no task of {t.n_sources} sources and {t.n_targets} targets without shared nodes "
-            f"found on the {n} x {n} lattice in 200 draws; use fewer springs or a larger lattice"
-        )
+            return net, task
+    raise ValueError(
+        f"no task of {t.n_sources} sources and {t.n_targets} targets without shared nodes "
+        f"found on the {n} x {n} lattice in 200 draws; use fewer springs or a larger lattice"
+    )
+
+
+def _medium(scene: Scene, n: int, medium: str, vis):
+    """``(learner, task, tau, n_nodes)``: the lattice, or its continuum (P1 on the
+    lattice's triangles, lattice Lamé parameters, the same task's material springs)."""
+    from ..learning.physical_time import network_relaxation_time
+
+    net, task = _lattice_task(scene, n)
+    if medium == "network":
+        return net, task, network_relaxation_time(net, task, vis), net.n_nodes
+    from ..continuum.damped_states import body_relaxation_time
+    from ..continuum.learnable import learnable_body
+    from ..continuum.material_task import MaterialTask
+    from ..continuum.materials import lattice_lame
+    from ..continuum.mesh import network_mesh
+    from ..continuum.viscoelastic import lattice_damping
+
+    body = learnable_body(network_mesh(net), lattice_lame(float(np.mean(net.stiffness))))
+    mtask = MaterialTask.from_network(net, task, body)
+    return body, mtask, body_relaxation_time(body, mtask, lattice_damping(vis)), net.n_nodes
+
+
+def _past(row: dict) -> bool:
+    return row["slowdown"] >= SLOWDOWN or row["rebound"] >= OSCILLATION
+
+
+def time_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """Learning in physical time against the ratio, for one size, rule and medium."""
+    from ..learning.physical_time import learn_in_time
+    from ..learning.rules import LearningError
+    from ..network.viscous import Viscosity
+
+    spec = scene.physical_time
+    n, name, medium = params["n"], params["rule"], params.get("medium", "network")
     vis = Viscosity(
         drag=spec.drag,
         dashpot=spec.dashpot,
         arm_stiffness=spec.arm_stiffness,
         arm_dashpot=spec.arm_dashpot,
     )
-    tau = network_relaxation_time(net, task, vis)
-    k = float(np.mean(net.stiffness))
-    arrays: dict[str, Any] = {}
-    rows = []
-    series_ratio = float(min(spec.ratios, key=lambda r: abs(math.log(r))))
-    for i, ratio in enumerate(spec.ratios):
+    net, task, tau, n_nodes = _medium(scene, n, medium, vis)
+    k = 1.0  # the lattice's spring stiffness: rho = alpha k tau in both media
+    qs_cache: dict[tuple, tuple] = {}
+
+    def one(ratio: float) -> tuple[dict, dict]:
         alpha = ratio / (k * tau)
         rule = _rule(name, alpha, spec.eta)
         dt = min(tau / spec.steps_per_tau, 1.0 / (spec.steps_per_rate * alpha * k))
-        opts: dict[str, Any] = {"form": "twin" if name == "gcl" else None}
+        opts: dict[str, Any] = {"form": "twin"} if name == "gcl" else {}
         if name == "gcl_phases":
             phase = min(spec.phase * tau, 0.5 / (spec.steps_per_rate * alpha * k))
             dt = min(dt, phase)
             opts = {"form": "phases", "phase": phase}
-        elif name == "gpc":
-            opts = {}
         t_learn = spec.learning_times / (alpha * k)
         duration = max(t_learn, spec.relaxation_times * tau)
         outputs = min(300, max(20, round(60 * duration / t_learn)))
@@ -178,40 +209,43 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
             run = learn_in_time(
                 net, task, rule, viscosity=vis, duration=duration, dt=dt, n_outputs=outputs, **opts
             )
-        except (LearningError, RuntimeError):  # a rest length through zero, a failed step
+        except (LearningError, RuntimeError, FloatingPointError):  # diverged: a failed step
             run = None
         seconds = time.perf_counter() - t0
-        try:
-            qs = learn_in_time(
-                net,
-                task,
-                rule,
-                viscosity=vis,
-                duration=t_learn,
-                dt=dt,
-                n_outputs=60,
-                quasistatic=True,
-                **opts,
-            )
-        except (LearningError, RuntimeError) as err:
-            raise ValueError(
-                f"the quasi-static run diverged at ratio {ratio:g} ({err}): its learning step "
-                "is too long; raise [physical_time] steps_per_rate"
-            ) from err
-        e_qs = qs.error / qs.error[0]
+        # the quasi-static run depends on alpha only through the time unit 1 / (alpha k):
+        # one run per learning step in those units, rescaled
+        key = (round(alpha * k * dt, 12), round(alpha * k * opts.get("phase", 0.0), 12))
+        if key not in qs_cache:
+            try:
+                qs = learn_in_time(
+                    net, task, rule, viscosity=vis, duration=t_learn, dt=dt, n_outputs=60,
+                    quasistatic=True, **opts,
+                )  # fmt: skip
+            except (LearningError, RuntimeError) as err:
+                raise ValueError(
+                    f"the quasi-static run diverged at ratio {ratio:g} ({err}): its learning "
+                    "step is too long; raise [physical_time] steps_per_rate"
+                ) from err
+            qs_cache[key] = (
+                qs.times * alpha * k, qs.error / qs.error[0], qs.dt_learn * alpha * k,
+                float(qs.seconds[-1]), float(qs.error[0]),
+            )  # fmt: skip
+        times_qs, e_qs, dt_learn_qs, seconds_qs, error0 = qs_cache[key]
+        times_qs = times_qs / (alpha * k)
         level = e_qs[-1] + spec.fraction * (1.0 - e_qs[-1])
-        T_qs = crossing_time(qs.times, e_qs, level)
+        T_qs = crossing_time(times_qs, e_qs, level)
         row = {
             "ratio": ratio,
             "alpha": alpha,
             "dt": dt,
-            "dt_learn": qs.dt_learn,
+            "dt_learn": dt_learn_qs / (alpha * k),
             "duration": duration,
             "T_qs": T_qs,
             "error_qs_end": float(e_qs[-1]),
             "seconds": seconds,
-            "seconds_qs": float(qs.seconds[-1]),
+            "seconds_qs": seconds_qs,
             "diverged": run is None,
+            "error0": error0,
         }
         if run is None:  # diverged: never learned, unbounded oscillation
             row.update(
@@ -236,42 +270,66 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
                     "rebound": rebound(e),
                 }
             )
+        return row, {"times": times, "error": e, "times_qs": times_qs, "error_qs": e_qs, "run": run}
+
+    arrays: dict[str, Any] = {}
+    rows = []
+    series_ratio = float(min(spec.ratios, key=lambda r: abs(math.log(r))))
+    for i, ratio in enumerate(spec.ratios):
+        row, out = one(ratio)
         rows.append(row)
-        arrays[f"r{i}/times"] = times
-        arrays[f"r{i}/error"] = e
-        arrays[f"r{i}/times_qs"] = qs.times
-        arrays[f"r{i}/error_qs"] = e_qs
+        for name_ in ("times", "error", "times_qs", "error_qs"):
+            arrays[f"r{i}/{name_}"] = out[name_]
+        run = out["run"]
         if params["series"] and ratio == series_ratio and run is not None:
             idx = np.unique(np.linspace(0, run.times.size - 1, spec.frames).round().astype(int))
-            arrays.update(
-                {
-                    "net/positions": net.positions,
-                    "net/springs": net.springs,
-                    "net/stiffness": net.stiffness,
-                    "net/rest_length": net.rest_length,
-                    "net/sources": task.sources,
-                    "net/targets": task.targets,
-                    "series/times": run.times[idx],
-                    "series/x": run.positions[idx],
-                    "series/rest_length": run.rest_length[idx],
-                    "series/stiffness": run.stiffness[idx],
-                }
-            )
+            arrays.update(_series_arrays(net, task, run, idx, medium))
+    # bisection of the critical ratio in log scale between the bracketing grid ratios
+    extra: list[dict] = []
+    past = [_past(r) for r in rows]
+    if any(past) and past.index(True) > 0:
+        j = past.index(True)
+        lo, hi = rows[j - 1], rows[j]
+        for _ in range(spec.bisections):
+            row, _ = one(math.sqrt(lo["ratio"] * hi["ratio"]))
+            extra.append(row)
+            lo, hi = (lo, row) if _past(row) else (row, hi)
+    every = sorted(rows + extra, key=lambda r: r["ratio"])
     crit, which = critical_ratio(
-        spec.ratios, [r["slowdown"] for r in rows], [r["rebound"] for r in rows]
+        [r["ratio"] for r in every], [r["slowdown"] for r in every], [r["rebound"] for r in every]
     )
-    past = [r for r in rows if r["slowdown"] >= SLOWDOWN or r["rebound"] >= OSCILLATION]
-    if past and past[0]["diverged"]:
+    first = [r for r in every if _past(r)]
+    if first and first[0]["diverged"]:
         which = "divergence"
     meta = {
         "critical_ratio": crit,
         "critical_by": which,
         "n": n,
-        "n_nodes": net.n_nodes,
+        "n_nodes": n_nodes,
         "rule": name,
+        "medium": medium,
         "tau": tau,
-        "error0": float(qs.error[0]),
+        "error0": rows[0]["error0"],
         "series_ratio": series_ratio if params["series"] else None,
         "runs": rows,
+        "bisection": extra,
     }
     return arrays, meta
+
+
+def _series_arrays(net, task, run, idx, medium: str) -> dict[str, Any]:
+    """What the PVD export of a network run needs (networks only)."""
+    if medium != "network":
+        return {}
+    return {
+        "net/positions": net.positions,
+        "net/springs": net.springs,
+        "net/stiffness": net.stiffness,
+        "net/rest_length": net.rest_length,
+        "net/sources": task.sources,
+        "net/targets": task.targets,
+        "series/times": run.times[idx],
+        "series/x": run.positions[idx],
+        "series/rest_length": run.rest_length[idx],
+        "series/stiffness": run.stiffness[idx],
+    }

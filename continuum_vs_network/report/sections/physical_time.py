@@ -15,6 +15,9 @@ _NAMES = {
     "gcl": "GCL, twin networks",
     "gcl_phases": "GCL, free and nudged phases",
     "gpc": "GPC, continuous",
+    "gcl/continuum": "GCL, twin continua",
+    "gcl_phases/continuum": "GCL, phases, continuum",
+    "gpc/continuum": "GPC, continuous, continuum",
 }
 #: Speed-up (learning time at the smallest ratio over the shortest) that counts as "the
 #: learning rate speeds learning up", and below which it does not.
@@ -27,7 +30,9 @@ QS_AGREEMENT = 0.05
 def _by_rule(result) -> dict[str, list]:
     out: dict[str, list] = {}
     for u in result.select("physical_time/").values():
-        out.setdefault(u.meta["rule"], []).append(u)
+        medium = u.meta.get("medium", "network")
+        key = u.meta["rule"] if medium == "network" else f"{u.meta['rule']}/{medium}"
+        out.setdefault(key, []).append(u)
     for units in out.values():
         units.sort(key=lambda u: u.meta["n_nodes"])
     return out
@@ -65,7 +70,24 @@ def section(doc: Document, result) -> None:
         f"past the quasi-static regime when T is {SLOWDOWN:g} times the quasi-static T or "
         f"the error climbs back to {OSCILLATION:g} times its running minimum (rebound, "
         "oscillation; errors below 1e-6 of the initial one do not count); the critical ratio "
-        "is the smallest such ratio (interpolated in log-log)."
+        "is the smallest such ratio (interpolated in log-log"
+        + (
+            f", after {spec.bisections} bisections in log scale between the last grid ratio "
+            "before it and the first past it"
+            if spec.bisections
+            else ""
+        )
+        + ")."
+        + (
+            " The continuum (rows '... continuum'): the lattice's own triangles (P1, lattice "
+            "Lamé parameters), learning its eigenstrain with the same rule objects, the same "
+            "task's material springs clamped exactly (Lagrange multipliers, not held nodes), "
+            "against the lattice's node drag mapped to a substrate drag; its tau by the same "
+            "net-force criterion (`continuum/damped_states.py`); rho = alpha k tau with the "
+            "lattice's k = 1."
+            if "continuum" in spec.media
+            else ""
+        )
     )
     rows = []
     for name, units in rules.items():
@@ -117,7 +139,7 @@ def section(doc: Document, result) -> None:
         c = np.array([u.meta["critical_ratio"] for u in units], float)
         ok = np.isfinite(c)
         if ok.sum() >= 2:
-            fits[name] = float(np.polyfit(np.log(N[ok]), np.log(c[ok]), 1)[0])
+            fits[name] = _slope(np.log(N[ok]), np.log(c[ok]))
         for u in units:
             m = u.meta
             crit_rows.append(
@@ -134,12 +156,31 @@ def section(doc: Document, result) -> None:
     doc.table(["rule", "N", "tau", "critical ratio", "criterion met"], crit_rows)
     if fits:
         doc.add(
-            "Critical ratio against N: "
-            + "; ".join(f"{_NAMES[k]}: rho* ~ N^{v:.2f}" for k, v in fits.items())
+            "Critical ratio against N, least-squares fit of log rho* on log N over the sizes "
+            "with a critical ratio (exponent +- its standard error; 'no trend' when the "
+            "exponent is within two standard errors of 0, 'no error estimate' from two sizes): "
+            + "; ".join(f"{_NAMES[k]}: {_describe_fit(*v)}" for k, v in fits.items())
             + "."
         )
     _figures(doc, rules, ratios)
     _findings(doc, rules, ratios)
+
+
+def _slope(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """Least-squares slope of ``y`` on ``x`` and its standard error (nan from two points)."""
+    coef, residuals, *_ = np.polyfit(x, y, 1, full=True)
+    if x.size < 3:
+        return float(coef[0]), math.nan
+    rss = float(residuals[0]) if residuals.size else 0.0
+    spread = float(np.sum((x - x.mean()) ** 2))
+    return float(coef[0]), math.sqrt(rss / (x.size - 2) / spread)
+
+
+def _describe_fit(slope: float, error: float) -> str:
+    if not math.isfinite(error):
+        return f"rho* ~ N^{slope:.2f} (no error estimate)"
+    trend = "no trend" if abs(slope) <= 2 * error else ("grows" if slope > 0 else "falls")
+    return f"rho* ~ N^({slope:.2f} +- {error:.2f}), {trend}"
 
 
 def _figures(doc: Document, rules: dict, ratios: np.ndarray) -> None:
@@ -200,8 +241,9 @@ def _figures(doc: Document, rules: dict, ratios: np.ndarray) -> None:
     doc.figure(
         "physical_time_critical",
         [Panel(series, "critical ratio", "N (nodes)", "rho*", xscale="log", yscale="log")],
-        f"Critical ratio against size (ratios tested: {', '.join(f'{r:g}' for r in ratios)}; "
-        "none past the regime: not drawn).",
+        f"Critical ratio against size (grid ratios: {', '.join(f'{r:g}' for r in ratios)}, "
+        "then bisected between the bracketing ones where the scene asks; none past the "
+        "regime: not drawn).",
     )
 
 

@@ -246,6 +246,21 @@ class PhysicalTimeSpec:
         "ratios alpha k tau of learning rate to relaxation rate",
         check=_all(_unique_nonempty, _each(_positive), _increasing),
     )
+    media: tuple[str, ...] = _key(
+        "list[str]",
+        ("network",),
+        "media: network (the lattice) and/or continuum (its elastic continuum on the "
+        "lattice's triangles, P1, learning its eigenstrain against the mapped drag)",
+        choices=("network", "continuum"),
+        check=_unique_nonempty,
+    )
+    bisections: int = _key(
+        "int",
+        0,
+        "bisections of the critical ratio between the last ratio before it and the first "
+        "past it (log scale)",
+        check=_at_least(0),
+    )
     eta: float = _key(
         "float",
         0.1,

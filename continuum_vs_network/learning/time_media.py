@@ -1,0 +1,210 @@
+"""What learning in physical time needs from a medium: copies that move, readings, updates.
+
+:func:`~.physical_time.learn_in_time` runs one loop (continuous, twin and phase forms) for
+every medium; a medium adapter supplies
+
+* ``copy(target_strain, start)``: a moving copy with the sources held and the targets held
+  at ``target_strain`` (None: free), from ``start`` (None: the medium at rest);
+* ``advance(medium, copy, target_strain)``: one damped step of the copy with those clamps;
+* ``read(medium, copy)``: the state the rule reads (a network's spring lengths, a body's
+  displacement) and ``target_strain(medium, reading)``;
+* ``update(rule, medium, free, clamped, dt_learn)``: the medium after one learning step
+  from two readings (``free`` None for GPC): the rule's local update per spring or per
+  element, masked and floored by the rule;
+* ``error(medium)``: Eq. 26 at the equilibrium free state; ``positions`` and
+  ``learning_arrays`` for the record.
+
+:class:`NetworkTime` steps a :class:`~..network.model.SpringNetwork` with
+:class:`~..network.viscous.Stepper` (drag, dashpots, Maxwell arms); :class:`BodyTime` a
+learning medium (:class:`~..continuum.learnable.LearnableBody`) with the medium's
+:meth:`damped_stepper` (drag, Kelvin-Voigt; clamps exact).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..network.dynamics import _boundary
+from ..network.model import SpringNetwork
+from ..network.viscous import Stepper, Viscosity
+from .rules import ProspectiveConfiguration, Step
+
+__all__ = ["BodyTime", "NetworkTime"]
+
+
+def _equilibrium_stepper(net: SpringNetwork, free: NDArray, tol: float) -> Stepper:
+    """A backward-Euler step of length ``1e12 / k_mean`` with unit drag: its proximal term
+    ``1e-12 k_mean |x - x0|^2 / 2`` is negligible, so one step is the equilibrium with the
+    held coordinates (Newton with a line search, the factorisation reused)."""
+    return Stepper(net, Viscosity(drag=1.0), free, 1e12 / float(np.mean(net.stiffness)), tol=tol)
+
+
+class _Copy:
+    """One moving network: positions, arms, held coordinates and its stepper."""
+
+    def __init__(self, x, free, arm, stepper) -> None:
+        self.x, self.free, self.arm, self.stepper = x, free, arm, stepper
+
+
+class NetworkTime:
+    """A spring network in time (module docstring); ``viscosity``: a network Viscosity."""
+
+    def __init__(self, net, task, rule, viscosity, dt, quasistatic, tol) -> None:
+        if not isinstance(viscosity, Viscosity):
+            raise ValueError(f"viscosity must be a Viscosity, got {type(viscosity).__name__}")
+        self.task, self.ref, self.vis = task, rule.strain_reference, viscosity
+        self.dt, self.quasistatic, self.tol = dt, quasistatic, tol
+        self._free_eq = None
+
+    def _clamps(self, net, target_strain):
+        task, ref = self.task, self.ref
+        clamps = task.source_clamps(net, ref)
+        if target_strain is not None:
+            lengths = task.target_rest(net, ref) * (1.0 + np.asarray(target_strain))
+            clamps.update(zip(task.targets.tolist(), lengths.tolist()))
+        return clamps
+
+    def copy(self, net, target_strain, start=None) -> _Copy:
+        x0 = net.positions if start is None else start.x
+        x, free = _boundary(net, self.task.pinned, None, self._clamps(net, target_strain), x0)
+        if self.quasistatic:  # equilibria: arms relaxed carry no force
+            return _Copy(x, free, None, _equilibrium_stepper(net, free, self.tol))
+        arm = net.lengths(x) if self.vis.has_arm else None
+        return _Copy(x, free, arm, Stepper(net, self.vis, free, self.dt, tol=self.tol))
+
+    def take(self, copy: _Copy, other: _Copy) -> None:
+        """``copy`` continues from ``other``'s state (one network, another clamp set)."""
+        copy.x, copy.arm = other.x, other.arm
+
+    def advance(self, net, copy: _Copy, target_strain) -> None:
+        held = _boundary(net, self.task.pinned, None, self._clamps(net, target_strain), copy.x)[0]
+        copy.x, _, copy.arm = copy.stepper.step(net, copy.x, x_held=held, arm=copy.arm)
+
+    def read(self, net, copy: _Copy) -> NDArray:
+        return net.lengths(copy.x)
+
+    def target_strain(self, net, reading: NDArray) -> NDArray:
+        return self.task.target_strains(net, reading[self.task.targets], self.ref)
+
+    def update(self, rule, net, free, clamped, dt_learn) -> SpringNetwork:
+        """GPC: ``L += (1 - exp(-alpha k dt)) (r^C - L)`` (exact for lengths held over the
+        step) or ``k -= alpha dt (r^C - L)^2 / 2``; GCL: forward Euler of Eq. 13-15."""
+        k, L = net.stiffness, net.rest_length
+        if isinstance(rule, ProspectiveConfiguration):
+            if rule.dof == "rest_length":
+                raw = -np.expm1(-rule.alpha * k * dt_learn) * (clamped - L)
+            else:
+                raw = -0.5 * rule.alpha * dt_learn * (clamped - L) ** 2
+        elif rule.dof == "rest_length":
+            raw = dt_learn * (rule.alpha / rule.eta) * k * (clamped - free)
+        else:
+            raw = dt_learn * (rule.alpha / (2 * rule.eta)) * ((free - L) ** 2 - (clamped - L) ** 2)
+        step = Step(delta=rule._delta(net, self.task, raw), dof=rule.dof, free=None, clamped=None)
+        return step.apply(net)
+
+    def rate_bound(self, rule, net) -> float:
+        """``alpha k_max``: forward-Euler learning needs ``rate_bound * dt_learn <= 1``
+        (0 for GPC's exact rest-length update)."""
+        if isinstance(rule, ProspectiveConfiguration) and rule.dof == "rest_length":
+            return 0.0
+        return rule.alpha * float(np.max(net.stiffness))
+
+    def error(self, net) -> float:
+        task, ref = self.task, self.ref
+        if self._free_eq is None:
+            self._free_eq = self.copy(net, None)
+            self._free_eq.stepper = _equilibrium_stepper(net, self._free_eq.free, self.tol)
+        eq = self._free_eq
+        held = _boundary(net, task.pinned, None, self._clamps(net, None), eq.x)[0]
+        eq.x = eq.stepper.step(net, eq.x, x_held=held if ref == "current" else None)[0]
+        return task.error(net, eq.x, ref)
+
+    def positions(self, net, copy: _Copy) -> NDArray:
+        return copy.x.copy()
+
+    def target_length(self, net, copy: _Copy) -> NDArray:
+        return net.lengths(copy.x)[self.task.targets]
+
+    def learning_arrays(self, net) -> tuple[NDArray, NDArray]:
+        return net.rest_length.copy(), net.stiffness.copy()
+
+    def factorisations(self, copies) -> int:
+        return sum(c.stepper.factorisations for c in copies)
+
+
+class BodyTime:
+    """A learning medium in time (module docstring); ``viscosity``: a continuum Damping
+    (or a network Viscosity, mapped by
+    :func:`~continuum_vs_network.continuum.viscoelastic.lattice_damping`)."""
+
+    def __init__(self, medium, task, rule, viscosity, dt, quasistatic, tol) -> None:
+        if isinstance(viscosity, Viscosity):
+            from ..continuum.viscoelastic import lattice_damping
+
+            viscosity = lattice_damping(viscosity)
+        if rule.strain_reference != "initial":
+            raise ValueError(
+                "a continuum's material springs measure strain against the undeformed body: "
+                "use strain_reference='initial'"
+            )
+        medium.learning_dof(rule.dof)
+        medium.check_task(task)
+        self.task = task
+        self.stepper = medium.damped_stepper(task, viscosity, np.inf if quasistatic else dt)
+        self.ref = "initial"
+
+    def copy(self, medium, target_strain, start=None):
+        u = np.zeros(medium.n_dofs) if start is None else start.u
+        return SimpleNamespace(u=u, stepper=self.stepper)
+
+    def take(self, copy, other) -> None:
+        copy.u = other.u
+
+    def advance(self, medium, copy, target_strain) -> None:
+        copy.u = self.stepper.step(medium, copy.u, target_strain)
+
+    def read(self, medium, copy) -> NDArray:
+        return copy.u
+
+    def target_strain(self, medium, reading: NDArray) -> NDArray:
+        return self.stepper.target_strain(reading)
+
+    def update(self, rule, medium, free, clamped, dt_learn):
+        """Forward Euler of the rule's local update per element (:mod:`.medium`)."""
+        dof = rule.dof
+        state = SimpleNamespace(u=clamped)
+        if isinstance(rule, ProspectiveConfiguration):
+            raw = -rule.alpha * dt_learn * medium.local_gradient(state, dof)
+        else:
+            minus = SimpleNamespace(u=free)
+            rate = rule.alpha / rule.eta * dt_learn
+            raw = -rate * medium.local_gradient(state, dof, minus=minus)
+        mask = rule.learning_mask(medium, self.task)
+        raw = np.where(mask if raw.ndim == 1 else mask[:, None], raw, 0.0)
+        delta = medium.floor(dof, raw, rule.min_stiffness)
+        return Step(delta=delta, dof=dof, free=None, clamped=None).apply(medium)
+
+    def rate_bound(self, rule, medium) -> float:
+        """``alpha`` times the largest eigenvalue of ``s_e C_e`` (Mandel form: ``2 (lam +
+        mu)`` or ``2 mu``): forward Euler needs ``rate_bound * dt_learn <= 1``."""
+        lam, mu = np.asarray(medium.body.lam), np.asarray(medium.body.mu)
+        c = np.maximum(2 * (lam + mu), 2 * mu) * np.ones(medium.n_elements)
+        return rule.alpha * float(np.max(medium.modulus * c))
+
+    def error(self, medium) -> float:
+        return self.task.error(medium.free_state(self.task).target_strain)
+
+    def positions(self, medium, copy) -> NDArray:
+        return medium.vertex_positions(copy.u)
+
+    def target_length(self, medium, copy) -> NDArray:
+        return self.task.target_length * (1.0 + self.stepper.target_strain(copy.u))
+
+    def learning_arrays(self, medium) -> tuple[NDArray, NDArray]:
+        return medium.eigenstrain.copy(), medium.modulus.copy()
+
+    def factorisations(self, copies) -> int:
+        return self.stepper.factorisations
