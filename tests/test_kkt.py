@@ -11,6 +11,7 @@ from continuum_vs_network.network.kkt import (
     Inertia,
     factor_kkt,
     factor_spd,
+    factor_spd_or_curvature,
     schur_solve,
     set_sparse_solver,
     sparse_solver,
@@ -169,3 +170,23 @@ def test_pardiso_agrees_with_superlu_and_refuses_indefinite_matrices(solver_choi
     factors = [factor_spd(M) for M in shifted]
     for M, f in zip(shifted, factors, strict=True):
         np.testing.assert_allclose(M @ f.solve(B), B, atol=1e-9)
+
+
+def test_failed_factorisation_returns_directions_of_negative_curvature(solver_choice):
+    set_sparse_solver("superlu")
+    W = _laplacian_2d(22).tolil()
+    factor, directions = factor_spd_or_curvature(W.tocsr())
+    assert factor is not None and directions is None
+    b = np.arange(W.shape[0], dtype=float)
+    np.testing.assert_allclose(W.tocsr() @ factor.solve(b), b, rtol=1e-9, atol=1e-9)
+    W[100, 100] = -3.0  # indefinite: Rayleigh quotient of e_100 is negative
+    W = W.tocsr()
+    factor, directions = factor_spd_or_curvature(W)
+    assert factor is None
+    assert directions is not None and directions.shape[0] == W.shape[0]
+    curvature = np.einsum("ij,ij->j", directions, W @ directions)
+    assert np.all(curvature < 0)
+    # a negative Rayleigh quotient bounds the smallest eigenvalue from above
+    lowest = np.linalg.eigvalsh(W.toarray())[0]
+    norms = np.einsum("ij,ij->j", directions, directions)
+    assert np.all(lowest <= curvature / norms + 1e-12)

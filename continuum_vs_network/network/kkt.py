@@ -61,6 +61,7 @@ __all__ = [
     "Inertia",
     "factor_kkt",
     "factor_spd",
+    "factor_spd_or_curvature",
     "schur_solve",
     "set_sparse_solver",
     "sparse_lu",
@@ -181,15 +182,51 @@ def factor_spd(
         return Factor(lambda b: sla.cho_solve(c, b, check_finite=False), n)
     if sparse_solver() == "pardiso":
         return _pardiso_spd(W)
+    if certify:
+        return factor_spd_or_curvature(W, ordered=ordered)[0]
     try:
         lu = sparse_lu(W, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
     except RuntimeError:  # exactly singular
         return None
+    return Factor(lu.solve, n) if np.array_equal(lu.perm_r, lu.perm_c) else None
+
+
+def factor_spd_or_curvature(
+    W: sp.spmatrix, *, ordered: bool = False, count: int = 2
+) -> tuple[Factor | None, NDArray | None]:
+    """:func:`factor_spd` of sparse symmetric ``W`` (n, n), and when ``W`` is indefinite
+    up to ``count`` directions of negative curvature read off the same factorisation.
+
+    Returns ``(factor, None)`` when ``W > 0``; ``(None, V)`` with ``V`` (n, k), each column
+    ``v`` with ``v^T W v < 0`` (checked), when SuperLU's symmetric factorisation
+    ``P^T W P = L D L^T`` shows negative pivots: ``v = P L^-T e_i`` for the most negative
+    ``d_i`` gives ``v^T W v = d_i`` (one triangular solve each); ``(None, None)`` when no
+    direction is known (singular, pivots left the diagonal, PARDISO, or dense sizes).
+    """
+    n = W.shape[0]
+    if n <= DENSE_MAX or sparse_solver() == "pardiso":
+        return factor_spd(W, ordered=ordered), None
+    try:
+        lu = sparse_lu(W, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
+    except RuntimeError:  # exactly singular
+        return None, None
     if not np.array_equal(lu.perm_r, lu.perm_c):
-        return None
-    if certify and not np.all(lu.U.diagonal() > 0):
-        return None
-    return Factor(lu.solve, n)
+        return None, None
+    U = lu.U
+    d = U.diagonal()
+    if np.all(d > 0):
+        return Factor(lu.solve, n), None
+    # W^-1 P^T L e_i = P U^-1 e_i = P L^-T e_i / d_i (U = D L^T): a solve with lu itself
+    L = lu.L
+    directions = []
+    for i in np.argsort(d)[:count]:
+        if d[i] >= 0:
+            break
+        column = L[:, [i]].toarray().ravel()
+        v = lu.solve(column[lu.perm_r])
+        if np.all(np.isfinite(v)) and float(v @ (W @ v)) < 0:
+            directions.append(v)
+    return None, (np.column_stack(directions) if directions else None)
 
 
 def _inertia_of_values(values: NDArray, scale: float) -> Inertia:
