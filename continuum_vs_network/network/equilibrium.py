@@ -18,7 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _validate as check
 from .arguments import lone_nodes, relax_arguments
 from .checks import collapsed_springs, escape_direction, floppy_modes, lowest_curvature
-from .constraints import ClampMode, Pins, Problem, default_pins
+from .constraints import ClampMode, Pins, Problem, Residual, default_pins
 from .energy import spring_energy
 from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
@@ -226,6 +226,7 @@ def relax(
     start_lengths = net.lengths(x)[problem.clamp_springs]
     iterations = 0
     outcome = Outcome(x, 0, True)
+    known = None  # (problem, x, its Residual): computed once, reused by _finish
     # Default pins only remove rigid motion. The dense trust-region Newton removes it
     # itself when nothing is pinned (a pin pair whose lever shortens in a large deformation
     # leaves a nearly free rotation that it would otherwise creep along); the result is
@@ -247,6 +248,7 @@ def relax(
     if floating and outcome.converged:
         outcome = replace(outcome, x=_place(outcome.x, x, problem.free), certified=True)
         placed = problem.residual(outcome.x)
+        known = (problem, outcome.x, placed)
         if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
             trace.base = iterations
             outcome = replace(solve(problem, outcome.x, stop, trace), certified=True)
@@ -265,7 +267,8 @@ def relax(
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
     outcome, extra = _second_order(problem, outcome, solve, stop, trace, iterations)
-    return _finish(problem, outcome, iterations + extra, method, stop, trace)
+    res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
+    return _finish(problem, outcome, iterations + extra, method, stop, trace, res)
 
 
 def _check_rank(problem: Problem) -> None:
@@ -394,12 +397,19 @@ def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
 
 
 def _finish(
-    problem: Problem, outcome: Outcome, iterations: int, method: str, stop: StopRule, trace: Trace
+    problem: Problem,
+    outcome: Outcome,
+    iterations: int,
+    method: str,
+    stop: StopRule,
+    trace: Trace,
+    res: Residual | None = None,
 ) -> Equilibrium:
+    """The :class:`Equilibrium` of ``outcome`` (``res``: its residual, when known)."""
     x, net = outcome.x, problem.net
-    finite = bool(np.all(np.isfinite(x)))
+    finite = bool(np.isfinite(x).all())
     if finite:
-        res = problem.residual(x)
+        res = problem.residual(x) if res is None else res
         residual, relative, mu = res.force, res.imbalance, res.multipliers
         violation = problem.clamp_violation(x)
         clamp_error = float(np.max(np.abs(violation))) if violation.size else 0.0

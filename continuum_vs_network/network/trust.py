@@ -46,6 +46,8 @@ the model.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -228,7 +230,7 @@ def _eigh(H: NDArray) -> tuple[NDArray, NDArray]:
 def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
     """The rigid motions of ``x`` (n_nodes, 2) at flat coordinates ``coords``, (3, n):
     the two translations and the rotation about the centroid."""
-    c = x - x.mean(axis=0)
+    c = x - np.add.reduce(x, 0) / x.shape[0]  # x.mean(axis=0), without its overhead
     full = np.zeros((3, x.shape[0], 2))
     full[0, :, 0] = 1.0
     full[1, :, 1] = 1.0
@@ -285,15 +287,17 @@ def _positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray |
     ``H - sigma I`` is positive definite (see :class:`_Model`); else ``(None, None, inf)``."""
     if not H.size:
         return None, None, np.inf
-    sigma = max(_CURVATURE, 1e-12 * float(np.max(np.sum(np.abs(H), axis=1))))
-    _, info = lapack.dpotrf(H - sigma * np.eye(H.shape[0]))
+    sigma = max(_CURVATURE, 1e-12 * float(np.abs(H).sum(1).max()))
+    shifted = H.copy()
+    shifted.flat[:: H.shape[0] + 1] -= sigma
+    _, info = lapack.dpotrf(shifted, overwrite_a=True)
     if info != 0:
         return None, None, np.inf
     factor, info = lapack.dpotrf(H)
     if info != 0:
         return None, None, np.inf
     step, info = lapack.dpotrs(factor, gr)
-    if info != 0 or not np.all(np.isfinite(step)):
+    if info != 0 or not np.isfinite(step).all():
         return None, None, np.inf
     return factor, -step, float(np.sqrt(step @ step))
 
@@ -331,14 +335,14 @@ def _trial(
         ok = den > 1e-12 * max(abs(float(vals[0])), abs(float(vals[-1])), 1e-300)
         accel = vecs @ np.where(ok, -bt / np.where(ok, den, 1.0), 0.0)
     accel = model.lift(accel)
-    if np.sqrt(accel @ accel) <= _ACCEL_MAX * np.sqrt(step @ step):
+    if accel @ accel <= _ACCEL_MAX**2 * (step @ step):
         y.ravel()[coords] += 0.5 * accel
     if stiff is not None:
         z = stiff.restore(y, x, step)
         y = z if z is not None else y
     y = _onto_clamps(problem, y, coords)
-    length = float(np.sqrt(ps @ ps))
-    if not np.all(np.isfinite(y)):
+    length = math.sqrt(ps @ ps)
+    if not np.isfinite(y).all():
         return y, length, predicted, np.inf
     return y, length, predicted, terms.energy_change(y)
 
@@ -346,9 +350,9 @@ def _trial(
 def _onto_clamps(problem: Problem, y: NDArray, coords: NDArray) -> NDArray:
     if not problem.exact:
         return y
-    target = 1e-14 * float(np.max(problem.clamp_lengths))
+    target = 1e-14 * float(problem.clamp_lengths.max())
     for _ in range(20):
-        if np.max(np.abs(problem.clamp_violation(y))) <= target:
+        if np.abs(problem.clamp_violation(y)).max() <= target:
             break
         y = problem.toward_clamps(y, coords, problem.clamp_jacobian(y, coords, dense=True))
     return y
@@ -375,11 +379,14 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             "triangle of clamped springs that violates the triangle inequality",
         )
     rigid = not problem.free_flat.size < problem.free.size  # nothing pinned
-    radius = 0.25 * float(np.mean(net.rest_length)) * float(np.sqrt(_median(root_d**2) * n))
+    mean_rest = float(np.mean(net.rest_length))
+    radius = 0.25 * mean_rest * float(np.sqrt(_median(root_d**2) * n))
+    smallest = 1e-15 * float(np.sqrt(np.sum(root_d**2))) * mean_rest  # collapsed radius
+    scale = stop.scale[coords]
     model: _Model | None = None  # the last iteration's model (its certificate)
     for it in range(stop.max_iter + 1):
         g = terms.gradient(x)
-        if not np.all(np.isfinite(g)):
+        if not np.isfinite(g).all():
             return Outcome(x, it, False, "forces became non-finite (the network blew up)")
         if problem.n_clamps:
             A = problem.clamp_jacobian(x, coords, dense=True)
@@ -387,7 +394,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             force = g + A.T @ mu
         else:
             A, mu, force = None, np.empty(0), g
-        residual = stop.imbalance(force, coords)
+        residual = float((np.abs(force) / scale).max()) if n else 0.0  # stop.imbalance
         if problem.clamp == "rod":
             clamp_error = stop.clamp_error(-mu / problem.rod_stiffness)
         else:
@@ -443,9 +450,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         x, accepted = y, True
                         break
             radius = 0.25 * min(radius, length)
-            if radius <= 1e-15 * float(np.sqrt(np.sum(root_d**2))) * float(
-                np.mean(net.rest_length)
-            ):
+            if radius <= smallest:
                 break
         if not accepted:
             return Outcome(x, it + 1, False, "trust region collapsed (no decrease possible)")
