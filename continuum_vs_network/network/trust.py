@@ -171,14 +171,14 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     lowest = float(vals[0])
     if lowest > 0:
         p = step(0.0)
-        if np.sqrt(p @ p) <= radius:
+        if math.sqrt(p @ p) <= radius:
             return vecs @ p, 0.0
     low = max(0.0, -lowest)
     tiny = 1e-12 * max(abs(lowest), abs(float(vals[-1])), 1e-300)  # vals ascending
-    g_norm = float(np.sqrt(gt @ gt))
+    g_norm = math.sqrt(gt @ gt)
     # hard case: the gradient has (almost) no component on the lowest eigenvectors
     on_low = np.abs(vals - lowest) <= tiny if lowest <= 0 else None
-    if lowest <= 0 and np.linalg.norm(gt[on_low]) <= 1e-10 * max(g_norm, 1e-300):
+    if lowest <= 0 and math.sqrt(gt[on_low] @ gt[on_low]) <= 1e-10 * max(g_norm, 1e-300):
         shifted = vals + low
         safe = ~on_low
         p = np.zeros_like(gt)
@@ -195,13 +195,13 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     # concave secular function converges monotonically: 3-5 steps instead of ~10 from above.
     g2 = gt * gt
     lo, hi = low, low + g_norm / radius + abs(float(vals[-1])) + tiny
-    shift = max(low, float(np.max(np.abs(gt) / radius - vals)))
+    shift = max(low, float((np.abs(gt) / radius - vals).max()))
     if not ((shift > lo or lowest > 0) and shift < hi):
         shift = hi
     for _ in range(60):
         inv = 1.0 / (vals + shift)
         norm2 = float(g2 @ (inv * inv))
-        norm = np.sqrt(norm2)
+        norm = math.sqrt(norm2)
         if abs(norm - radius) <= 1e-6 * radius:
             break
         if norm > radius:
@@ -231,12 +231,12 @@ def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
     """The rigid motions of ``x`` (n_nodes, 2) at flat coordinates ``coords``, (3, n):
     the two translations and the rotation about the centroid."""
     c = x - np.add.reduce(x, 0) / x.shape[0]  # x.mean(axis=0), without its overhead
-    full = np.zeros((3, x.shape[0], 2))
-    full[0, :, 0] = 1.0
-    full[1, :, 1] = 1.0
-    full[2] = c[:, ::-1]
-    full[2, :, 0] *= -1.0
-    return full.reshape(3, -1)[:, coords]
+    full = np.zeros((3, 2 * x.shape[0]))
+    full[0, 0::2] = 1.0
+    full[1, 1::2] = 1.0
+    full[2, 0::2] = -c[:, 1]
+    full[2, 1::2] = c[:, 0]
+    return full[:, coords]
 
 
 def null_basis(M: NDArray) -> NDArray:
