@@ -72,6 +72,7 @@ _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
 _GROW = 2.0  # radius growth after a good step that reached the boundary
 _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model holds
 _ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
+_ACCEL2 = _ACCEL_MAX**2
 _CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
 _CONTRAST = 10.0  # springs this much stiffer than the median are put back (StiffSprings)
 
@@ -244,7 +245,7 @@ def null_basis(M: NDArray) -> NDArray:
     _, sv, vt, info = lapack.dgesdd(M)  # numpy's SVD, without its per-call overhead
     if info != 0:
         _, sv, vt = np.linalg.svd(M)
-    rank = int(np.sum(sv > 1e-12 * max(float(sv[0]), 1e-300))) if sv.size else 0
+    rank = int((sv > 1e-12 * max(float(sv[0]), 1e-300)).sum()) if sv.size else 0
     return vt[rank:].T
 
 
@@ -324,8 +325,6 @@ def _trial(
         ps, shift = _subproblem(vals, vecs, gt, radius)
     predicted = float(gr @ ps + 0.5 * ps @ H @ ps)
     step = model.lift(ps)
-    y = x.copy()
-    y.ravel()[coords] += step
     br = terms.reduced_bending(ps, step)
     if newton:  # every eigenvalue > 1e-12 max|eigenvalue|: none is dropped below
         accel = -lapack.dpotrs(model.factor, br)[0]
@@ -335,8 +334,8 @@ def _trial(
         ok = den > 1e-12 * max(abs(float(vals[0])), abs(float(vals[-1])), 1e-300)
         accel = vecs @ np.where(ok, -bt / np.where(ok, den, 1.0), 0.0)
     accel = model.lift(accel)
-    if accel @ accel <= _ACCEL_MAX**2 * (step @ step):
-        y.ravel()[coords] += 0.5 * accel
+    y = x.copy()  # one scatter of the bent step (x + (step + accel / 2))
+    y.ravel()[coords] += step + 0.5 * accel if accel @ accel <= _ACCEL2 * (step @ step) else step
     if stiff is not None:
         z = stiff.restore(y, x, step)
         y = z if z is not None else y
@@ -409,10 +408,11 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         Ws = terms.hessian(mu)
         gs = g / root_d
         if m or rigid:
-            rows = [A[:m]] if m else []
-            if rigid:
-                rows.append(rigid_motions(x, coords))
-            Q = null_basis(np.vstack(rows) / root_d[None, :])
+            if m and rigid:
+                rows = np.vstack([A[:m], rigid_motions(x, coords)])
+            else:
+                rows = A[:m] if m else rigid_motions(x, coords)
+            Q = null_basis(rows / root_d[None, :])
             H = Q.T @ Ws @ Q
             gr = Q.T @ gs
         else:
