@@ -201,7 +201,8 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
         shift = hi
     for _ in range(60):
         inv = 1.0 / (vals + shift)
-        norm2 = float(g2 @ (inv * inv))
+        inv2 = inv * inv
+        norm2 = float(g2 @ inv2)
         norm = math.sqrt(norm2)
         if abs(norm - radius) <= 1e-6 * radius:
             break
@@ -210,7 +211,7 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
         else:
             hi = shift
         # Newton on phi = 1/radius - 1/|p|, which is nearly linear in the shift
-        slope = float(g2 @ (inv * inv * inv)) / (norm2 * norm)  # -d(phi)/d(shift)
+        slope = float(g2 @ (inv2 * inv)) / (norm2 * norm)  # -d(phi)/d(shift)
         trial = shift + (1.0 / radius - 1.0 / norm) / slope
         shift = trial if lo < trial < hi else 0.5 * (lo + hi)
     return vecs @ step(shift), shift
