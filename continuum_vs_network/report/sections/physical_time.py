@@ -25,6 +25,8 @@ SPEEDUP_YES, SPEEDUP_NO = 3.0, 1.5
 #: Largest |e - e_qs| (relative errors) at the smallest ratio for "converges to the
 #: quasi-static result".
 QS_AGREEMENT = 0.05
+#: Relative errors above this are not drawn (a diverging run reaches 1e290 and beyond).
+ERROR_CAP = 1e6
 
 
 def _by_rule(result) -> dict[str, list]:
@@ -242,7 +244,9 @@ def _figures(doc: Document, rules: dict, ratios: np.ndarray) -> None:
             a = u.arrays
             c = COLORS[i % len(COLORS)]
             t = a[f"r{i}/times"] / u.meta["tau"]
-            series.append(Series(t, a[f"r{i}/error"], f"rho={ratio:g}", color=c))
+            e = np.asarray(a[f"r{i}/error"], float)
+            e = np.where(e <= ERROR_CAP, e, np.nan)  # diverging runs: drawn up to the cap
+            series.append(Series(t, e, f"rho={ratio:g}", color=c))
             tq = a[f"r{i}/times_qs"] / u.meta["tau"]
             series.append(Series(tq, a[f"r{i}/error_qs"], "", style=":", color=c))
         panels.append(
@@ -259,7 +263,8 @@ def _figures(doc: Document, rules: dict, ratios: np.ndarray) -> None:
         "physical_time_error",
         panels,
         "Error against time (in relaxation times) at the largest size for every ratio; "
-        "dotted: the quasi-static limit.",
+        f"dotted: the quasi-static limit; errors above {ERROR_CAP:g} times the initial one "
+        "(runs diverging without a failed step) are not drawn.",
     )
     series = []
     for j, (name, units) in enumerate(rules.items()):
