@@ -30,13 +30,21 @@ def _lattice_task(seed: int = 0, strain: float = 0.1):
 
 # -- the share and the verdict -------------------------------------------------------------
 def test_source_share_of_constructed_cases():
-    # sources cause all of the strain: untrained response, nothing left when they are off
-    assert source_share([0.3, -0.2], [0.0, 0.0], [0.0, 0.0]) == 1.0
+    # an untrained response: the sources cause all of the strain, nothing learned
+    assert source_share([0.3, -0.2], [0.0, 0.0], [0.0, 0.0], [0.3, -0.2]) == 1.0
     # nothing changes with the sources: a target that learned its own rest length
-    assert source_share([0.08, 0.05], [0.08, 0.05], [0.0, 0.0]) == 0.0
-    # half and half (norms): |on - off| = |off - initial_off| = 0.1
-    assert source_share([0.2], [0.1], [0.0]) == pytest.approx(0.5)
-    assert source_share([0.0], [0.0], [0.0]) == 0.0
+    assert source_share([0.08, 0.05], [0.08, 0.05], [0.0, 0.0], [0.02, 0.01]) == 0.0
+    # the drive left as it was (0.1) and prestress adds the missing 0.3: trivial too
+    assert source_share([0.4], [0.3], [0.0], [0.1]) == pytest.approx(0.0, abs=1e-12)
+    # the drive doubled (0.1 -> 0.2) and nothing built in at rest: all learned transmission
+    assert source_share([0.2], [0.0], [0.0], [0.1]) == pytest.approx(1.0)
+    # half and half: the drive grew by 0.1 and prestress added 0.1 (norms and projection)
+    assert source_share([0.3], [0.1], [0.0], [0.1]) == pytest.approx(0.5)
+    # a drive that shrank while prestress made the change counts as nothing delivered
+    assert source_share([0.35], [0.3], [0.0], [0.1]) == 0.0
+    assert source_share([0.0], [0.0], [0.0], [0.0]) == 0.0
+    with pytest.raises(ValueError, match="initial_on"):
+        source_share([0.1], [0.0], [0.0], [0.1, 0.2])
     assert coupling_verdict(1.0) == "coupled" and coupling_verdict(0.5) == "coupled"
     assert coupling_verdict(0.3) == "partially coupled"
     assert coupling_verdict(0.05) == "decoupled"

@@ -186,6 +186,7 @@ def test_a_relative_task_is_learned_through_the_sources():
         moved,
         task.outputs(_free(trained, off).positions) - task.reference,
         task.outputs(_free(net, off).positions) - task.reference,
+        task.outputs(_free(net, task).positions) - task.reference,
     )
     assert coupling_verdict(share) == "coupled" and share > 0.99
 

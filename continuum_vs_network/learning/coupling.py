@@ -8,18 +8,34 @@ its own rest length, or bulk springs that prestress the targets, put the targets
 The measurement (:func:`measure_coupling`) solves the free state of the trained network
 with the source strains scaled by ``lambda`` (a source sweep; ``lambda = 1`` is the task,
 ``lambda = 0`` clamps every source at zero strain, "sources off") and of the initial
-network with the sources off. Per target, with strains in the run's ``strain_reference``:
+network with the sources on and off. Per target, with strains in the run's
+``strain_reference``:
 
 * ``transmitted = S(lambda=1) - S(lambda=0)``: the part of the trained target strain the
-  sources cause;
+  sources cause (``transmitted_0`` the same for the initial network);
 * ``offset = S(lambda=0) - S_initial(lambda=0)``: the part that stays when the sources are
-  off, built into the network by learning (prestress, a target's own rest length).
+  off, built into the network by learning (prestress, a target's own rest length);
+* ``change = S(lambda=1) - S_initial(lambda=1) = (transmitted - transmitted_0) + offset``:
+  what learning changed in the task's output.
 
-The **source share** is ``|transmitted| / (|transmitted| + |offset|)`` (Euclidean norms over
-the targets; 0 when both vanish): the fraction of the trained target strain, counted from
-the untrained network at rest, that turning the sources off removes. An untrained network
-has share 1 (its targets are strained by the sources only); a target that learned its own
-rest length has share ~0.
+Two trivial ways to meet a task are told apart from learned allostery:
+
+1. the targets stop responding to the sources and sit at their goal (a target that
+   learned its own rest length): ``|transmitted|`` is small against ``|offset|``;
+2. the sources' drive is left as it was and prestress shifts the targets by the missing
+   amount: the change of the drive, ``transmitted - transmitted_0``, contributes nothing
+   to ``change``.
+
+The **source share** is the smaller of the two fractions (Euclidean norms and dot products
+over the targets)::
+
+    share = min( |transmitted| / (|transmitted| + |offset|),
+                 clip((transmitted - transmitted_0) . change / |change|^2, 0, 1) )
+
+the first 0 when both norms vanish, the second 1 when nothing changed (``change = 0``). The
+second is the fraction of the learned change delivered by a changed response to the
+sources, projected onto that change. An untrained network has share 1; either trivial
+solution has share ~0.
 
 Verdict (:func:`coupling_verdict`), the rule stated once here:
 
@@ -72,29 +88,38 @@ MET_AT = 1e-2
 SCALES = (0.0, 0.5, 1.0, 1.5, 2.0)
 
 
-def source_share(on: ArrayLike, off: ArrayLike, initial_off: ArrayLike) -> float:
-    """``|on - off| / (|on - off| + |off - initial_off|)``; 0 when both norms vanish.
+def source_share(
+    on: ArrayLike, off: ArrayLike, initial_off: ArrayLike, initial_on: ArrayLike
+) -> float:
+    """The source share of the module docstring, in [0, 1].
 
     Parameters
     ----------
     on, off : (n_targets,) float arrays
-        Target strains of the trained network with the sources at the task's strains and
+        Target outputs of the trained network with the sources at the task's strains and
         at zero strain.
-    initial_off : (n_targets,) float array
-        Target strains of the initial network with the sources at zero strain.
+    initial_off, initial_on : (n_targets,) float arrays
+        The same for the initial network.
     """
-    on, off, base = (np.asarray(a, dtype=np.float64).ravel() for a in (on, off, initial_off))
-    if not (on.shape == off.shape == base.shape):
+    arrays = [np.asarray(a, dtype=np.float64).ravel() for a in (on, off, initial_off, initial_on)]
+    if len({a.size for a in arrays}) != 1:
         raise ValueError(
-            f"on, off and initial_off need one entry per target, got {on.size}, {off.size}, "
-            f"{base.size}"
+            "on, off, initial_off and initial_on need one entry per target, got "
+            + ", ".join(str(a.size) for a in arrays)
         )
-    if not np.all(np.isfinite(np.concatenate([on, off, base]))):
-        raise ValueError("on, off and initial_off must be finite")
-    transmitted = float(np.linalg.norm(on - off))
-    offset = float(np.linalg.norm(off - base))
-    total = transmitted + offset
-    return transmitted / total if total > 0 else 0.0
+    if not np.all(np.isfinite(np.concatenate(arrays))):
+        raise ValueError("on, off, initial_off and initial_on must be finite")
+    on, off, base_off, base_on = arrays
+    transmitted = on - off
+    offset = off - base_off
+    t, o = float(np.linalg.norm(transmitted)), float(np.linalg.norm(offset))
+    responds = t / (t + o) if t + o > 0 else 0.0
+    change = on - base_on
+    c2 = float(change @ change)
+    if c2 == 0.0:
+        return responds
+    delivered = float((transmitted - (base_on - base_off)) @ change) / c2
+    return min(responds, min(max(delivered, 0.0), 1.0))
 
 
 def coupling_verdict(share: float) -> str:
@@ -138,8 +163,8 @@ class Coupling:
     sweep : (n_points, n_targets) float array
         Target strains of the trained network at ``lambda * task.source_strain``; NaN
         where the equilibrium could not be found.
-    initial_off : (n_targets,) float array
-        Target strains of the initial network with the sources off.
+    initial_off, initial_on : (n_targets,) float arrays
+        Target strains of the initial network with the sources off and on.
     desired : (n_targets,) float array
         The task's desired target strains.
     """
@@ -147,6 +172,7 @@ class Coupling:
     scales: NDArray[np.float64]
     sweep: NDArray[np.float64]
     initial_off: NDArray[np.float64]
+    initial_on: NDArray[np.float64]
     desired: NDArray[np.float64]
 
     def _at(self, scale: float) -> NDArray:
@@ -165,7 +191,7 @@ class Coupling:
     @property
     def share(self) -> float:
         """:func:`source_share` of this network."""
-        return source_share(self.on, self.off, self.initial_off)
+        return source_share(self.on, self.off, self.initial_off, self.initial_on)
 
     @property
     def verdict(self) -> str:
@@ -214,7 +240,7 @@ def measure_coupling(
     scales: Sequence[float] = SCALES,
     solver: Solver | None = None,
 ) -> Coupling:
-    """Target strains of ``trained`` over a source sweep and of ``initial`` sources off.
+    """Target strains of ``trained`` over a source sweep and of ``initial`` sources off and on.
 
     Parameters
     ----------
@@ -235,7 +261,7 @@ def measure_coupling(
     ------
     EquilibriumError
         The trained network's state at the task (``lambda = 1``) or with the sources off,
-        or the initial network's with the sources off, cannot be found.
+        or the initial network's, cannot be found.
     """
     check_strain_reference(strain_reference)
     s = np.unique(np.asarray(scales, dtype=np.float64))
@@ -253,12 +279,19 @@ def measure_coupling(
             "could not be found"
         )
     off_task = task.with_source_strain(np.zeros(task.n_sources))
-    eq = Tracker(solver or Solver()).solve(
-        initial, task.pinned, off_task.source_clamps(initial, strain_reference), None, key="free"
-    )
-    initial_off = off_task.target_strains(
-        initial, initial.lengths(eq.positions)[task.targets], strain_reference
-    )
+    initial_tracker = Tracker(solver or Solver())
+    initial_strains = []
+    for t in (off_task, task):
+        eq = initial_tracker.solve(
+            initial, task.pinned, t.source_clamps(initial, strain_reference), None, key="free"
+        )
+        initial_strains.append(
+            t.target_strains(initial, initial.lengths(eq.positions)[task.targets], strain_reference)
+        )
     return Coupling(
-        scales=s, sweep=sweep, initial_off=initial_off, desired=np.array(task.target_strain)
+        scales=s,
+        sweep=sweep,
+        initial_off=initial_strains[0],
+        initial_on=initial_strains[1],
+        desired=np.array(task.target_strain),
     )

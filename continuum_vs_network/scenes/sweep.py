@@ -70,8 +70,8 @@ COLUMNS = {
     "iterations": "solver iterations of the trial",
     "factorisations": "Hessian factorisations of the trial",
     "max_residual": "largest free-state residual over the trial's measurements",
-    "source_share": "fraction of the trained target strain the sources cause "
-    "(learning.coupling; empty: not measured)",
+    "source_share": "part of the learned target change delivered by a changed response to "
+    "the sources (learning.coupling; empty: not measured)",
     "coupling": "coupling verdict of the trained network: coupled, partially coupled, "
     "decoupled or not measured (learning.coupling)",
     "outcome": "relative_error and coupling together: learned (coupled), learned, partially "

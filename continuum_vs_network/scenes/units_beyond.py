@@ -441,6 +441,7 @@ def node_unit(scene: Scene, params: dict, ctx: UnitContext):
                 out(h.final[0], task) - task.reference,
                 out(h.final[0], off) - task.reference,
                 out(net, off) - task.reference,
+                out(net, task) - task.reference,
             )
             verdict = coupling_verdict(share)
         except EquilibriumError:

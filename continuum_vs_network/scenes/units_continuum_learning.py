@@ -30,8 +30,8 @@ everything learn. Learning rates are ``[learning] alpha_*`` for both media: the
 continuum's update is per unit area, so a rate means the same on every mesh.
 
 Each unit records the error and the wall-clock seconds after every step, the coupling of
-the trained medium (:mod:`~continuum_vs_network.learning.coupling`: the share of the
-target strain the sources cause, and its verdict), and the learned
+the trained medium (:mod:`~continuum_vs_network.learning.coupling`: the source share
+and its verdict), and the learned
 field: the continuum's eigenstrain per element and averaged onto the lattice triangles, the
 network's rest-length changes as the rest strain of each lattice triangle
 (:func:`~continuum_vs_network.continuum.learned_fields.network_rest_strain`).
@@ -204,7 +204,7 @@ def network_unit(scene: Scene, params: dict, ctx: UnitContext):
 def _continuum_coupling(initial, trained, mtask) -> float:
     """Source share (:func:`~continuum_vs_network.learning.coupling.source_share`) of a
     trained continuum: target strains with the sources on and off, against the initial
-    body with the sources off."""
+    body's."""
     import dataclasses
 
     from ..learning.coupling import source_share
@@ -214,6 +214,7 @@ def _continuum_coupling(initial, trained, mtask) -> float:
         trained.free_state(mtask).target_strain,
         trained.free_state(off).target_strain,
         initial.free_state(off).target_strain,
+        initial.free_state(mtask).target_strain,
     )
 
 

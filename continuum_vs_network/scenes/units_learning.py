@@ -419,6 +419,7 @@ def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
     n, nt = history.trials, tasks[0].n_targets
     sweep = np.full((n, len(SCALES), nt), np.nan)
     initial_off = np.full((n, nt), np.nan)
+    initial_on = np.full((n, nt), np.nan)
     desired = np.full((n, nt), np.nan)
     share = np.full(n, np.nan)
     verdicts, failed = [], []
@@ -436,12 +437,14 @@ def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
             verdicts.append("not measured")
             failed.append(f"trial {i}: {err.reason}")
             continue
-        sweep[i], initial_off[i], share[i] = c.sweep, c.initial_off, c.share
+        sweep[i], initial_off[i], initial_on[i] = c.sweep, c.initial_off, c.initial_on
+        share[i] = c.share
         verdicts.append(c.verdict)
     arrays = {
         "scales": np.array(SCALES),
         "sweep": sweep,
         "initial_off": initial_off,
+        "initial_on": initial_on,
         "desired": desired,
         "share": share,
     }
