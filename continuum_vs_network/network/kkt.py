@@ -193,10 +193,10 @@ def _banded_cholesky(W: sp.spmatrix) -> Factor | bool | None:
     if not np.all(np.isfinite(W.data)):
         return None  # LAPACK's pivot test lets NaN through
     lower = offset >= 0
-    band = np.zeros((width + 1, n))
+    band = np.zeros((width + 1, n), order="F")  # LAPACK's layout: factorised in place
     band[offset[lower], W.indices[lower]] = W.data[lower]
     try:
-        c = sla.cholesky_banded(band, lower=True, check_finite=False)
+        c = sla.cholesky_banded(band, overwrite_ab=True, lower=True, check_finite=False)
     except sla.LinAlgError:
         return None
     return Factor(lambda b: sla.cho_solve_banded((c, True), b, check_finite=False), n)
