@@ -56,12 +56,19 @@ def pattern_for(
     key = (n_nodes, free.tobytes(), order)
     if key not in per_topology:
         coords = None
+        nested = None
         if order and int(free.sum()) > DENSE_MAX:
+            nested = coordinate_order(nested_dissection(positions, springs), free)
             coords, width = band_order(springs, n_nodes, free)
             if not banded_pays(coords.size, width):
-                coords = coordinate_order(nested_dissection(positions, springs), free)
-        per_topology[key] = HessianPattern(springs, n_nodes, free, coords)
-        per_topology[key].ordered = coords is not None
+                coords, nested = nested, None
+        pattern = HessianPattern(springs, n_nodes, free, coords)
+        pattern.ordered = coords is not None
+        # rows in nested-dissection order where the band order is used: SuperLU's
+        # directions of negative curvature (newton) depend on the order; they are read in
+        # this one whatever the factorisation used
+        pattern.nested_rows = None if nested is None else pattern.free_index[nested]
+        per_topology[key] = pattern
     return per_topology[key]
 
 
