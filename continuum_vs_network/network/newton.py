@@ -33,7 +33,8 @@ Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger on
 :func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
 unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
 diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
-``W > 0``.
+``W > 0``; up to a few thousand nodes, where its band is narrow, LAPACK's banded Cholesky
+in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``).
 """
 
 from __future__ import annotations
