@@ -13,8 +13,12 @@ from continuum_vs_network.learning import (
     ProspectiveConfiguration,
     stern_task,
 )
-from continuum_vs_network.learning.physical_time import learn_in_time, network_relaxation_time
-from continuum_vs_network.network.viscous import Viscosity
+from continuum_vs_network.learning.physical_time import (
+    learn_in_time,
+    network_relaxation_time,
+    settling_time,
+)
+from continuum_vs_network.network.viscous import Viscosity, simulate_viscous
 from continuum_vs_network.scenes.units_time import critical_ratio, crossing_time, rebound
 
 BULK = {"strain_reference": "initial", "learn_sources": False, "learn_targets": False}
@@ -94,9 +98,9 @@ def test_learning_in_time_tends_to_the_quasi_static_limit(small, rule, form):
 
 def test_gcl_phases_with_long_phases_learn_as_their_quasi_static_limit(small):
     net, task = small
-    rule = CoupledLearning(0.02, 0.1, **BULK)
     vis = Viscosity(drag=0.2)
-    tau = network_relaxation_time(net, task, vis)  # the net force down to 1 %
+    tau = network_relaxation_time(net, task, vis)  # the target strains settled to 1 %
+    rule = CoupledLearning(0.1 / tau, 0.1, **BULK)  # alpha k dt_learn = 0.6 (6 tau cycles)
     kw = {"duration": 4 * 2 * 3 * tau + tau, "form": "phases", "phase": 3 * tau, "n_outputs": 4}
     run = learn_in_time(net, task, rule, viscosity=vis, dt=tau / 4, **kw)
     qs = learn_in_time(net, task, rule, viscosity=vis, dt=tau / 4, quasistatic=True, **kw)
@@ -108,9 +112,50 @@ def test_gcl_phases_with_long_phases_learn_as_their_quasi_static_limit(small):
 
 def test_relaxation_time_grows_with_drag(small):
     net, task = small
-    t1 = network_relaxation_time(net, task, Viscosity(drag=1.0))
-    t2 = network_relaxation_time(net, task, Viscosity(drag=2.0))
-    assert t2 == pytest.approx(2 * t1, rel=0.02)  # overdamped: time proportional to drag
+    for measure in ("target", "force"):
+        t1 = network_relaxation_time(net, task, Viscosity(drag=1.0), measure=measure)
+        t2 = network_relaxation_time(net, task, Viscosity(drag=2.0), measure=measure)
+        assert t2 == pytest.approx(2 * t1, rel=0.02)  # overdamped: time proportional to drag
+
+
+def test_settling_time_of_an_exponential_and_of_an_overshoot():
+    """exp(-t / 3) settles to 1 % at 3 ln 100; a damped oscillation counts its last exit
+    from the band, not its first entry."""
+    t = np.linspace(0.0, 40.0, 40001)
+    v = np.exp(-t / 3.0)[:, None] * np.array([[3.0, 4.0]])  # total change 5 toward 0
+    tau = settling_time(t, v, [3.0, 4.0], [0.0, 0.0], 0.01)
+    assert tau == pytest.approx(3.0 * np.log(100.0), rel=1e-5)
+    w = np.exp(-t / 3.0) * np.cos(t)
+    last = settling_time(t, w[:, None], [1.0], [0.0], 0.01)
+    first = t[np.argmax(np.abs(w) <= 0.01)]
+    assert last > first + 1.0 and np.all(np.abs(w[t > last]) <= 0.01 + 1e-12)
+    assert abs(w[np.searchsorted(t, last) - 1]) > 0.01  # the last frame outside
+    assert settling_time(t, v, [0.0, 0.0], [0.0, 0.0], 0.01) == 0.0
+    assert settling_time(t[:100], v[:100], [3.0, 4.0], [0.0, 0.0], 0.01) == np.inf
+
+
+def test_target_relaxation_time_is_when_the_targets_settle(small):
+    """An independent finer run (400 steps per tau): at 0.9 tau the target strains are
+    still more than 1 % of their change away from the clamped equilibrium, after 1.1 tau
+    never again; the net force settles sooner (local modes dominate it)."""
+    net, task = small
+    vis = Viscosity(drag=1.0)
+    tau = network_relaxation_time(net, task, vis)
+    clamps = task.source_clamps(net, "initial")
+    rest = task.target_rest(net, "initial")
+    run = simulate_viscous(
+        net, vis, dt=tau / 400, t_end=4 * tau, pinned=task.pinned, clamped=clamps
+    )
+    s = np.array([net.lengths(x)[task.targets] / rest for x in run.positions])
+    end = simulate_viscous(
+        net, vis, dt=1e12, t_end=1e12, pinned=task.pinned, clamped=clamps
+    ).positions[-1]
+    s_end = net.lengths(end)[task.targets] / rest
+    total = np.linalg.norm(s_end - net.lengths(net.positions)[task.targets] / rest)
+    d = np.linalg.norm(s - s_end, axis=1) / total
+    assert d[np.searchsorted(run.times, 0.9 * tau)] > 0.01
+    assert np.all(d[run.times >= 1.1 * tau] < 0.01)
+    assert tau > network_relaxation_time(net, task, vis, measure="force")
 
 
 def test_bad_input_is_named(small):

@@ -139,3 +139,46 @@ def test_default_pins_carry_no_load_after_large_deformation():
     clamp_free[net.springs[2]] = False
     # every node but the clamp's two carries zero net force: no pin reaction anywhere
     assert np.abs(net_force[clamp_free]).max() <= 1e-10 * net.force_scale
+
+
+def test_placement_on_default_pins_undoes_a_rigid_motion():
+    """A state that is the start turned and shifted is placed back onto the start exactly
+    (to round-off): the fully pinned node at its start, the other pinned coordinate at its
+    start value, every other node where it began."""
+    from continuum_vs_network.network.builders import paper_network
+    from continuum_vs_network.network.equilibrium import _place
+
+    net = paper_network(np.random.default_rng(3))
+    start = net.positions
+    free = ~cvn.default_pins(net)
+    for turn in (0.3, 2.5, -1.9):
+        rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+        moved = start @ rot.T + np.array([4.0, -7.0])
+        placed = _place(moved, start, free)
+        assert np.allclose(placed, start, rtol=0, atol=1e-12 * np.abs(start).max())
+        assert np.array_equal(placed[~free], start[~free])
+
+
+def test_derived_problems_keep_the_coordinate_scale_of_a_fresh_one():
+    """``with_free`` / ``with_clamp_lengths`` reuse the coordinate scale: it equals that of
+    a newly built problem, including the ``mean(k) mean(L)`` fallback of a node whose
+    springs all have ``k = 0``."""
+    from continuum_vs_network.network.constraints import Problem
+
+    # node 3 hangs on a k = 0 spring only: its scale is mean(k) mean(L) = 1.5 * 1.25
+    net = cvn.SpringNetwork(
+        [[0, 0], [1, 0], [0.5, 0.9], [1.5, 0.9]], [[0, 1], [1, 2], [0, 2], [2, 3]],
+        [1.0, 2.0, 3.0, 0.0], [1.0, 1.0, 1.0, 2.0],
+    )  # fmt: skip
+    problem = Problem.build(net, clamped={3: 1.1})
+    free = np.ones_like(problem.free)
+    free[0] = False
+    for derived, fresh in (
+        (problem.with_free(free), Problem.build(net, pinned=[0], clamped={3: 1.1})),
+        (problem.with_clamp_lengths(np.array([1.3])), Problem.build(net, clamped={3: 1.3})),
+    ):
+        assert np.array_equal(derived.scale, fresh.scale)
+        assert np.array_equal(derived.free_flat, fresh.free_flat)
+        assert np.array_equal(derived.clamp_lengths, fresh.clamp_lengths)
+    assert problem.scale[6] == pytest.approx(1.5 * 1.25)
+    assert problem.scale[0] == pytest.approx(1.0 + 3.0)

@@ -115,24 +115,34 @@ class DampedStepper:
         return self.G[self.n_sources :] @ np.asarray(u, float)[self.free]
 
 
-def body_relaxation_time(medium, task, damping, *, fraction: float = 1e-2) -> float:
+def body_relaxation_time(
+    medium, task, damping, *, fraction: float = 1e-2, measure: str = "target"
+) -> float:
     """Relaxation time of a body after the task's source step (time units).
 
     The body starts at its equilibrium with the sources off (at zero strain) and jumps at
     ``t = 0`` onto the source clamps by the ``C``-weighted projection (the limit of a
-    vanishing first step: ``min (u - u0)^T C (u - u0)`` subject to ``G_s u = S_s``). The
-    net force on the free DOFs is the damping force ``C u'`` (at ``t = 0+`` from the
-    clamped velocity ``[C G_s^T; G_s 0] [u'; mu] = [f - K u; 0]``, then ``C (u1 - u0) /
-    dt`` of each step); the time is when its largest component stays below ``fraction`` of
-    its start, the criterion of the network's
-    :func:`~continuum_vs_network.learning.physical_time.network_relaxation_time`, from
-    200-step runs doubled in length until 3 times longer.
+    vanishing first step: ``min (u - u0)^T C (u - u0)`` subject to ``G_s u = S_s``), then
+    relaxes (backward Euler, 200-step runs doubled in length until 3 times longer than
+    the time). The criteria are the network's
+    (:func:`~continuum_vs_network.learning.physical_time.network_relaxation_time`):
+
+    ``measure="target"`` (default): the target strains stay within ``fraction`` (1 %) of
+    their total change (from ``u0`` to the clamped equilibrium) of that equilibrium
+    (:func:`~continuum_vs_network.learning.physical_time.settling_time`).
+    ``measure="force"``: the net force on the free DOFs, the damping force ``C u'`` (at
+    ``t = 0+`` from the clamped velocity ``[C G_s^T; G_s 0] [u'; mu] = [f - K u; 0]``, then
+    ``C (u1 - u0) / dt`` of each step), stays below ``fraction`` of its largest component
+    at the start.
     """
     import dataclasses
 
+    from ..learning.physical_time import settling_time
     from ..network.kkt import factor_kkt
     from .viscoelastic import damping_matrix
 
+    if measure not in ("target", "force"):
+        raise ValueError(f"measure must be 'target' or 'force', got {measure!r}")
     off = dataclasses.replace(task, source_strain=np.zeros(task.n_sources))
     u0 = medium.free_state(off).u
     probe = DampedStepper(medium, task, damping, 1.0)
@@ -143,6 +153,9 @@ def body_relaxation_time(medium, task, damping, *, fraction: float = 1e-2) -> fl
     dx, _ = kkt.solve(np.zeros(free.size), task.source_strain - Gs @ u0[free])
     start = u0.copy()
     start[free] += dx
+    s_start = probe.target_strain(u0)
+    s_end = DampedStepper(medium, task, damping, math.inf).step(medium, u0)
+    s_end = probe.target_strain(s_end)
     K = medium.stiffness()[free][:, free]
     v0, _ = kkt.solve(medium.load()[free] - K @ start[free])
     f0 = float(np.max(np.abs(C @ v0)))
@@ -153,11 +166,23 @@ def body_relaxation_time(medium, task, damping, *, fraction: float = 1e-2) -> fl
     t_end = 4.0 * eta / max(k, 1e-300) * max(medium.n_dofs, 8) ** 0.5
     for _ in range(30):
         stepper = DampedStepper(medium, task, damping, t_end / 200)
-        u, force = start, []
+        u, force, strains = start, [], [probe.target_strain(start)]
         for _ in range(200):
             u1 = stepper.step(medium, u)
             force.append(float(np.max(np.abs(C @ (u1 - u)[free]))) / stepper.dt)
+            strains.append(probe.target_strain(u1))
             u = u1
+        if measure == "target":
+            tau = settling_time(
+                stepper.dt * np.arange(201), np.array(strains), s_start, s_end, fraction
+            )
+            if 0 < tau < 10 * stepper.dt:  # settled within ten steps: too coarse
+                t_end /= 8.0
+                continue
+            if 3.0 * tau <= t_end:
+                return tau
+            t_end *= 2.0
+            continue
         t = stepper.dt * np.arange(1, 201)
         d = np.array(force)
         above = np.flatnonzero(d > fraction * f0)

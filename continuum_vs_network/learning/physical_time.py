@@ -71,7 +71,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..network.dynamics import relaxation_time
 from ..network.model import SpringNetwork
@@ -81,7 +81,13 @@ from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rul
 from .tasks import AllosteryTask
 from .time_media import BodyTime, NetworkTime
 
-__all__ = ["Form", "TimeHistory", "learn_in_time", "network_relaxation_time"]
+__all__ = [
+    "Form",
+    "TimeHistory",
+    "learn_in_time",
+    "network_relaxation_time",
+    "settling_time",
+]
 
 Form = Literal["continuous", "twin", "phases"]
 
@@ -129,6 +135,28 @@ class TimeHistory:
     factorisations: int = 0
 
 
+def settling_time(
+    times: ArrayLike, values: ArrayLike, start: ArrayLike, end: ArrayLike, fraction: float
+) -> float:
+    """Time after which ``values`` (T, m) stay within ``fraction`` of their total change
+    ``|end - start|`` (Euclidean norms over the m components) of ``end``; the crossing is
+    interpolated linearly between the last frame outside and the next. ``inf`` when the
+    last frame is still outside, 0 when nothing changes."""
+    v = np.asarray(values, float).reshape(len(times), -1)
+    total = float(np.linalg.norm(np.asarray(end, float) - np.asarray(start, float)))
+    if total == 0:
+        return 0.0
+    d = np.linalg.norm(v - np.asarray(end, float), axis=1)
+    level = fraction * total
+    outside = np.flatnonzero(d > level)
+    if outside.size == 0:
+        return float(times[0])
+    j = int(outside[-1])
+    if j + 1 >= d.size:
+        return math.inf
+    return float(times[j] + (times[j + 1] - times[j]) * (d[j] - level) / (d[j] - d[j + 1]))
+
+
 def network_relaxation_time(
     net: SpringNetwork,
     task: AllosteryTask,
@@ -136,27 +164,45 @@ def network_relaxation_time(
     *,
     reference: str = "initial",
     fraction: float = 1e-2,
+    measure: Literal["target", "force"] = "target",
 ) -> float:
     """Relaxation time of ``net`` after the task's source step (time units).
 
     The sources are stepped to their clamp lengths with the task's pins held and the
     response integrated (:func:`~continuum_vs_network.network.viscous.simulate_viscous`,
-    200 steps per run); the time is
-    :func:`~continuum_vs_network.network.dynamics.relaxation_time` (the largest net force
-    stays below ``fraction`` of its start; 1 % by default, which the slow modes dominate),
-    from a run at least 3 times longer (doubled until it is).
+    200 steps per run), from a run at least 3 times longer (doubled until it is).
+
+    ``measure="target"`` (default): the time after which the target strains (what
+    learning reads) stay within ``fraction`` (1 %) of their total change of their new
+    equilibrium (:func:`settling_time`; the change from the state before the step, the
+    equilibrium an exact solve with the same clamps). ``measure="force"``:
+    :func:`~continuum_vs_network.network.dynamics.relaxation_time`, the largest net force
+    stays below ``fraction`` of its start (which local modes dominate).
     """
+    if measure not in ("target", "force"):
+        raise ValueError(f"measure must be 'target' or 'force', got {measure!r}")
     clamps = task.source_clamps(net, reference)
     k_mean = float(np.mean(net.stiffness))
+    rest = task.target_rest(net, reference)
+    end = start = None
+    if measure == "target":
+        big = 1e12 / k_mean  # one backward-Euler step this long: the clamped equilibrium
+        eq = simulate_viscous(net, viscosity, dt=big, t_end=big, pinned=task.pinned, clamped=clamps)
+        end = net.lengths(eq.positions[-1])[task.targets] / rest
+        start = net.lengths(net.positions)[task.targets] / rest
     t_end = 4.0 * (viscosity.drag + viscosity.dashpot) / k_mean * max(net.n_nodes, 4) ** 0.5
     for _ in range(30):
         traj = simulate_viscous(
             net, viscosity, dt=t_end / 200, t_end=t_end, pinned=task.pinned, clamped=clamps
         )
-        try:
-            tau = relaxation_time(traj, fraction)
-        except ValueError:
-            tau = math.inf
+        if measure == "force":
+            try:
+                tau = relaxation_time(traj, fraction)
+            except ValueError:
+                tau = math.inf
+        else:
+            strains = np.stack([net.lengths(x)[task.targets] / rest for x in traj.positions])
+            tau = settling_time(traj.times, strains, start, end, fraction)
         if 3.0 * tau <= t_end:
             return tau
         t_end *= 2.0

@@ -161,15 +161,25 @@ class Problem:
 
     def with_clamp_lengths(self, lengths: NDArray) -> Problem:
         """The same problem with other clamp lengths (strain continuation)."""
-        return Problem(
-            self.net, self.free, self.clamp_springs, lengths, self.clamp, self.rod_stiffness
-        )
+        return self._sibling(self.free, lengths)
 
     def with_free(self, free: NDArray) -> Problem:
         """The same problem with another pin mask."""
-        return Problem(
-            self.net, free, self.clamp_springs, self.clamp_lengths, self.clamp, self.rod_stiffness
-        )
+        return self._sibling(np.asarray(free, dtype=bool), self.clamp_lengths)
+
+    def _sibling(self, free: NDArray, lengths: NDArray) -> Problem:
+        """A copy with ``free`` and clamp ``lengths`` replaced that reuses the coordinate
+        scale (it depends on the network only): no ``__post_init__`` again."""
+        new = object.__new__(Problem)
+        free_flat = self.free_flat if free is self.free else np.flatnonzero(free.ravel())
+        fields = {
+            "net": self.net, "free": free, "clamp_springs": self.clamp_springs,
+            "clamp_lengths": lengths, "clamp": self.clamp, "rod_stiffness": self.rod_stiffness,
+            "free_flat": free_flat, "scale": self.scale,
+        }  # fmt: skip
+        for name, value in fields.items():
+            object.__setattr__(new, name, value)
+        return new
 
     def stop_rule(self, tol: float, *, max_iter: int, max_seconds: float) -> StopRule:
         """The local stop rule of this problem at relative tolerance ``tol``."""

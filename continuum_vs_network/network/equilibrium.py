@@ -9,6 +9,7 @@ length.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
@@ -18,7 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _validate as check
 from .arguments import lone_nodes, relax_arguments
 from .checks import collapsed_springs, escape_direction, floppy_modes, lowest_curvature
-from .constraints import ClampMode, Pins, Problem, default_pins
+from .constraints import ClampMode, Pins, Problem, Residual, default_pins
 from .energy import spring_energy
 from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
@@ -226,6 +227,7 @@ def relax(
     start_lengths = net.lengths(x)[problem.clamp_springs]
     iterations = 0
     outcome = Outcome(x, 0, True)
+    known = None  # (problem, x, its Residual): computed once, reused by _finish
     # Default pins only remove rigid motion. The dense trust-region Newton removes it
     # itself when nothing is pinned (a pin pair whose lever shortens in a large deformation
     # leaves a nearly free rotation that it would otherwise creep along); the result is
@@ -247,6 +249,7 @@ def relax(
     if floating and outcome.converged:
         outcome = replace(outcome, x=_place(outcome.x, x, problem.free), certified=True)
         placed = problem.residual(outcome.x)
+        known = (problem, outcome.x, placed)
         if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
             trace.base = iterations
             outcome = replace(solve(problem, outcome.x, stop, trace), certified=True)
@@ -265,7 +268,8 @@ def relax(
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
     outcome, extra = _second_order(problem, outcome, solve, stop, trace, iterations)
-    return _finish(problem, outcome, iterations + extra, method, stop, trace)
+    res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
+    return _finish(problem, outcome, iterations + extra, method, stop, trace, res)
 
 
 def _check_rank(problem: Problem) -> None:
@@ -360,17 +364,21 @@ def _place(x: NDArray, start: NDArray, free: NDArray) -> NDArray:
         return y
     b = int(part[0])
     c = int(np.flatnonzero(~free[b])[0])
-    d, d0 = y[b] - y[a], start[b] - start[a]
-    r = float(np.hypot(*d))
-    want = float(np.arctan2(d0[1], d0[0]))
-    t = float(d0[c]) / max(r, 1e-300)
+    (dx, dy), (d0x, d0y) = (y[b] - y[a]).tolist(), (start[b] - start[a]).tolist()
+    r = math.hypot(dx, dy)  # scalars: math, not numpy (a relax of N = 10 takes ~1 ms)
+    want = math.atan2(d0y, d0x)
+    t = (d0x, d0y)[c] / max(r, 1e-300)
     if abs(t) <= 1.0:
-        base = np.arcsin(t) if c == 1 else np.arccos(t)
-        options = (base, np.pi - base) if c == 1 else (base, -base)
-        want = min(options, key=lambda o: abs(np.angle(np.exp(1j * (o - want)))))
-    turn = want - float(np.arctan2(d[1], d[0]))
-    rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
-    y = (y - y[a]) @ rot.T + y[a]
+        base = math.asin(t) if c == 1 else math.acos(t)
+        options = (base, math.pi - base) if c == 1 else (base, -base)
+        want = min(options, key=lambda o: abs(math.remainder(o - want, 2 * math.pi)))
+    turn = want - math.atan2(dy, dx)
+    cos, sin = math.cos(turn), math.sin(turn)
+    rel = y - y[a]
+    y = np.empty_like(rel)
+    y[:, 0] = cos * rel[:, 0] - sin * rel[:, 1]
+    y[:, 1] = sin * rel[:, 0] + cos * rel[:, 1]
+    y += start[a]
     y[b, c] = start[b, c] if abs(t) <= 1.0 else y[b, c]  # exact, not to round-off
     y[a] = start[a]
     return y
@@ -394,12 +402,19 @@ def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
 
 
 def _finish(
-    problem: Problem, outcome: Outcome, iterations: int, method: str, stop: StopRule, trace: Trace
+    problem: Problem,
+    outcome: Outcome,
+    iterations: int,
+    method: str,
+    stop: StopRule,
+    trace: Trace,
+    res: Residual | None = None,
 ) -> Equilibrium:
+    """The :class:`Equilibrium` of ``outcome`` (``res``: its residual, when known)."""
     x, net = outcome.x, problem.net
-    finite = bool(np.all(np.isfinite(x)))
+    finite = bool(np.isfinite(x).all())
     if finite:
-        res = problem.residual(x)
+        res = problem.residual(x) if res is None else res
         residual, relative, mu = res.force, res.imbalance, res.multipliers
         violation = problem.clamp_violation(x)
         clamp_error = float(np.max(np.abs(violation))) if violation.size else 0.0

@@ -39,8 +39,10 @@ def coordinate_scale(
     """
     w = np.asarray(stiffness, float) * np.asarray(rest_length, float)
     f = np.bincount(springs[:, 0], w, n_nodes) + np.bincount(springs[:, 1], w, n_nodes)
-    fallback = float(np.mean(stiffness) * np.mean(rest_length)) if len(w) else 1.0
-    f[f <= 0] = fallback if fallback > 0 else 1.0
+    low = f <= 0
+    if low.any():  # the fallback only where needed (np.mean costs more than the rest)
+        fallback = float(np.mean(stiffness) * np.mean(rest_length)) if len(w) else 1.0
+        f[low] = fallback if fallback > 0 else 1.0
     return np.repeat(f, 2)
 
 

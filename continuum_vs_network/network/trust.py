@@ -46,6 +46,8 @@ the model.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -70,6 +72,7 @@ _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
 _GROW = 2.0  # radius growth after a good step that reached the boundary
 _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model holds
 _ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
+_ACCEL2 = _ACCEL_MAX**2
 _CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
 _CONTRAST = 10.0  # springs this much stiffer than the median are put back (StiffSprings)
 
@@ -169,14 +172,14 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     lowest = float(vals[0])
     if lowest > 0:
         p = step(0.0)
-        if np.sqrt(p @ p) <= radius:
+        if math.sqrt(p @ p) <= radius:
             return vecs @ p, 0.0
     low = max(0.0, -lowest)
     tiny = 1e-12 * max(abs(lowest), abs(float(vals[-1])), 1e-300)  # vals ascending
-    g_norm = float(np.sqrt(gt @ gt))
+    g_norm = math.sqrt(gt @ gt)
     # hard case: the gradient has (almost) no component on the lowest eigenvectors
     on_low = np.abs(vals - lowest) <= tiny if lowest <= 0 else None
-    if lowest <= 0 and np.linalg.norm(gt[on_low]) <= 1e-10 * max(g_norm, 1e-300):
+    if lowest <= 0 and math.sqrt(gt[on_low] @ gt[on_low]) <= 1e-10 * max(g_norm, 1e-300):
         shifted = vals + low
         safe = ~on_low
         p = np.zeros_like(gt)
@@ -193,13 +196,14 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
     # concave secular function converges monotonically: 3-5 steps instead of ~10 from above.
     g2 = gt * gt
     lo, hi = low, low + g_norm / radius + abs(float(vals[-1])) + tiny
-    shift = max(low, float(np.max(np.abs(gt) / radius - vals)))
+    shift = max(low, float((np.abs(gt) / radius - vals).max()))
     if not ((shift > lo or lowest > 0) and shift < hi):
         shift = hi
     for _ in range(60):
         inv = 1.0 / (vals + shift)
-        norm2 = float(g2 @ (inv * inv))
-        norm = np.sqrt(norm2)
+        inv2 = inv * inv
+        norm2 = float(g2 @ inv2)
+        norm = math.sqrt(norm2)
         if abs(norm - radius) <= 1e-6 * radius:
             break
         if norm > radius:
@@ -207,7 +211,7 @@ def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tup
         else:
             hi = shift
         # Newton on phi = 1/radius - 1/|p|, which is nearly linear in the shift
-        slope = float(g2 @ (inv * inv * inv)) / (norm2 * norm)  # -d(phi)/d(shift)
+        slope = float(g2 @ (inv2 * inv)) / (norm2 * norm)  # -d(phi)/d(shift)
         trial = shift + (1.0 / radius - 1.0 / norm) / slope
         shift = trial if lo < trial < hi else 0.5 * (lo + hi)
     return vecs @ step(shift), shift
@@ -228,13 +232,13 @@ def _eigh(H: NDArray) -> tuple[NDArray, NDArray]:
 def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
     """The rigid motions of ``x`` (n_nodes, 2) at flat coordinates ``coords``, (3, n):
     the two translations and the rotation about the centroid."""
-    c = x - x.mean(axis=0)
-    full = np.zeros((3, x.shape[0], 2))
-    full[0, :, 0] = 1.0
-    full[1, :, 1] = 1.0
-    full[2] = c[:, ::-1]
-    full[2, :, 0] *= -1.0
-    return full.reshape(3, -1)[:, coords]
+    c = x - np.add.reduce(x, 0) / x.shape[0]  # x.mean(axis=0), without its overhead
+    full = np.zeros((3, 2 * x.shape[0]))
+    full[0, 0::2] = 1.0
+    full[1, 1::2] = 1.0
+    full[2, 0::2] = -c[:, 1]
+    full[2, 1::2] = c[:, 0]
+    return full[:, coords]
 
 
 def null_basis(M: NDArray) -> NDArray:
@@ -242,7 +246,7 @@ def null_basis(M: NDArray) -> NDArray:
     _, sv, vt, info = lapack.dgesdd(M)  # numpy's SVD, without its per-call overhead
     if info != 0:
         _, sv, vt = np.linalg.svd(M)
-    rank = int(np.sum(sv > 1e-12 * max(float(sv[0]), 1e-300))) if sv.size else 0
+    rank = int((sv > 1e-12 * max(float(sv[0]), 1e-300)).sum()) if sv.size else 0
     return vt[rank:].T
 
 
@@ -285,15 +289,17 @@ def _positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray |
     ``H - sigma I`` is positive definite (see :class:`_Model`); else ``(None, None, inf)``."""
     if not H.size:
         return None, None, np.inf
-    sigma = max(_CURVATURE, 1e-12 * float(np.max(np.sum(np.abs(H), axis=1))))
-    _, info = lapack.dpotrf(H - sigma * np.eye(H.shape[0]))
+    sigma = max(_CURVATURE, 1e-12 * float(np.abs(H).sum(1).max()))
+    shifted = H.copy()
+    shifted.flat[:: H.shape[0] + 1] -= sigma
+    _, info = lapack.dpotrf(shifted, overwrite_a=True)
     if info != 0:
         return None, None, np.inf
     factor, info = lapack.dpotrf(H)
     if info != 0:
         return None, None, np.inf
     step, info = lapack.dpotrs(factor, gr)
-    if info != 0 or not np.all(np.isfinite(step)):
+    if info != 0 or not np.isfinite(step).all():
         return None, None, np.inf
     return factor, -step, float(np.sqrt(step @ step))
 
@@ -320,8 +326,6 @@ def _trial(
         ps, shift = _subproblem(vals, vecs, gt, radius)
     predicted = float(gr @ ps + 0.5 * ps @ H @ ps)
     step = model.lift(ps)
-    y = x.copy()
-    y.ravel()[coords] += step
     br = terms.reduced_bending(ps, step)
     if newton:  # every eigenvalue > 1e-12 max|eigenvalue|: none is dropped below
         accel = -lapack.dpotrs(model.factor, br)[0]
@@ -331,14 +335,14 @@ def _trial(
         ok = den > 1e-12 * max(abs(float(vals[0])), abs(float(vals[-1])), 1e-300)
         accel = vecs @ np.where(ok, -bt / np.where(ok, den, 1.0), 0.0)
     accel = model.lift(accel)
-    if np.sqrt(accel @ accel) <= _ACCEL_MAX * np.sqrt(step @ step):
-        y.ravel()[coords] += 0.5 * accel
+    y = x.copy()  # one scatter of the bent step (x + (step + accel / 2))
+    y.ravel()[coords] += step + 0.5 * accel if accel @ accel <= _ACCEL2 * (step @ step) else step
     if stiff is not None:
         z = stiff.restore(y, x, step)
         y = z if z is not None else y
     y = _onto_clamps(problem, y, coords)
-    length = float(np.sqrt(ps @ ps))
-    if not np.all(np.isfinite(y)):
+    length = math.sqrt(ps @ ps)
+    if not np.isfinite(y).all():
         return y, length, predicted, np.inf
     return y, length, predicted, terms.energy_change(y)
 
@@ -346,9 +350,9 @@ def _trial(
 def _onto_clamps(problem: Problem, y: NDArray, coords: NDArray) -> NDArray:
     if not problem.exact:
         return y
-    target = 1e-14 * float(np.max(problem.clamp_lengths))
+    target = 1e-14 * float(problem.clamp_lengths.max())
     for _ in range(20):
-        if np.max(np.abs(problem.clamp_violation(y))) <= target:
+        if np.abs(problem.clamp_violation(y)).max() <= target:
             break
         y = problem.toward_clamps(y, coords, problem.clamp_jacobian(y, coords, dense=True))
     return y
@@ -375,11 +379,14 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             "triangle of clamped springs that violates the triangle inequality",
         )
     rigid = not problem.free_flat.size < problem.free.size  # nothing pinned
-    radius = 0.25 * float(np.mean(net.rest_length)) * float(np.sqrt(_median(root_d**2) * n))
+    mean_rest = float(np.mean(net.rest_length))
+    radius = 0.25 * mean_rest * float(np.sqrt(_median(root_d**2) * n))
+    smallest = 1e-15 * float(np.sqrt(np.sum(root_d**2))) * mean_rest  # collapsed radius
+    scale = stop.scale[coords]
     model: _Model | None = None  # the last iteration's model (its certificate)
     for it in range(stop.max_iter + 1):
         g = terms.gradient(x)
-        if not np.all(np.isfinite(g)):
+        if not np.isfinite(g).all():
             return Outcome(x, it, False, "forces became non-finite (the network blew up)")
         if problem.n_clamps:
             A = problem.clamp_jacobian(x, coords, dense=True)
@@ -387,7 +394,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             force = g + A.T @ mu
         else:
             A, mu, force = None, np.empty(0), g
-        residual = stop.imbalance(force, coords)
+        residual = float((np.abs(force) / scale).max()) if n else 0.0  # stop.imbalance
         if problem.clamp == "rod":
             clamp_error = stop.clamp_error(-mu / problem.rod_stiffness)
         else:
@@ -402,10 +409,11 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         Ws = terms.hessian(mu)
         gs = g / root_d
         if m or rigid:
-            rows = [A[:m]] if m else []
-            if rigid:
-                rows.append(rigid_motions(x, coords))
-            Q = null_basis(np.vstack(rows) / root_d[None, :])
+            if m and rigid:
+                rows = np.vstack([A[:m], rigid_motions(x, coords)])
+            else:
+                rows = A[:m] if m else rigid_motions(x, coords)
+            Q = null_basis(rows / root_d[None, :])
             H = Q.T @ Ws @ Q
             gr = Q.T @ gs
         else:
@@ -443,9 +451,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         x, accepted = y, True
                         break
             radius = 0.25 * min(radius, length)
-            if radius <= 1e-15 * float(np.sqrt(np.sum(root_d**2))) * float(
-                np.mean(net.rest_length)
-            ):
+            if radius <= smallest:
                 break
         if not accepted:
             return Outcome(x, it + 1, False, "trust region collapsed (no decrease possible)")

@@ -97,6 +97,7 @@ class DenseKernels(SparseKernels):
         self.k, self.L = k, L
         self.clamps = problem.clamp_springs if self.m else None
         self.full = np.zeros(2 * n_nodes)
+        self.blocks = np.empty((len(k), 4))
 
     def gradient(self, x: NDArray) -> NDArray:
         self.x = x
@@ -115,8 +116,10 @@ class DenseKernels(SparseKernels):
             tangential[self.clamps] += mu[: self.m] / r[self.clamps]
         c = self.k - tangential
         u0, u1 = u[:, 0], u[:, 1]
-        off = c * u0 * u1
-        blocks = np.stack([c * u0 * u0 + tangential, off, off, c * u1 * u1 + tangential], 1)
+        blocks = self.blocks  # (s, 4): the 2x2 block of every spring, ravelled
+        blocks[:, 0] = c * u0 * u0 + tangential
+        blocks[:, 1] = blocks[:, 2] = c * u0 * u1
+        blocks[:, 3] = c * u1 * u1 + tangential
         return (self.pairs @ blocks).ravel()[self.take] * self.weight
 
     def bending(self, step: NDArray) -> NDArray:

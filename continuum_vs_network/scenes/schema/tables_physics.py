@@ -242,8 +242,9 @@ class PhysicalTimeSpec:
     )
     ratios: tuple[float, ...] = _key(
         "list[float]",
-        (0.3, 1.0, 3.0, 10.0, 30.0),
-        "ratios alpha k tau of learning rate to relaxation rate",
+        (1.0, 10.0, 100.0, 1000.0, 10000.0),
+        "ratios alpha k tau of learning rate to relaxation rate (tau: the target strains' "
+        "1 % settling time)",
         check=_all(_unique_nonempty, _each(_positive), _increasing),
     )
     media: tuple[str, ...] = _key(
@@ -280,7 +281,7 @@ class PhysicalTimeSpec:
         "float", 5.0, "run length in learning times 1 / (alpha k)", check=_positive
     )
     relaxation_times: float = _key(
-        "float", 6.0, "shortest run, in relaxation times", check=_positive
+        "float", 0.05, "shortest run, in relaxation times", check=_positive
     )
     steps_per_tau: int = _key("int", 20, "physical steps per relaxation time", check=_at_least(2))
     steps_per_rate: int = _key(
