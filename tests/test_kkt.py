@@ -190,3 +190,41 @@ def test_failed_factorisation_returns_directions_of_negative_curvature(solver_ch
     lowest = np.linalg.eigvalsh(W.toarray())[0]
     norms = np.einsum("ij,ij->j", directions, directions)
     assert np.all(lowest <= curvature / norms + 1e-12)
+
+
+def test_banded_cholesky_matches_superlu_and_refuses_an_indefinite_band(solver_choice):
+    """A narrow-band W (a grid Laplacian in natural order, bandwidth = side) goes to the
+    banded Cholesky: same solution as SuperLU to round-off; one negative eigenvalue and
+    it returns None, and factor_spd_or_curvature still finds the negative direction."""
+    set_sparse_solver("superlu")
+    W = _laplacian_2d(24)  # 576 unknowns, lower bandwidth 24
+    assert kkt_module.banded_pays(W.shape[0], 24)
+    assert not kkt_module.banded_pays(W.shape[0], W.shape[0] - 1)  # an unordered matrix
+    b = np.sin(np.arange(W.shape[0], dtype=float))
+    lu = kkt_module.sparse_lu(W, ordering="NATURAL")
+    np.testing.assert_allclose(factor_spd(W).solve(b), lu.solve(b), rtol=1e-11)
+    bad = W.tolil()
+    bad[300, 300] = -3.0
+    bad = bad.tocsr()
+    assert factor_spd(bad) is None
+    assert np.linalg.eigvalsh(bad.toarray())[0] < 0
+    factor, directions = factor_spd_or_curvature(bad)
+    assert factor is None and directions is not None
+    assert np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
+
+
+def test_band_order_reports_the_assembled_bandwidth():
+    """The Hessian pattern of a lattice in band_order's row order has exactly the lower
+    bandwidth band_order reports, about 2 sqrt(n) (a 2D lattice's band)."""
+    import continuum_vs_network as cvn
+    from continuum_vs_network.network.energy import HessianPattern
+    from continuum_vs_network.network.ordering import band_order
+
+    net = cvn.triangular_lattice(20, 20, noise=0.1, rng=np.random.default_rng(1))
+    free = ~cvn.default_pins(net)
+    coords, width = band_order(net.springs, net.n_nodes, free)
+    np.testing.assert_array_equal(np.sort(coords), np.flatnonzero(free.ravel()))
+    pattern = HessianPattern(net.springs, net.n_nodes, coords=coords)
+    W = pattern.assemble(np.tile(np.eye(2), (net.n_springs, 1, 1))).tocoo()
+    assert int(np.max(W.row - W.col)) == width
+    assert width <= 3 * np.sqrt(coords.size)

@@ -213,13 +213,11 @@ def spring_energy_change(
     -------
     float, energy units.
     """
+    d, r = _geometry(x, springs)
+    d0, r0 = _geometry(x_ref, springs)
     u = x - x_ref
-    a, b = springs[:, 0], springs[:, 1]
-    d = x[b] - x[a]
-    d0 = x_ref[b] - x_ref[a]
-    r = np.hypot(d[:, 0], d[:, 1])
-    r0 = np.hypot(d0[:, 0], d0[:, 1])
-    dr = np.einsum("ij,ij->i", u[b] - u[a], d + d0) / np.maximum(r + r0, 1e-300)
+    du = np.take(u, springs[:, 1], axis=0) - np.take(u, springs[:, 0], axis=0)
+    dr = np.einsum("ij,ij->i", du, d + d0) / np.maximum(r + r0, 1e-300)
     return float(0.5 * np.dot(k, dr * (r + r0 - 2.0 * L)))
 
 

@@ -24,9 +24,9 @@ from numpy.typing import NDArray
 
 from .constraints import Problem
 from .energy import HessianPattern
-from .kkt import DENSE_MAX, factor_spd, sparse_solver
+from .kkt import DENSE_MAX, banded_pays, factor_spd, sparse_solver
 from .model import SpringNetwork
-from .ordering import coordinate_order, nested_dissection
+from .ordering import band_order, coordinate_order, nested_dissection
 
 __all__ = ["Frame", "lagrangian_blocks", "lagrangian_hessian", "pattern_for", "trust_region"]
 
@@ -38,8 +38,10 @@ def pattern_for(
 ) -> HessianPattern:
     """The Hessian pattern of a topology and pin mask, cached while the springs array lives.
 
-    Above ``DENSE_MAX`` free coordinates the rows follow a nested-dissection elimination
-    order computed from ``positions`` (n_nodes, 2); ``pattern.ordered`` says so. Not with
+    Above ``DENSE_MAX`` free coordinates the rows follow a reverse Cuthill-McKee order
+    where its band is narrow enough for the banded Cholesky (:func:`~.kkt.banded_pays`, up
+    to ~5e3 nodes on a lattice), else a nested-dissection elimination order computed from
+    ``positions`` (n_nodes, 2); ``pattern.ordered`` says so. Not with
     PARDISO (:func:`~.kkt.sparse_solver`), which orders by METIS itself (the nested
     dissection took 3.5 s at 1e5 nodes, 10 s at 3e5). Networks
     made with ``with_*`` share their read-only springs array, so a learning loop builds the
@@ -54,10 +56,19 @@ def pattern_for(
     key = (n_nodes, free.tobytes(), order)
     if key not in per_topology:
         coords = None
+        nested = None
         if order and int(free.sum()) > DENSE_MAX:
-            coords = coordinate_order(nested_dissection(positions, springs), free)
-        per_topology[key] = HessianPattern(springs, n_nodes, free, coords)
-        per_topology[key].ordered = coords is not None
+            nested = coordinate_order(nested_dissection(positions, springs), free)
+            coords, width = band_order(springs, n_nodes, free)
+            if not banded_pays(coords.size, width):
+                coords, nested = nested, None
+        pattern = HessianPattern(springs, n_nodes, free, coords)
+        pattern.ordered = coords is not None
+        # rows in nested-dissection order where the band order is used: SuperLU's
+        # directions of negative curvature (newton) depend on the order; they are read in
+        # this one whatever the factorisation used
+        pattern.nested_rows = None if nested is None else pattern.free_index[nested]
+        per_topology[key] = pattern
     return per_topology[key]
 
 
