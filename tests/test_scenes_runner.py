@@ -196,8 +196,8 @@ def test_prospective_configuration_solves_no_free_state_it_does_not_use(tmp_path
     scene2 = scene.__class__(**{**scene.__dict__, "learning": measured})
     free, total, _ = _count_free_solves(monkeypatch, scene2, tmp_path / "b")
     # per trial: 6 + 1 measured free states, and the coupling measurement's sweep of the
-    # trained network (5 source scales) and the initial network with the sources off
-    assert free == 2 * (6 + 1) + 2 * (5 + 1) and total == 2 * 6 + free
+    # trained network (5 source scales) and the initial network with the sources off and on
+    assert free == 2 * (6 + 1) + 2 * (5 + 2) and total == 2 * 6 + free
 
 
 def test_no_export_table_writes_no_mesh(tmp_path):

@@ -18,7 +18,9 @@ clamped at zero strain, the targets (outputs) asked to stay where the untrained 
 them with the sources off. A
 network that meets both examples must *transmit* the source strains; prestressing the
 targets into place (a decoupled, trivial solution, :mod:`.coupling`) fails the rest
-example, so the task is non-trivial by construction.
+example, so the task cannot be met trivially: prestress alone that splits the difference
+between the two examples leaves summed C/C0 = 0.5 (an offset ``d`` minimises
+``|a - d|^2 + |d|^2`` at ``d = a / 2``), the signature of a network that learned nothing.
 
 :func:`examples_task` draws a dataset for a capacity study (Rocks et al. 2019: how many
 independent responses a network of a given size can hold).

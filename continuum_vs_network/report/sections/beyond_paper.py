@@ -295,7 +295,9 @@ def _capacity(doc, scene, units) -> None:
         "examples per size and m (one network per size). Two ways on the same draws: "
         "*exact*, the optimum of C (L-BFGS-B on the exact adjoint gradient, at most "
         f"{EXACT['max_iter']} iterations, stopped once every example's C_e/C_e0 <= 1e-4): "
-        "what the network can hold; *GCL*, the local rule (one step is the sum of the "
+        "what the network can hold, as far as a local search finds it (a converged search "
+        "can stop at a local optimum, so the exact capacity is a lower bound); *GCL*, the "
+        "local rule (one step is the sum of the "
         f"per-example updates; rate {GCL_K['alpha']:g} / mean k, nudge {L.eta:g}, "
         f"{L.steps} steps): what the rule reaches in that budget. A draw is *learned* when "
         f"every example met its own response, C_e/C_e0 <= {MET_AT:g} (the summed C/C0 is "
@@ -412,8 +414,8 @@ def _thermal(doc, scene, units) -> None:
         "directions pins and clamps leave free: the stationary law of overdamped Langevin "
         "dynamics there, drawn without time-step error or burn-in); states are found as "
         "equilibria and the error is measured at equilibrium. GCL divides the difference of "
-        "two noisy states by eta, so its update noise grows like sqrt(T)/eta and its floor "
-        "like T/eta^2 (as read-out noise gives (noise/eta)^2); the exact gradient reads one "
+        "two noisy states by eta, so its update noise grows like sqrt(T)/eta (the scaling of "
+        "the floor is not fitted here); the exact gradient reads one "
         "noisy free state. Floor: median C/C0 over the last quarter of the "
         f"{L.steps} steps, Stern's task on the {scene.network.sizes[0]} x "
         f"{scene.network.sizes[0]} lattice.",
@@ -499,7 +501,11 @@ def _symmetric(doc, units) -> None:
         Finding(
             claim="one network learns a task and its exchange (source and target swapped) at once",
             metric="each direction's final error over the summed initial error",
-            measured={"forward": after[0] / total, "backward": after[1] / total},
+            measured={
+                "forward": after[0] / total,
+                "backward": after[1] / total,
+                "source share": m["source_share"],
+            },
             verdict=REPRODUCED if both and m["outcome"].startswith("learned") else NOT_REPRODUCED,
             rule=f"reproduced when both are <= {MET_AT:g} and the network is not decoupled",
         )
@@ -531,8 +537,8 @@ def _regression(doc, units) -> None:
         "",
     )
     finite = bool(np.isfinite(train_ratio) and np.isfinite(test_ratio))
-    if not finite:
-        verdict = NOT_COMPARABLE
+    if not finite or train_ratio > MET_AT:
+        verdict = NOT_COMPARABLE  # nothing learned, nothing to generalise
     elif test_ratio < 1.0 and test_ratio <= GENERALISES_WITHIN * train_ratio:
         verdict = REPRODUCED
     else:
@@ -545,6 +551,7 @@ def _regression(doc, units) -> None:
             measured={"train C/C0": float(train_ratio), "held-out C/C0": float(test_ratio)},
             verdict=verdict,
             rule=f"reproduced when held-out C/C0 < 1 and <= {GENERALISES_WITHIN:g} x the "
-            "training C/C0; not comparable when training stopped",
+            f"training C/C0; not comparable when training stopped or did not reach C/C0 <= "
+            f"{MET_AT:g}",
         )
     )

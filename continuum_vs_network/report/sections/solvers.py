@@ -136,9 +136,11 @@ def section(doc: Document, result) -> None:
     )
     doc.summary(
         "time_to_tolerance",
-        f"Seconds to a residual of {scene.solver.tol:g} (one clamped spring at strain "
-        f"{scene.task.strain:g}; '-': not reached within {scene.solver.max_seconds:g} s), "
-        "every method measured in the same run",
+        f"Seconds until the recorded relative residual first reaches {scene.solver.tol:g} "
+        f"(one clamped spring at strain {scene.task.strain:g}; '-': not reached within "
+        f"{scene.solver.max_seconds:g} s; a method stops later when its clamp error is not "
+        "yet within tolerance: its stop time is in the section's table), every method "
+        "measured in the same run",
         ["N", *methods],
         [[N, *(fmt(reached[m][i], 2) for m in methods)] for i, N in enumerate(nodes)],
     )

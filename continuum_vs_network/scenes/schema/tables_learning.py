@@ -133,7 +133,7 @@ class TaskSpec:
         "bool",
         False,
         "train the task together with its rest example (sources at zero strain, targets "
-        "at their untrained rest strains): non-trivial by construction (stern, learning)",
+        "at their untrained rest strains): cannot be met trivially (stern, learning)",
         used=_when(
             lambda s: s.task.kind == "stern" and s.kind == "learning",
             "by stern tasks in learning scenes",
