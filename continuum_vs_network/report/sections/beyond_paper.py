@@ -418,7 +418,10 @@ def _thermal(doc, scene, units) -> None:
         "the floor is not fitted here); the exact gradient reads one "
         "noisy free state. Floor: median C/C0 over the last quarter of the "
         f"{L.steps} steps, Stern's task on the {scene.network.sizes[0]} x "
-        f"{scene.network.sizes[0]} lattice.",
+        f"{scene.network.sizes[0]} lattice; every temperature is read over the same steps, "
+        "so where a run is still descending there (its error at the end below this "
+        "median) the 'floor' is an upper bound and the comparison across T is at equal "
+        "steps, not at convergence.",
         "",
     )
     floors = {
