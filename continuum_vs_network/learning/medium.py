@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 
 __all__ = [
     "Medium",
+    "check_rule_on_medium",
     "is_medium",
     "learning_arrays",
     "medium_arrays",
@@ -73,6 +74,25 @@ class Medium(Protocol):
 def is_medium(obj: object) -> bool:
     """Whether ``obj`` implements the :class:`Medium` protocol."""
     return isinstance(obj, Medium)
+
+
+def check_rule_on_medium(medium: Any, task: Any, rule: Any) -> None:
+    """Refuse a rule or task the medium cannot learn (strain convention, learned dof, task).
+
+    Raises
+    ------
+    ValueError
+        ``rule.strain_reference`` is not ``"initial"`` (a continuum's material springs
+        measure strain against the undeformed body), or the medium refuses the rule's dof
+        or the task.
+    """
+    if rule.strain_reference != "initial":
+        raise ValueError(
+            "a continuum's material springs measure strain against the undeformed body: "
+            "use strain_reference='initial'"
+        )
+    medium.learning_dof(rule.dof)
+    medium.check_task(task)
 
 
 def learning_arrays(net: Any) -> dict[str, NDArray]:

@@ -494,7 +494,7 @@ class Rule:
 
     # -- any other learning medium (.medium): the rule asks it for states and gradients --
     def _medium_update(self, medium, task, *, tracker, noise: float) -> Step:
-        from .medium import is_medium
+        from .medium import check_rule_on_medium, is_medium
 
         if not is_medium(medium):
             raise ValueError(
@@ -503,13 +503,7 @@ class Rule:
             )
         if noise != 0.0:
             raise ValueError("read-out noise is implemented for spring networks only")
-        if self.strain_reference != "initial":
-            raise ValueError(
-                "a continuum's material springs measure strain against the undeformed body: "
-                "use strain_reference='initial'"
-            )
-        medium.learning_dof(self.dof)
-        medium.check_task(task)
+        check_rule_on_medium(medium, task, self)
         return self._medium_step(medium, task, tracker)
 
     def _medium_step(self, medium, task, tracker) -> Step:  # pragma: no cover - abstract

@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from ..network.dynamics import _boundary
 from ..network.model import SpringNetwork
 from ..network.viscous import Stepper, Viscosity
+from .medium import check_rule_on_medium
 from .rules import ProspectiveConfiguration, Step
 
 __all__ = ["BodyTime", "NetworkTime"]
@@ -145,13 +146,7 @@ class BodyTime:
             from ..continuum.viscoelastic import lattice_damping
 
             viscosity = lattice_damping(viscosity)
-        if rule.strain_reference != "initial":
-            raise ValueError(
-                "a continuum's material springs measure strain against the undeformed body: "
-                "use strain_reference='initial'"
-            )
-        medium.learning_dof(rule.dof)
-        medium.check_task(task)
+        check_rule_on_medium(medium, task, rule)
         self.task = task
         self.stepper = medium.damped_stepper(task, viscosity, np.inf if quasistatic else dt)
         self.ref = "initial"
