@@ -188,7 +188,7 @@ def _tau_fits(doc: Document, rules: dict) -> None:
         for key in ("tau", "tau_force"):
             t = np.array([u.meta[key] for u in units], float)
             slope, err = _slope(N, np.log(t))
-            parts.append(f"{medium} {key}: {_describe_fit(slope, err).replace('rho*', key)}")
+            parts.append(f"{medium} {key}: {_describe_fit(slope, err, key)}")
     if parts:
         doc.add(
             "Relaxation times against N, least-squares fit of log tau on log N (same "
@@ -206,11 +206,12 @@ def _slope(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     return float(coef[0]), math.sqrt(rss / (x.size - 2) / spread)
 
 
-def _describe_fit(slope: float, error: float) -> str:
+def _describe_fit(slope: float, error: float, quantity: str = "rho*") -> str:
+    """``"quantity ~ N^(slope +- error), trend"``; no trend within two standard errors."""
     if not math.isfinite(error):
-        return f"rho* ~ N^{slope:.2f} (no error estimate)"
+        return f"{quantity} ~ N^{slope:.2f} (no error estimate)"
     trend = "no trend" if abs(slope) <= 2 * error else ("grows" if slope > 0 else "falls")
-    return f"rho* ~ N^({slope:.2f} +- {error:.2f}), {trend}"
+    return f"{quantity} ~ N^({slope:.2f} +- {error:.2f}), {trend}"
 
 
 def _figures(doc: Document, rules: dict, ratios: np.ndarray) -> None:
