@@ -7,7 +7,13 @@ import pytest
 
 import continuum_vs_network as cvn
 from continuum_vs_network.network.builders import paper_network, triangular_lattice
-from continuum_vs_network.network.trust import _subproblem
+from continuum_vs_network.network.trust_model import (
+    RigidBasis,
+    Spectrum,
+    null_basis,
+    rigid_motions,
+    subproblem,
+)
 
 
 @pytest.mark.parametrize("lowest", [-0.5, 0.01])
@@ -20,10 +26,44 @@ def test_subproblem_boundary_step_solves_the_shifted_system(lowest):
     g = rng.normal(size=12)
     H = vecs @ np.diag(vals) @ vecs.T
     radius = 0.05
-    p, shift = _subproblem(vals, vecs, vecs.T @ g, radius)
+    c, den, length = subproblem(Spectrum(vals, vecs.T @ g), radius)
+    p, shift = vecs @ c, float(den[0] - vals[0])
     assert np.linalg.norm(p) == pytest.approx(radius, rel=1e-6)
+    assert length == pytest.approx(np.linalg.norm(p), rel=1e-12)
+    np.testing.assert_allclose(den - vals, shift, rtol=1e-12)  # one shift for every mode
     assert shift >= max(0.0, -lowest)
     np.testing.assert_allclose((H + shift * np.eye(12)) @ p, -g, atol=1e-8)
+
+
+def test_subproblem_hard_case_steps_along_the_lowest_eigenvector():
+    """No gradient on the negative-curvature mode (a saddle reached exactly): the boundary
+    step still leaves along that mode, at the shift that makes it singular."""
+    vals = np.array([-0.5, 0.2, 1.0, 3.0])
+    gt = np.array([0.0, 0.1, -0.2, 0.3])
+    c, den, length = subproblem(Spectrum(vals, gt), 1.0)
+    assert length == pytest.approx(1.0, rel=1e-12)
+    assert abs(c[0]) > 0.9  # mostly along the negative mode
+    np.testing.assert_allclose(den, vals + 0.5, rtol=1e-12)  # shift = -lowest eigenvalue
+    np.testing.assert_allclose(c[1:], -gt[1:] / (vals[1:] + 0.5), rtol=1e-12)
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e3])
+def test_rigid_basis_spans_the_rigid_free_space_of_the_svd(offset):
+    """The Householder basis of a free network's moves (translations removed once, the
+    rotation at each x) spans the same space as the null space of the three rigid rows,
+    with orthonormal columns in scaled coordinates, also far from the origin."""
+    rng = np.random.default_rng(4)
+    net = paper_network(rng)
+    x0 = net.positions + offset
+    inv_root = rng.uniform(0.2, 2.0, 2 * net.n_nodes)
+    rigid = RigidBasis(x0, inv_root, 1.0)
+    x = x0 + rng.normal(scale=0.3, size=x0.shape)
+    Q = rigid(x) / inv_root[:, None]
+    coords = np.arange(2 * net.n_nodes)
+    ref = null_basis(rigid_motions(x, coords) * inv_root[None, :])
+    assert Q.shape == ref.shape
+    np.testing.assert_allclose(Q.T @ Q, np.eye(Q.shape[1]), atol=1e-12)
+    np.testing.assert_allclose(Q @ Q.T, ref @ ref.T, atol=1e-10)
 
 
 def test_stiff_rod_among_soft_springs_converges_to_its_rest_length():

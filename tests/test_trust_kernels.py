@@ -1,5 +1,6 @@
 """The trust region's dense small-network kernels against the sparse ones, and its
-Cholesky certificate against the eigenvalues (network/trust_kernels.py, network/trust.py)."""
+Cholesky certificate against the eigenvalues (network/trust_kernels.py,
+network/trust_model.py)."""
 
 from __future__ import annotations
 
@@ -9,14 +10,15 @@ import pytest
 from continuum_vs_network.network.builders import paper_network
 from continuum_vs_network.network.constraints import Problem, clamp_tensions
 from continuum_vs_network.network.lagrangian import Frame
-from continuum_vs_network.network.trust import _CURVATURE, _positive_factor, null_basis
 from continuum_vs_network.network.trust_kernels import DenseKernels, SparseKernels
+from continuum_vs_network.network.trust_model import CURVATURE, Model, null_basis, positive_factor
 
 
 @pytest.mark.parametrize("mode", ["none", "exact", "rod", "pinned"])
 def test_dense_kernels_agree_with_sparse_ones(mode):
-    """Gradient, scaled Lagrangian Hessian, reduced bending force and energy change by
-    dense incidence products equal the gather/scatter kernels' to round-off."""
+    """Gradient, reduced scaled Lagrangian Hessian (from the length and rotation
+    Jacobians), reduced bending force (also in a rotated basis) and energy change by dense
+    incidence products equal the gather/scatter kernels' to round-off."""
     rng = np.random.default_rng(3)
     net = paper_network(rng)
     clamped = None if mode in ("none", "pinned") else {4: 7.0, 11: 3.0}
@@ -37,14 +39,26 @@ def test_dense_kernels_agree_with_sparse_ones(mode):
         A = problem.clamp_jacobian(x, frame.coords, dense=True)
         mu = clamp_tensions(A, g, problem.scale[frame.coords])
         assert np.abs(mu).max() > 0  # the multiplier terms are exercised
-    W = sparse.hessian(mu)
-    np.testing.assert_allclose(dense.hessian(mu), W, atol=1e-12 * np.abs(W).max())
+    W = sparse.reduced_hessian(mu, None)
+    np.testing.assert_allclose(dense.reduced_hessian(mu, None), W, atol=1e-12 * np.abs(W).max())
+    p = rng.normal(size=frame.n)
+    b = sparse.reduced_bending(p, p * inv_root)
+    np.testing.assert_allclose(
+        dense.reduced_bending(p, p * inv_root), b, atol=1e-12 * np.abs(b).max()
+    )
     basis = null_basis(rng.normal(size=(3, frame.n))) * inv_root[:, None]
-    dense.set_basis(basis)
-    sparse.set_basis(basis)
-    p = rng.normal(size=basis.shape[1])
-    b = sparse.reduced_bending(p, basis @ p)
-    np.testing.assert_allclose(dense.reduced_bending(p, basis @ p), b, atol=1e-12 * np.abs(b).max())
+    H = sparse.reduced_hessian(mu, basis)
+    np.testing.assert_allclose(dense.reduced_hessian(mu, basis), H, atol=1e-12 * np.abs(H).max())
+    vecs = np.linalg.qr(rng.normal(size=H.shape))[0]
+    for rotated in (False, True):  # the model's basis, then its eigenbasis
+        if rotated:
+            dense.rotate(vecs)
+            sparse.rotate(vecs)
+        basis_now = basis @ vecs if rotated else basis
+        p = rng.normal(size=basis.shape[1])
+        b = sparse.reduced_bending(p, basis_now @ p)
+        bd = dense.reduced_bending(p, basis_now @ p)
+        np.testing.assert_allclose(bd, b, atol=1e-12 * np.abs(b).max())
     change = sparse.energy_change(y)
     assert dense.energy_change(y) == pytest.approx(change, rel=1e-12)
 
@@ -60,8 +74,36 @@ def test_cholesky_certificate_matches_the_lowest_eigenvalue(lowest):
     H = vecs @ np.diag(vals) @ vecs.T
     H = 0.5 * (H + H.T)
     g = rng.normal(size=9)
-    factor, step, length = _positive_factor(H, g)
-    assert (factor is not None) == (lowest > _CURVATURE)
+    factor, step, length = positive_factor(H, g)
+    assert (factor is not None) == (lowest > CURVATURE)
     if factor is not None:
         np.testing.assert_allclose(H @ step, -g, atol=1e-9 * np.abs(g).max() / lowest)
         assert length == pytest.approx(np.linalg.norm(step))
+
+
+def test_model_moves_are_the_same_in_its_eigenbasis():
+    """After ``Model.eigen`` reduced coordinates are eigen-coordinates: the Newton step
+    from the eigenvalues lifts to the same move as the Cholesky one, and the bending force
+    of a move, read in the eigenbasis, is the rotated reduced one."""
+    rng = np.random.default_rng(5)
+    net = paper_network(rng)
+    problem = Problem.build(net, pinned=[0, 5])
+    frame = Frame(net, problem.free)
+    inv_root = rng.uniform(0.1, 1.0, frame.n)
+    terms = DenseKernels(problem, frame, inv_root)
+    x = net.positions + rng.normal(scale=0.3, size=net.positions.shape)
+    g = terms.gradient(x)
+    basis = null_basis(rng.normal(size=(2, frame.n))) * inv_root[:, None]
+    H = terms.reduced_hessian(np.empty(0), basis)
+    H = H + (1.0 - np.linalg.eigvalsh(H)[0]) * np.eye(H.shape[0])  # positive definite
+    model = Model(x, H, basis.T @ g, basis, inv_root, terms)
+    assert model.certified
+    move = model.lift(model.newton)
+    bend = terms.reduced_bending(model.newton, move)
+    spectrum = model.eigen()
+    assert model.certified and spectrum.lowest == pytest.approx(1.0)
+    np.testing.assert_allclose(model.lift(spectrum.newton), move, atol=1e-10 * np.abs(move).max())
+    vecs = np.linalg.lstsq(basis, model.basis, rcond=None)[0]  # the model's eigenvectors
+    np.testing.assert_allclose(vecs.T @ H @ vecs, np.diag(spectrum.vals), atol=1e-10)
+    rotated = terms.reduced_bending(spectrum.newton, move)
+    np.testing.assert_allclose(rotated, vecs.T @ bend, atol=1e-10 * np.abs(bend).max())

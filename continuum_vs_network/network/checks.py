@@ -26,7 +26,7 @@ from .kkt import factor_spd
 from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
 from .model import SpringNetwork
 from .rigidity import zero_modes
-from .trust import null_basis, rigid_motions
+from .trust_model import null_basis, rigid_motions
 
 __all__ = [
     "CURVATURE_DENSE_MAX",

@@ -58,14 +58,9 @@ from .constraints import Problem, clamp_tensions
 from .lagrangian import Frame
 from .stopping import Outcome, StopRule, Trace
 from .trust_kernels import kernels
+from .trust_model import Model, RigidBasis, null_basis, rigid_motions, subproblem
 
-__all__ = [
-    "TR_DENSE_MAX",
-    "StiffSprings",
-    "null_basis",
-    "rigid_motions",
-    "trust_region_newton",
-]
+__all__ = ["TR_DENSE_MAX", "StiffSprings", "trust_region_newton"]
 
 TR_DENSE_MAX = 400  # free coordinates; above, the sparse shifted Newton of newton.py (faster there)
 _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
@@ -73,8 +68,8 @@ _GROW = 2.0  # radius growth after a good step that reached the boundary
 _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model holds
 _ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
 _ACCEL2 = _ACCEL_MAX**2
-_CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
 _CONTRAST = 10.0  # springs this much stiffer than the median are put back (StiffSprings)
+_EMPTY = np.empty(0)
 
 
 class StiffSprings:
@@ -162,154 +157,24 @@ def _node_stiffness(problem: Problem) -> NDArray:
     return np.repeat(kappa, 2)
 
 
-def _subproblem(vals: NDArray, vecs: NDArray, gt: NDArray, radius: float) -> tuple[NDArray, float]:
-    """Exact solution of ``min g.p + p.H.p / 2, |p| <= radius`` from ``H = V diag(vals) V^T``
-    (``gt = V^T g``), in the eigenbasis coordinates' original frame."""
-
-    def step(shift: float) -> NDArray:
-        return -(gt / (vals + shift))
-
-    lowest = float(vals[0])
-    if lowest > 0:
-        p = step(0.0)
-        if math.sqrt(p @ p) <= radius:
-            return vecs @ p, 0.0
-    low = max(0.0, -lowest)
-    tiny = 1e-12 * max(abs(lowest), abs(float(vals[-1])), 1e-300)  # vals ascending
-    g_norm = math.sqrt(gt @ gt)
-    # hard case: the gradient has (almost) no component on the lowest eigenvectors
-    on_low = np.abs(vals - lowest) <= tiny if lowest <= 0 else None
-    if lowest <= 0 and math.sqrt(gt[on_low] @ gt[on_low]) <= 1e-10 * max(g_norm, 1e-300):
-        shifted = vals + low
-        safe = ~on_low
-        p = np.zeros_like(gt)
-        p[safe] = -gt[safe] / shifted[safe]
-        rest = radius**2 - float(p @ p)
-        if rest > 0:
-            e = np.flatnonzero(on_low)[0]
-            p[e] += np.sqrt(rest) * (1.0 if gt[e] <= 0 else -1.0)
-            return vecs @ p, low
-    # safeguarded Newton on the secular equation 1/|p(shift)| = 1/radius (More-Sorensen),
-    # bracketed by bisection
-    # Started from a shift that is provably below the root (each component alone
-    # ``|gt_i| / (vals_i + shift)`` already reaches the radius there), where Newton on the
-    # concave secular function converges monotonically: 3-5 steps instead of ~10 from above.
-    g2 = gt * gt
-    lo, hi = low, low + g_norm / radius + abs(float(vals[-1])) + tiny
-    shift = max(low, float((np.abs(gt) / radius - vals).max()))
-    if not ((shift > lo or lowest > 0) and shift < hi):
-        shift = hi
-    for _ in range(60):
-        inv = 1.0 / (vals + shift)
-        inv2 = inv * inv
-        norm2 = float(g2 @ inv2)
-        norm = math.sqrt(norm2)
-        if abs(norm - radius) <= 1e-6 * radius:
-            break
-        if norm > radius:
-            lo = shift
-        else:
-            hi = shift
-        # Newton on phi = 1/radius - 1/|p|, which is nearly linear in the shift
-        slope = float(g2 @ (inv2 * inv)) / (norm2 * norm)  # -d(phi)/d(shift)
-        trial = shift + (1.0 / radius - 1.0 / norm) / slope
-        shift = trial if lo < trial < hi else 0.5 * (lo + hi)
-    return vecs @ step(shift), shift
-
-
 def _median(a: NDArray) -> float:
     """``np.median`` of a non-empty 1-d array (the same value), without its overhead."""
     s = np.sort(a)
     return float((s[(s.size - 1) // 2] + s[s.size // 2]) / 2)
 
 
-def _eigh(H: NDArray) -> tuple[NDArray, NDArray]:
-    """``np.linalg.eigh`` (the same LAPACK driver), without its per-call overhead."""
-    vals, vecs, info = lapack.dsyevd(H)
-    return (vals, vecs) if info == 0 else np.linalg.eigh(H)
-
-
-def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
-    """The rigid motions of ``x`` (n_nodes, 2) at flat coordinates ``coords``, (3, n):
-    the two translations and the rotation about the centroid."""
-    c = x - np.add.reduce(x, 0) / x.shape[0]  # x.mean(axis=0), without its overhead
-    full = np.zeros((3, 2 * x.shape[0]))
-    full[0, 0::2] = 1.0
-    full[1, 1::2] = 1.0
-    full[2, 0::2] = -c[:, 1]
-    full[2, 1::2] = c[:, 0]
-    return full[:, coords]
-
-
-def null_basis(M: NDArray) -> NDArray:
-    """Orthonormal basis (n, n - rank) of the null space of ``M`` (k, n)."""
-    _, sv, vt, info = lapack.dgesdd(M)  # numpy's SVD, without its per-call overhead
-    if info != 0:
-        _, sv, vt = np.linalg.svd(M)
-    rank = int((sv > 1e-12 * max(float(sv[0]), 1e-300)).sum()) if sv.size else 0
-    return vt[rank:].T
-
-
-class _Model:
-    """The quadratic model of one iteration, in scaled reduced coordinates.
-
-    ``H`` is first factored (Cholesky) with a shift ``sigma = max(1e-8, 1e-12 |H|)``:
-    when that succeeds every eigenvalue exceeds ``sigma`` (the second-order certificate,
-    and every eigen-component of the steps below is kept), and the Newton step comes from
-    the Cholesky factor of ``H``. The eigen-decomposition (the boundary step, negative
-    curvature) is computed only when a trial needs it: a Newton step that fits the radius
-    does not, and then the iteration costs two small factorisations instead of one.
-    """
-
-    def __init__(self, x, Q, H, gr, root_d, coords, terms) -> None:
-        self.x, self.Q, self.H, self.gr = x, Q, H, gr  # (n_nodes, 2), (n, r), (r, r), (r,)
-        self.root_d, self.coords, self.terms = root_d, coords, terms
-        self._eigen: tuple[NDArray, NDArray, NDArray] | None = None
-        # (n, r) scaled basis: a reduced step p moves the free coordinates by basis @ p
-        self.basis = Q / root_d[:, None] if Q is not None else None
-        terms.set_basis(self.basis)
-        self.factor, self.newton, self.newton_length = _positive_factor(H, gr)
-        self.certified = self.factor is not None  # every eigenvalue > _CURVATURE
-
-    def lift(self, p: NDArray) -> NDArray:
-        """The move (n,) of the free coordinates for a reduced scaled step ``p`` (r,)."""
-        return self.basis @ p if self.basis is not None else p / self.root_d
-
-    def eigen(self) -> tuple[NDArray, NDArray, NDArray]:
-        """Eigenvalues (r,), eigenvectors (r, r) and the gradient in the eigenbasis (r,)."""
-        if self._eigen is None:
-            vals, vecs = _eigh(self.H)
-            self._eigen = (vals, vecs, vecs.T @ self.gr)
-            self.certified = bool(vals.size == 0 or vals[0] > _CURVATURE)
-        return self._eigen
-
-
-def _positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | None, float]:
-    """Cholesky factor of ``H`` (r, r), the Newton step and its length, when
-    ``H - sigma I`` is positive definite (see :class:`_Model`); else ``(None, None, inf)``."""
-    if not H.size:
-        return None, None, np.inf
-    sigma = max(_CURVATURE, 1e-12 * float(np.abs(H).sum(1).max()))
-    shifted = H.copy()
-    shifted.flat[:: H.shape[0] + 1] -= sigma
-    _, info = lapack.dpotrf(shifted, overwrite_a=True)
-    if info != 0:
-        return None, None, np.inf
-    factor, info = lapack.dpotrf(H)
-    if info != 0:
-        return None, None, np.inf
-    step, info = lapack.dpotrs(factor, gr)
-    if info != 0 or not np.isfinite(step).all():
-        return None, None, np.inf
-    return factor, -step, float(np.sqrt(step @ step))
-
-
 def _trial(
-    problem: Problem, model: _Model, radius: float, stiff: StiffSprings | None
+    problem: Problem,
+    model: Model,
+    radius: float,
+    stiff: StiffSprings | None,
+    coords: NDArray,
+    full: bool,
 ) -> tuple[NDArray, float, float, float]:
     """The trust-region step of ``radius`` taken from ``model.x``: the new positions, the
-    step's scaled length, and the predicted and actual energy changes (inf when the
-    positions are not finite).
+    step's scaled length, and the predicted and actual energy changes (not finite when
+    the positions are not). ``coords``: the free flat coordinates (``full``: all of them, in
+    order).
 
     The step is bent by its geodesic acceleration (Transtrum & Sethna 2012): the
     second-order length change ``|dd_perp|^2 / r`` of every spring along the linear step
@@ -317,33 +182,36 @@ def _trial(
     a stiff spring does not stretch it. Then stiff springs are put back to the lengths the
     linear model predicted and the clamps met again.
     """
-    x, H, gr, coords, terms = model.x, model.H, model.gr, model.coords, model.terms
-    newton = model.newton is not None and model.newton_length <= radius
-    if newton:
-        ps, shift = model.newton, 0.0
-    else:
-        vals, vecs, gt = model.eigen()
-        ps, shift = _subproblem(vals, vecs, gt, radius)
-    predicted = float(gr @ ps + 0.5 * ps @ H @ ps)
-    step = model.lift(ps)
-    br = terms.reduced_bending(ps, step)
-    if newton:  # every eigenvalue > 1e-12 max|eigenvalue|: none is dropped below
-        accel = -lapack.dpotrs(model.factor, br)[0]
-    else:
-        bt = vecs.T @ br
-        den = vals + shift
-        ok = den > 1e-12 * max(abs(float(vals[0])), abs(float(vals[-1])), 1e-300)
-        accel = vecs @ np.where(ok, -bt / np.where(ok, den, 1.0), 0.0)
+    terms = model.terms
+    if model.spectrum is None and model.newton_length <= radius:  # Newton, by Cholesky
+        p, length = model.newton, model.newton_length
+        predicted = float(model.gr @ p + 0.5 * ((p @ model.H) @ p))
+        step = model.lift(p)
+        accel = -lapack.dpotrs(model.factor, terms.reduced_bending(p, step))[0]
+    else:  # in the eigenbasis: every term is a vector operation
+        spec = model.eigen()
+        p, den, length = subproblem(spec, radius)
+        predicted = float(p @ (spec.gt + spec.half_vals * p))
+        step = model.lift(p)
+        bend = terms.reduced_bending(p, step)
+        if den[0] > spec.tiny:  # ascending: every shifted eigenvalue is kept
+            accel = -(bend / den)
+        else:
+            ok = den > spec.tiny
+            accel = np.where(ok, -bend / np.where(ok, den, 1.0), 0.0)
     accel = model.lift(accel)
-    y = x.copy()  # one scatter of the bent step (x + (step + accel / 2))
-    y.ravel()[coords] += step + 0.5 * accel if accel @ accel <= _ACCEL2 * (step @ step) else step
+    move = step + 0.5 * accel if accel @ accel <= _ACCEL2 * (step @ step) else step
+    x = model.x
+    if full:
+        y = x + move.reshape(x.shape)
+    else:
+        y = x.copy()
+        y.ravel()[coords] += move
     if stiff is not None:
         z = stiff.restore(y, x, step)
         y = z if z is not None else y
-    y = _onto_clamps(problem, y, coords)
-    length = math.sqrt(ps @ ps)
-    if not np.isfinite(y).all():
-        return y, length, predicted, np.inf
+    if problem.exact:
+        y = _onto_clamps(problem, y, coords)
     return y, length, predicted, terms.energy_change(y)
 
 
@@ -364,10 +232,12 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     frame = Frame(net, problem.free)
     coords = frame.coords
     n = coords.size
+    full = n == 2 * net.n_nodes  # every coordinate free, in natural order
     m = problem.n_clamps if problem.exact else 0
     stiff = StiffSprings.find(problem, coords, contrast=_CONTRAST)
     root_d = np.sqrt(_node_stiffness(problem)[coords])
-    terms = kernels(problem, frame, 1.0 / root_d)
+    inv_root = 1.0 / root_d
+    terms = kernels(problem, frame, inv_root)
     x = _onto_clamps(problem, np.array(x, dtype=np.float64), coords)
     if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
         return Outcome(
@@ -380,10 +250,12 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         )
     rigid = not problem.free_flat.size < problem.free.size  # nothing pinned
     mean_rest = float(np.mean(net.rest_length))
+    rigid_basis = RigidBasis(x, inv_root, mean_rest) if rigid and not m else None
     radius = 0.25 * mean_rest * float(np.sqrt(_median(root_d**2) * n))
     smallest = 1e-15 * float(np.sqrt(np.sum(root_d**2))) * mean_rest  # collapsed radius
     scale = stop.scale[coords]
-    model: _Model | None = None  # the last iteration's model (its certificate)
+    rod = problem.clamp == "rod"
+    model: Model | None = None  # the last iteration's model (its certificate)
     for it in range(stop.max_iter + 1):
         g = terms.gradient(x)
         if not np.isfinite(g).all():
@@ -393,12 +265,13 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             mu = clamp_tensions(A, g, problem.scale[coords])
             force = g + A.T @ mu
         else:
-            A, mu, force = None, np.empty(0), g
-        residual = float((np.abs(force) / scale).max()) if n else 0.0  # stop.imbalance
-        if problem.clamp == "rod":
+            A, mu, force = None, _EMPTY, g
+        # stop.imbalance
+        residual = float(np.maximum.reduce(np.abs(force) / scale)) if n else 0.0
+        if rod:
             clamp_error = stop.clamp_error(-mu / problem.rod_stiffness)
         else:
-            clamp_error = stop.clamp_error(problem.clamp_violation(x) if m else np.empty(0))
+            clamp_error = stop.clamp_error(problem.clamp_violation(x)) if m else 0.0
         trace.record(residual, it)
         if stop.met(residual, clamp_error):
             return Outcome(x, it, True, certified=model is not None and model.certified)
@@ -406,32 +279,31 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             return Outcome(x, it, False, f"no convergence in {stop.max_iter} iterations")
         if trace.elapsed() > stop.max_seconds:
             return Outcome(x, it, False, f"time budget of {stop.max_seconds:g} s exceeded")
-        Ws = terms.hessian(mu)
-        gs = g / root_d
-        if m or rigid:
+        if rigid_basis is not None:
+            basis = rigid_basis(x)
+        elif m or rigid:
             if m and rigid:
                 rows = np.vstack([A[:m], rigid_motions(x, coords)])
             else:
                 rows = A[:m] if m else rigid_motions(x, coords)
-            Q = null_basis(rows / root_d[None, :])
-            H = Q.T @ Ws @ Q
-            gr = Q.T @ gs
+            basis = null_basis(rows * inv_root[None, :]) * inv_root[:, None]
         else:
-            Q, H, gr = None, Ws, gs
-        H = 0.5 * (H + H.T)
-        model = _Model(x, Q, H, gr, root_d, coords, terms)
+            basis = None
+        H = terms.reduced_hessian(mu, basis)
+        gr = basis.T @ g if basis is not None else g * inv_root
+        model = Model(x, H, gr, basis, inv_root, terms)
 
         accepted = False
         for _ in range(40):
-            y, length, predicted, actual = _trial(problem, model, radius, stiff)
-            if np.isfinite(actual):
+            y, length, predicted, actual = _trial(problem, model, radius, stiff, coords, full)
+            if math.isfinite(actual):
                 ratio = actual / predicted if predicted < 0 else -1.0
                 if ratio > _ETA:
                     if ratio > 0.75 and length >= 0.99 * radius:
                         # the model holds to the boundary: look further along it at the
                         # same Hessian while the energy keeps falling
                         for _ in range(_GROW_TRIES):
-                            wider = _trial(problem, model, 2 * radius, stiff)
+                            wider = _trial(problem, model, 2 * radius, stiff, coords, full)
                             y2, length2, predicted2, actual2 = wider
                             if not (actual2 < actual and actual2 / predicted2 > 0.25):
                                 break

@@ -1,15 +1,20 @@
 """The spring terms one trust-region iteration evaluates, for one problem.
 
-:func:`kernels` returns an object with the gradient, the scaled Lagrangian Hessian, the
-geodesic bending force and the cancellation-free energy change of
-:mod:`.trust`. Networks of at most :data:`DENSE_NODES` nodes get :class:`DenseKernels`:
-every gather and scatter is one product with the dense signed incidence matrix ``E``
-(``d = E x``, ``grad = E^T t``) and the Hessian one product with the per-spring node-pair
-outer products, built once per solve; at the paper's N = 10 patch numpy's per-call
-overhead, not arithmetic, is the cost, and this takes each iteration from about 40 numpy
-calls to about 15. Larger problems get :class:`SparseKernels` (gathers, ``bincount``
-scatters and the cached Hessian pattern). Both compute the same quantities; results
-agree to round-off.
+:func:`kernels` returns an object with the gradient, the reduced scaled Lagrangian Hessian,
+the geodesic bending force and the cancellation-free energy change of :mod:`.trust`.
+Networks of at most :data:`DENSE_NODES` nodes get :class:`DenseKernels`: every gather and
+scatter is one product with the dense signed incidence matrix ``E`` (``d = E x``,
+``grad = E^T t``), and the reduced Hessian is assembled directly in the model's basis
+``B`` (n, r) from the springs' length and rotation Jacobians ``J``, ``P`` (one row each
+per spring, ``u`` and ``u_perp`` on its node pair)::
+
+    B^T W B = (J B)^T diag(k) (J B) + (P B)^T diag(t) (P B),   t = k (1 - L / r) (+ mu / r)
+
+(``k u u^T + t (I - u u^T)`` per spring), so no (n, n) matrix is formed; ``J B`` and ``P B``
+also give the bending force of every trial step. At the paper's N = 10 patch numpy's
+per-call overhead, not arithmetic, is the cost. Larger problems get :class:`SparseKernels`
+(gathers, ``bincount`` scatters and the cached Hessian pattern). Both compute the same
+quantities; results agree to round-off.
 """
 
 from __future__ import annotations
@@ -28,12 +33,16 @@ __all__ = ["DENSE_NODES", "DenseKernels", "SparseKernels", "kernels"]
 DENSE_NODES = 32  # nodes up to which the dense incidence products are used
 
 _TINY = 1e-300
+# u (s, 2) @ _TURN = (u0, u1, u1, -u0): a spring's length and rotation Jacobian coefficients
+_TURN = np.array([[1.0, 0.0, 0.0, 1.0], [0.0, 1.0, -1.0, 0.0]])
 
 
 class SparseKernels:
     """The trust region's spring terms by gathers and scatters (any size).
 
     ``inv_root`` (n,) is ``D^-1/2`` on the rows ``coords`` (flat coordinates, frame order).
+    A model's basis ``B`` (n, r) maps its reduced coordinates to moves of the free
+    coordinates; None stands for ``diag(inv_root)``.
     """
 
     def __init__(self, problem: Problem, frame: Frame, inv_root: NDArray) -> None:
@@ -49,11 +58,20 @@ class SparseKernels:
         self.x = x
         return spring_gradient(x, *self.springs).ravel()[self.coords]
 
-    def hessian(self, mu: NDArray) -> NDArray:
-        """Scaled Lagrangian Hessian ``D^-1/2 W D^-1/2`` (n, n) at the last ``x``."""
+    def reduced_hessian(self, mu: NDArray, basis: NDArray | None) -> NDArray:
+        """``B^T W B`` (r, r) at the last ``x``: ``W`` the Lagrangian Hessian with clamp
+        multipliers ``mu``; remembers ``B`` for :meth:`reduced_bending`."""
         blocks = lagrangian_blocks(self.problem, self.x, mu[: self.m], 0.0)
         W = self.frame.pattern.assemble_dense(blocks)
-        return W * self.inv_root[:, None] * self.inv_root[None, :]
+        self.basis = basis
+        if basis is None:
+            return W * self.inv_root[:, None] * self.inv_root[None, :]
+        return basis.T @ W @ basis
+
+    def rotate(self, vecs: NDArray) -> None:
+        """The basis becomes ``B vecs`` (the model's eigenbasis)."""
+        b = self.basis
+        self.basis = b @ vecs if b is not None else vecs * self.inv_root[:, None]
 
     def bending(self, step: NDArray) -> NDArray:
         """``J^T (k r_vv)`` on ``coords`` (n,) for an unscaled ``step`` (n,) from the last
@@ -71,12 +89,8 @@ class SparseKernels:
         t = (k * perp * perp / r)[:, None] * u
         return _scatter_nodes(t, springs, x.shape[0]).ravel()[self.coords]
 
-    def set_basis(self, basis: NDArray | None) -> None:
-        """The model's scaled basis (n, r) (None: ``D^-1/2`` itself), after :meth:`hessian`."""
-        self.basis = basis
-
     def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
-        """``basis^T`` :meth:`bending` ``(step)`` (r,) for ``step = basis @ p``."""
+        """``B^T`` :meth:`bending` ``(step)`` (r,) for ``step = B p``."""
         b = self.bending(step)
         return self.basis.T @ b if self.basis is not None else b * self.inv_root
 
@@ -91,100 +105,82 @@ class DenseKernels(SparseKernels):
     def __init__(self, problem: Problem, frame: Frame, inv_root: NDArray) -> None:
         super().__init__(problem, frame, inv_root)
         _, k, L = self.springs
-        n_nodes = problem.net.n_nodes
-        self.E, self.Et, self.pairs, self.take, self.G = _incidence(problem, self.coords)
-        self.weight = inv_root[:, None] * inv_root[None, :]
-        self.k, self.L = k, L
+        s = len(k)
+        self.E, self.Et = _incidence(self.springs[0], problem.net)
+        self.E4 = self.E[:, None, :, None]
+        self.k, self.L, self.k_half, self.L2 = k, L, 0.5 * k, 2.0 * L
         self.clamps = problem.clamp_springs if self.m else None
-        self.full = np.zeros(2 * n_nodes)
-        self.blocks = np.empty((len(k), 4))
+        self.weights = np.empty((s, 2))  # per spring: k (length), t (rotation)
+        self.weights[:, 0] = k
+        self.w = self.weights.reshape(2 * s, 1)
+        self.full = bool(self.coords.size == 2 * problem.net.n_nodes)  # natural order
 
     def gradient(self, x: NDArray) -> NDArray:
         self.x = x
         d = self.E @ x
         r = np.hypot(d[:, 0], d[:, 1])
-        self.d, self.r = d, r
-        t = (self.k * (r - self.L) / np.maximum(r, _TINY))[:, None] * d
-        return (self.Et @ t).ravel()[self.coords]
+        r_safe = np.maximum(r, _TINY)
+        self.d, self.r, self.r_safe = d, r, r_safe
+        self.r_tiny, self.r_rest = r + _TINY, r - self.L2  # for energy_change
+        t = (self.k * (r - self.L) / r_safe)[:, None] * d
+        g = (self.Et @ t).ravel()
+        return g if self.full else g[self.coords]
 
-    def hessian(self, mu: NDArray) -> NDArray:
-        r = np.maximum(self.r, _TINY)
-        u = self.d / r[:, None]
-        self.u, self.r_safe = u, r
+    def reduced_hessian(self, mu: NDArray, basis: NDArray | None) -> NDArray:
+        r = self.r_safe
         tangential = self.k * (1.0 - self.L / r)
         if self.clamps is not None:
             tangential[self.clamps] += mu[: self.m] / r[self.clamps]
-        c = self.k - tangential
-        u0, u1 = u[:, 0], u[:, 1]
-        blocks = self.blocks  # (s, 4): the 2x2 block of every spring, ravelled
-        blocks[:, 0] = c * u0 * u0 + tangential
-        blocks[:, 1] = blocks[:, 2] = c * u0 * u1
-        blocks[:, 3] = c * u1 * u1 + tangential
-        return (self.pairs @ blocks).ravel()[self.take] * self.weight
+        self.weights[:, 1] = tangential
+        u = self.d / r[:, None]
+        # rows 2j, 2j + 1: spring j's length and rotation Jacobians over the flat coordinates
+        K = (self.E4 * (u @ _TURN).reshape(-1, 2, 1, 2)).reshape(self.w.size, -1)
+        if not self.full:
+            K = K[:, self.coords]
+        KB = K * self.inv_root if basis is None else K @ basis
+        self.KB, self.k_r = KB, self.k / r
+        if np.minimum.reduce(self.r) == 0.0:  # a collapsed spring: u undefined, t I block
+            return super().reduced_hessian(mu, basis)
+        return KB.T @ (self.w * KB)
 
-    def bending(self, step: NDArray) -> NDArray:
-        full = self.full
-        full[self.coords] = step
-        dd = self.E @ full.reshape(-1, 2)
-        u = self.u
-        perp = dd[:, 0] * u[:, 1] - dd[:, 1] * u[:, 0]
-        t = (self.k * perp * perp / self.r_safe)[:, None] * u
-        return (self.Et @ t).ravel()[self.coords]
-
-    def set_basis(self, basis: NDArray | None) -> None:
-        # length Jacobian J (s, n) and the perpendicular one at the last x, onto the basis:
-        # the bending force of a reduced step p is (J B)^T (k/r (P B p)^2)
-        u0, u1 = self.u[:, 0, None], self.u[:, 1, None]
-        G0, G1 = self.G
-        J, P = u0 * G0 + u1 * G1, u1 * G0 - u0 * G1
-        if basis is None:
-            J, P = J * self.inv_root, P * self.inv_root
-        else:
-            J, P = J @ basis, P @ basis
-        self.JT, self.P = np.ascontiguousarray(J.T), P
-        self.k_r = self.k / self.r_safe
+    def rotate(self, vecs: NDArray) -> None:
+        self.KB = self.KB @ vecs
 
     def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
-        perp = self.P @ p
-        return self.JT @ (self.k_r * perp * perp)
+        KB = self.KB
+        perp = KB[1::2] @ p
+        return KB[0::2].T @ (self.k_r * perp * perp)
 
     def energy_change(self, y: NDArray) -> float:
-        d0, r0 = self.d, self.r
+        d0 = self.d
         du = self.E @ (y - self.x)
-        d = self.E @ y
+        d = d0 + du
         r = np.hypot(d[:, 0], d[:, 1])
-        dr = np.einsum("ij,ij->i", du, d + d0) / np.maximum(r + r0, _TINY)
-        return float(0.5 * np.dot(self.k, dr * (r + r0 - 2.0 * self.L)))
+        # r - r0 = du . (d + d0) / (r + r0), without cancellation
+        dr = np.add.reduce(du * (d + d0), 1) / (r + self.r_tiny)
+        return float(self.k_half @ (dr * (r + self.r_rest)))
 
 
 _CACHE: dict[int, dict] = {}
 
 
-def _incidence(problem: Problem, coords: NDArray) -> tuple:
-    """The constant arrays of :class:`DenseKernels`, cached while the springs array lives
-    (networks made with ``with_*`` share it): the signed incidence ``E`` (s, N) and its
-    transpose, the node-pair outer products (N*N, s) and the index of each ``(coords,
-    coords)`` entry in the products' ravelled (N, N, 2, 2) result, and ``E`` on the x and the
-    y components of ``coords`` (two (s, n) arrays)."""
-    springs = problem.all_springs()[0]
-    net = problem.net
+def _incidence(springs: NDArray, net) -> tuple[NDArray, NDArray]:
+    """The signed incidence ``E`` (s, N) of ``springs`` (``net``'s, rods included) and its
+    transpose, cached while ``net``'s springs array lives (``with_*`` copies share it)."""
     key_array = id(net.springs)
     if key_array not in _CACHE:
         _CACHE[key_array] = {}
         weakref.finalize(net.springs, _CACHE.pop, key_array, None)
-    key = (net.n_nodes, coords.tobytes(), springs.tobytes())
+    n_nodes = net.n_nodes
+    key = (n_nodes, springs.tobytes())
     per = _CACHE[key_array]
     if key not in per:
-        n_nodes, s = net.n_nodes, len(springs)
+        s = len(springs)
         rows = np.arange(s)
         E = np.zeros((s, n_nodes))
         E[rows, springs[:, 1]] += 1.0
         E[rows, springs[:, 0]] -= 1.0
-        pairs = np.ascontiguousarray((E[:, :, None] * E[:, None, :]).reshape(s, -1).T)
-        p = coords
-        take = ((p[:, None] // 2) * n_nodes + p[None, :] // 2) * 4 + (p[:, None] % 2) * 2
-        G = tuple(E[:, p // 2] * (p % 2 == c) for c in (0, 1))
-        per[key] = (E, np.ascontiguousarray(E.T), pairs, take + p[None, :] % 2, G)
+        per[key] = (E, np.ascontiguousarray(E.T))
     return per[key]
 
 

@@ -1,0 +1,223 @@
+"""The quadratic model of one trust-region iteration (:mod:`.trust`) and its exact
+subproblem, in scaled reduced coordinates.
+
+A model is ``m(p) = gr . p + p . H p / 2`` over reduced coordinates ``p`` (r,) that move
+the free coordinates by ``B p`` (``B`` (n, r) the scaled basis: ``D^-1/2`` times an
+orthonormal basis of the clamps' tangent space, rigid motions removed when nothing is
+pinned). It is first factored by Cholesky, whose success with a shift ``1e-8`` is the
+second-order certificate and gives the Newton step; when a trial needs a boundary step it
+is eigen-decomposed once, and from then on its basis is the eigenbasis: every trial at
+that model solves the secular equation on the eigenvalues alone (vector operations of
+length r, no matrix) and its bending correction is one division. LAPACK is called
+directly: at the paper's N = 10 patch numpy's per-call overhead is the cost.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.linalg import lapack
+
+from .trust_kernels import SparseKernels
+
+__all__ = ["CURVATURE", "Model", "RigidBasis", "Spectrum", "null_basis", "rigid_motions"]
+
+CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
+
+
+def null_basis(M: NDArray) -> NDArray:
+    """Orthonormal basis (n, n - rank) of the null space of ``M`` (k, n)."""
+    _, sv, vt, info = lapack.dgesdd(M)  # numpy's SVD, without its per-call overhead
+    if info != 0:
+        _, sv, vt = np.linalg.svd(M)
+    rank = int((sv > 1e-12 * max(float(sv[0]), 1e-300)).sum()) if sv.size else 0
+    return vt[rank:].T
+
+
+def rigid_motions(x: NDArray, coords: NDArray) -> NDArray:
+    """The rigid motions of ``x`` (n_nodes, 2) at flat coordinates ``coords``, (3, n):
+    the two translations and the rotation about the centroid."""
+    c = x - np.add.reduce(x, 0) / x.shape[0]  # x.mean(axis=0), without its overhead
+    full = np.zeros((3, 2 * x.shape[0]))
+    full[0, 0::2] = 1.0
+    full[1, 1::2] = 1.0
+    full[2, 0::2] = -c[:, 1]
+    full[2, 1::2] = c[:, 0]
+    return full[:, coords]
+
+
+class RigidBasis:
+    """Scaled bases ``B = D^-1/2 Q`` (n, n - 3) of a free network's coordinates (all of
+    them, natural order) with the rigid motions removed, ``Q`` orthonormal.
+
+    The translations do not depend on the positions: ``Q0`` (n, n - 2), orthogonal to
+    them, is found once. At each ``x`` the rotation's component ``v`` in ``Q0``'s
+    coordinates is removed by one Householder reflection ``I - 2 h h^T / h.h`` that maps
+    ``v`` onto the first axis: ``Q = Q0 (I - 2 h h^T / h.h)[:, 1:]``. The same space as
+    :func:`null_basis` of the three rigid rows (another orthonormal basis of it), in a
+    handful of vector operations instead of a rigid-row build and an SVD.
+    """
+
+    def __init__(self, x: NDArray, inv_root: NDArray, length: float) -> None:
+        n = inv_root.size
+        T = np.zeros((2, n))
+        T[0, 0::2] = inv_root[0::2]
+        T[1, 1::2] = inv_root[1::2]
+        Q0 = null_basis(T)
+        self.B0 = Q0 * inv_root[:, None]
+        turn = np.zeros((n, n))  # the rotation about the origin: (x, y) -> (-y, x)
+        turn[np.arange(0, n, 2), np.arange(1, n, 2)] = -1.0
+        turn[np.arange(1, n, 2), np.arange(0, n, 2)] = 1.0
+        self.M = Q0.T @ (inv_root[:, None] * turn)  # (n - 2, n): v = M (x - centre)
+        self.centre = np.add.reduce(x, 0) / x.shape[0]
+        # below this |v| the rotation is a translation (every node at one point)
+        self.floor = (1e-12 * length) ** 2 * float(inv_root @ inv_root)
+
+    def __call__(self, x: NDArray) -> NDArray:
+        v = self.M @ (x - self.centre).ravel()
+        v2 = float(v @ v)
+        if v2 <= self.floor:
+            return self.B0
+        h = v.copy()
+        h[0] += math.copysign(math.sqrt(v2), float(v[0]))
+        B0 = self.B0
+        return B0[:, 1:] - (B0 @ h)[:, None] * (h[1:] * (2.0 / float(h @ h)))
+
+
+def _eigh(H: NDArray) -> tuple[NDArray, NDArray]:
+    """``np.linalg.eigh`` (the same LAPACK driver), without its per-call overhead."""
+    vals, vecs, info = lapack.dsyevd(H)
+    return (vals, vecs) if info == 0 else np.linalg.eigh(H)
+
+
+class Spectrum:
+    """Eigenvalues ``vals`` (r,) of a model (ascending) and its gradient ``gt`` (r,) in
+    the eigenbasis, with what every subproblem on them reuses (:func:`subproblem`)."""
+
+    def __init__(self, vals: NDArray, gt: NDArray) -> None:
+        self.vals, self.gt, self.half_vals = vals, gt, 0.5 * vals
+        lowest, top = float(vals[0]), float(vals[-1])
+        self.lowest, self.low = lowest, max(0.0, -lowest)
+        self.abs_gt = np.abs(gt)
+        self.g_norm = math.sqrt(float(gt @ gt))
+        self.tiny = 1e-12 * max(abs(lowest), abs(top), 1e-300)
+        self.top = abs(top) + self.tiny
+        self.newton, self.newton_length = None, math.inf
+        if lowest > 0:
+            self.newton = -(gt / vals)
+            self.newton_length = math.sqrt(float(self.newton @ self.newton))
+        self.hard = None
+        if lowest <= 0:  # the hard case: (almost) no gradient on the lowest eigenvectors
+            on_low = np.abs(vals - lowest) <= self.tiny
+            if math.sqrt(float(gt[on_low] @ gt[on_low])) <= 1e-10 * max(self.g_norm, 1e-300):
+                safe = ~on_low
+                p = np.zeros_like(gt)
+                p[safe] = -gt[safe] / (vals[safe] + self.low)
+                e = int(np.flatnonzero(on_low)[0])
+                self.hard = (p, float(p @ p), e, 1.0 if gt[e] <= 0 else -1.0)
+
+
+def subproblem(spec: Spectrum, radius: float) -> tuple[NDArray, NDArray, float]:
+    """Exact solution ``p`` (r,) of ``min gt.p + p.diag(vals).p / 2, |p| <= radius`` in
+    the eigenbasis, the shifted eigenvalues ``vals + shift`` it solves and ``|p|``.
+
+    The Newton step when it is admissible; else the boundary step of the smallest
+    admissible shift, following negative curvature (the hard case adds the lowest
+    eigenvector).
+    """
+    if spec.newton_length <= radius:
+        return spec.newton, spec.vals, spec.newton_length
+    vals, gt = spec.vals, spec.gt
+    if spec.hard is not None:
+        p, p2, e, sign = spec.hard
+        rest = radius**2 - p2
+        if rest > 0:
+            p = p.copy()
+            p[e] += math.sqrt(rest) * sign
+            return p, vals + spec.low, math.sqrt(float(p @ p))
+    # safeguarded Newton on the secular equation 1/|p(shift)| = 1/radius (More-Sorensen),
+    # bracketed by bisection. Started from a shift that is provably below the root (each
+    # component alone ``|gt_i| / (vals_i + shift)`` already reaches the radius there),
+    # where Newton on the concave secular function converges monotonically: 3-5 steps
+    lo, hi = spec.low, spec.low + spec.g_norm / radius + spec.top
+    shift = max(lo, float(np.maximum.reduce(spec.abs_gt / radius - vals)))
+    if not ((shift > lo or spec.lowest > 0) and shift < hi):
+        shift = hi
+    for _ in range(60):
+        den = vals + shift
+        h = gt / den  # -p(shift)
+        norm2 = float(h @ h)
+        norm = math.sqrt(norm2)
+        if abs(norm - radius) <= 1e-6 * radius:
+            return -h, den, norm
+        if norm > radius:
+            lo = shift
+        else:
+            hi = shift
+        # Newton on phi = 1/radius - 1/|p|, which is nearly linear in the shift
+        slope = float(h @ (h / den)) / (norm2 * norm)  # -d(phi)/d(shift)
+        trial = shift + (1.0 / radius - 1.0 / norm) / slope
+        shift = trial if lo < trial < hi else 0.5 * (lo + hi)
+    den = vals + shift
+    h = gt / den
+    return -h, den, math.sqrt(float(h @ h))
+
+
+class Model:
+    """The quadratic model of one iteration: Hessian ``H`` (r, r), gradient ``gr`` (r,) and
+    basis ``basis`` (n, r) (None: ``diag(inv_root)``) at positions ``x``.
+
+    ``H`` is first factored (Cholesky) with a shift ``sigma = max(1e-8, 1e-12 |H|)``: when
+    that succeeds every eigenvalue exceeds ``sigma`` (the second-order certificate) and the
+    Newton step comes from the Cholesky factor of ``H``. :meth:`eigen` (the boundary step,
+    negative curvature) is computed only when a trial needs it; it turns the model's basis
+    (and ``terms``') into the eigenbasis.
+    """
+
+    def __init__(
+        self, x: NDArray, H: NDArray, gr: NDArray, basis: NDArray | None, inv_root: NDArray,
+        terms: SparseKernels,
+    ) -> None:  # fmt: skip
+        self.x, self.H, self.gr, self.basis, self.inv_root = x, H, gr, basis, inv_root
+        self.terms = terms
+        self.spectrum: Spectrum | None = None
+        self.factor, self.newton, self.newton_length = positive_factor(H, gr)
+        self.certified = self.factor is not None  # every eigenvalue > CURVATURE
+
+    def lift(self, p: NDArray) -> NDArray:
+        """The move (n,) of the free coordinates for reduced scaled coordinates ``p`` (r,)."""
+        return self.basis @ p if self.basis is not None else p * self.inv_root
+
+    def eigen(self) -> Spectrum:
+        """The spectrum; from the first call on, reduced coordinates are eigen-coordinates."""
+        if self.spectrum is None:
+            vals, vecs = _eigh(self.H)
+            self.spectrum = Spectrum(vals, vecs.T @ self.gr)
+            self.certified = bool(vals.size == 0 or vals[0] > CURVATURE)
+            b = self.basis
+            self.basis = b @ vecs if b is not None else vecs * self.inv_root[:, None]
+            self.terms.rotate(vecs)
+        return self.spectrum
+
+
+def positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | None, float]:
+    """Cholesky factor of ``H`` (r, r), the Newton step and its length, when
+    ``H - sigma I`` is positive definite (see :class:`Model`); else ``(None, None, inf)``."""
+    if not H.size:
+        return None, None, math.inf
+    sigma = max(CURVATURE, 1e-12 * float(np.maximum.reduce(np.add.reduce(np.abs(H), 1))))
+    shifted = H.copy()
+    shifted.flat[:: H.shape[0] + 1] -= sigma
+    _, info = lapack.dpotrf(shifted, overwrite_a=True)
+    if info != 0:
+        return None, None, math.inf
+    factor, info = lapack.dpotrf(H)
+    if info != 0:
+        return None, None, math.inf
+    step, info = lapack.dpotrs(factor, gr)
+    length = math.sqrt(float(step @ step))
+    if info != 0 or not math.isfinite(length):
+        return None, None, math.inf
+    return factor, -step, length
