@@ -188,17 +188,19 @@ def _trial(
         predicted = float(model.gr @ p + 0.5 * ((p @ model.H) @ p))
         step = model.lift(p)
         accel = -lapack.dpotrs(model.factor, terms.reduced_bending(p, step))[0]
-    else:  # in the eigenbasis: every term is a vector operation
+    else:  # in the eigenbasis: the subproblem and the bending solve are vector operations
         spec = model.eigen()
-        p, den, length = subproblem(spec, radius)
-        predicted = float(p @ (spec.gt + spec.half_vals * p))
+        c, den, length = subproblem(spec, radius)
+        predicted = float(c @ (spec.gt + spec.half_vals * c))
+        vecs = model.vecs
+        p = vecs @ c
         step = model.lift(p)
-        bend = terms.reduced_bending(p, step)
+        bend = terms.reduced_bending(p, step) @ vecs
         if den[0] > spec.tiny:  # ascending: every shifted eigenvalue is kept
-            accel = -(bend / den)
+            accel = vecs @ -(bend / den)
         else:
             ok = den > spec.tiny
-            accel = np.where(ok, -bend / np.where(ok, den, 1.0), 0.0)
+            accel = vecs @ np.where(ok, -bend / np.where(ok, den, 1.0), 0.0)
     accel = model.lift(accel)
     move = step + 0.5 * accel if accel @ accel <= _ACCEL2 * (step @ step) else step
     x = model.x

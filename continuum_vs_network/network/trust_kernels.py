@@ -68,11 +68,6 @@ class SparseKernels:
             return W * self.inv_root[:, None] * self.inv_root[None, :]
         return basis.T @ W @ basis
 
-    def rotate(self, vecs: NDArray) -> None:
-        """The basis becomes ``B vecs`` (the model's eigenbasis)."""
-        b = self.basis
-        self.basis = b @ vecs if b is not None else vecs * self.inv_root[:, None]
-
     def bending(self, step: NDArray) -> NDArray:
         """``J^T (k r_vv)`` on ``coords`` (n,) for an unscaled ``step`` (n,) from the last
         ``x``: the force of every spring's second-order length change ``|dd_perp|^2 / r``."""
@@ -142,9 +137,6 @@ class DenseKernels(SparseKernels):
         if np.minimum.reduce(self.r) == 0.0:  # a collapsed spring: u undefined, t I block
             return super().reduced_hessian(mu, basis)
         return KB.T @ (self.w * KB)
-
-    def rotate(self, vecs: NDArray) -> None:
-        self.KB = self.KB @ vecs
 
     def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
         KB = self.KB

@@ -6,10 +6,10 @@ the free coordinates by ``B p`` (``B`` (n, r) the scaled basis: ``D^-1/2`` times
 orthonormal basis of the clamps' tangent space, rigid motions removed when nothing is
 pinned). It is first factored by Cholesky, whose success with a shift ``1e-8`` is the
 second-order certificate and gives the Newton step; when a trial needs a boundary step it
-is eigen-decomposed once, and from then on its basis is the eigenbasis: every trial at
-that model solves the secular equation on the eigenvalues alone (vector operations of
-length r, no matrix) and its bending correction is one division. LAPACK is called
-directly: at the paper's N = 10 patch numpy's per-call overhead is the cost.
+is eigen-decomposed once, and every trial at that model solves the secular equation on
+the eigenvalues alone (vector operations of length r) and corrects its bending by one
+division. LAPACK is called directly: at the paper's N = 10 patch numpy's per-call overhead
+is the cost.
 """
 
 from __future__ import annotations
@@ -172,8 +172,7 @@ class Model:
     ``H`` is first factored (Cholesky) with a shift ``sigma = max(1e-8, 1e-12 |H|)``: when
     that succeeds every eigenvalue exceeds ``sigma`` (the second-order certificate) and the
     Newton step comes from the Cholesky factor of ``H``. :meth:`eigen` (the boundary step,
-    negative curvature) is computed only when a trial needs it; it turns the model's basis
-    (and ``terms``') into the eigenbasis.
+    negative curvature) is computed only when a trial needs it.
     """
 
     def __init__(
@@ -183,6 +182,7 @@ class Model:
         self.x, self.H, self.gr, self.basis, self.inv_root = x, H, gr, basis, inv_root
         self.terms = terms
         self.spectrum: Spectrum | None = None
+        self.vecs: NDArray | None = None
         self.factor, self.newton, self.newton_length = positive_factor(H, gr)
         self.certified = self.factor is not None  # every eigenvalue > CURVATURE
 
@@ -191,14 +191,11 @@ class Model:
         return self.basis @ p if self.basis is not None else p * self.inv_root
 
     def eigen(self) -> Spectrum:
-        """The spectrum; from the first call on, reduced coordinates are eigen-coordinates."""
+        """The spectrum of ``H`` (the eigenvectors in ``vecs``), computed once."""
         if self.spectrum is None:
-            vals, vecs = _eigh(self.H)
-            self.spectrum = Spectrum(vals, vecs.T @ self.gr)
+            vals, self.vecs = _eigh(self.H)
+            self.spectrum = Spectrum(vals, self.vecs.T @ self.gr)
             self.certified = bool(vals.size == 0 or vals[0] > CURVATURE)
-            b = self.basis
-            self.basis = b @ vecs if b is not None else vecs * self.inv_root[:, None]
-            self.terms.rotate(vecs)
         return self.spectrum
 
 
