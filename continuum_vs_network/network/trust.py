@@ -152,8 +152,10 @@ def _node_stiffness(problem: Problem) -> NDArray:
     springs, k, _ = problem.all_springs()
     n = problem.net.n_nodes
     kappa = np.bincount(springs[:, 0], k, n) + np.bincount(springs[:, 1], k, n)
-    positive = kappa[kappa > 0]
-    kappa[kappa <= 0] = float(np.min(positive)) if positive.size else 1.0
+    low = kappa <= 0
+    if np.count_nonzero(low):
+        positive = kappa[~low]
+        kappa[low] = float(np.min(positive)) if positive.size else 1.0
     return np.repeat(kappa, 2)
 
 
@@ -237,8 +239,9 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     full = n == 2 * net.n_nodes  # every coordinate free, in natural order
     m = problem.n_clamps if problem.exact else 0
     stiff = StiffSprings.find(problem, coords, contrast=_CONTRAST)
-    root_d = np.sqrt(_node_stiffness(problem)[coords])
-    inv_root = 1.0 / root_d
+    kappa = _node_stiffness(problem)
+    kappa = kappa if full else kappa[coords]
+    inv_root = 1.0 / np.sqrt(kappa)
     terms = kernels(problem, frame, inv_root)
     x = _onto_clamps(problem, np.array(x, dtype=np.float64), coords)
     if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
@@ -251,11 +254,11 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             "triangle of clamped springs that violates the triangle inequality",
         )
     rigid = not problem.free_flat.size < problem.free.size  # nothing pinned
-    mean_rest = float(np.mean(net.rest_length))
+    mean_rest = float(np.add.reduce(net.rest_length)) / net.n_springs
     rigid_basis = RigidBasis(x, inv_root, mean_rest) if rigid and not m else None
-    radius = 0.25 * mean_rest * float(np.sqrt(_median(root_d**2) * n))
-    smallest = 1e-15 * float(np.sqrt(np.sum(root_d**2))) * mean_rest  # collapsed radius
-    scale = stop.scale[coords]
+    radius = 0.25 * mean_rest * math.sqrt(_median(kappa) * n)
+    smallest = 1e-15 * math.sqrt(float(np.add.reduce(kappa))) * mean_rest  # collapsed radius
+    scale = stop.scale if full else stop.scale[coords]
     rod = problem.clamp == "rod"
     model: Model | None = None  # the last iteration's model (its certificate)
     for it in range(stop.max_iter + 1):

@@ -102,13 +102,26 @@ class DenseKernels(SparseKernels):
         _, k, L = self.springs
         s = len(k)
         self.E, self.Et = _incidence(self.springs[0], problem.net)
-        self.E4 = self.E[:, None, :, None]
         self.k, self.L, self.k_half, self.L2 = k, L, 0.5 * k, 2.0 * L
         self.clamps = problem.clamp_springs if self.m else None
         self.weights = np.empty((s, 2))  # per spring: k (length), t (rotation)
         self.weights[:, 0] = k
         self.w = self.weights.reshape(2 * s, 1)
-        self.full = bool(self.coords.size == 2 * problem.net.n_nodes)  # natural order
+        self.n_nodes = problem.net.n_nodes
+        self.full = bool(self.coords.size == 2 * self.n_nodes)  # natural order
+        self.fixed = None  # E times diag(inv_root), the pinned problems' constant basis
+
+    def _incident_basis(self, basis: NDArray | None) -> NDArray:
+        """``E`` applied to the x and the y rows of the basis: (s, 2, r)."""
+        if basis is None:
+            if self.fixed is None:
+                self.fixed = self._incident_basis(np.diag(self.inv_root))
+            return self.fixed
+        if not self.full:  # zero rows at the pinned coordinates
+            embedded = np.zeros((2 * self.n_nodes, basis.shape[1]))
+            embedded[self.coords] = basis
+            basis = embedded
+        return (self.E @ basis.reshape(self.n_nodes, -1)).reshape(len(self.k), 2, -1)
 
     def gradient(self, x: NDArray) -> NDArray:
         self.x = x
@@ -127,14 +140,11 @@ class DenseKernels(SparseKernels):
         if self.clamps is not None:
             tangential[self.clamps] += mu[: self.m] / r[self.clamps]
         self.weights[:, 1] = tangential
-        u = self.d / r[:, None]
-        # rows 2j, 2j + 1: spring j's length and rotation Jacobians over the flat coordinates
-        K = (self.E4 * (u @ _TURN).reshape(-1, 2, 1, 2)).reshape(self.w.size, -1)
-        if not self.full:
-            K = K[:, self.coords]
-        KB = K * self.inv_root if basis is None else K @ basis
+        turn = ((self.d / r[:, None]) @ _TURN).reshape(-1, 2, 2)  # (u; u_perp) per spring
+        # rows 2j, 2j + 1: spring j's length and rotation Jacobians times the basis
+        KB = np.matmul(turn, self._incident_basis(basis)).reshape(self.w.size, -1)
         self.KB, self.k_r = KB, self.k / r
-        if np.minimum.reduce(self.r) == 0.0:  # a collapsed spring: u undefined, t I block
+        if np.count_nonzero(self.r) < r.size:  # a collapsed spring: u undefined, t I block
             return super().reduced_hessian(mu, basis)
         return KB.T @ (self.w * KB)
 

@@ -25,6 +25,7 @@ from .trust_kernels import SparseKernels
 __all__ = ["CURVATURE", "Model", "RigidBasis", "Spectrum", "null_basis", "rigid_motions"]
 
 CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
+_TURN = np.array([-1.0, 1.0])  # (y, x) -> (-y, x)
 
 
 def null_basis(M: NDArray) -> NDArray:
@@ -53,30 +54,32 @@ class RigidBasis:
     them, natural order) with the rigid motions removed, ``Q`` orthonormal.
 
     The translations do not depend on the positions: ``Q0`` (n, n - 2), orthogonal to
-    them, is found once. At each ``x`` the rotation's component ``v`` in ``Q0``'s
-    coordinates is removed by one Householder reflection ``I - 2 h h^T / h.h`` that maps
-    ``v`` onto the first axis: ``Q = Q0 (I - 2 h h^T / h.h)[:, 1:]``. The same space as
-    :func:`null_basis` of the three rigid rows (another orthonormal basis of it), in a
-    handful of vector operations instead of a rigid-row build and an SVD.
+    them, is found once (one Householder reflection per axis). At each ``x`` the
+    rotation's component ``v`` in ``Q0``'s coordinates is removed by one more reflection
+    ``I - 2 h h^T / h.h`` that maps ``v`` onto the first axis:
+    ``Q = Q0 (I - 2 h h^T / h.h)[:, 1:]``. The same space as :func:`null_basis` of the
+    three rigid rows (another orthonormal basis of it), in a handful of vector operations
+    instead of a rigid-row build and an SVD.
     """
 
     def __init__(self, x: NDArray, inv_root: NDArray, length: float) -> None:
         n = inv_root.size
-        T = np.zeros((2, n))
-        T[0, 0::2] = inv_root[0::2]
-        T[1, 1::2] = inv_root[1::2]
-        Q0 = null_basis(T)
-        self.B0 = Q0 * inv_root[:, None]
-        turn = np.zeros((n, n))  # the rotation about the origin: (x, y) -> (-y, x)
-        turn[np.arange(0, n, 2), np.arange(1, n, 2)] = -1.0
-        turn[np.arange(1, n, 2), np.arange(0, n, 2)] = 1.0
-        self.M = Q0.T @ (inv_root[:, None] * turn)  # (n - 2, n): v = M (x - centre)
+        half = n // 2
+        B0 = np.zeros((n, n - 2))
+        for axis in (0, 1):  # translation along axis: inv_root on that axis' rows
+            a = inv_root[axis::2]
+            h = a.copy()
+            h[0] += math.copysign(math.sqrt(float(a @ a)), float(a[0]))
+            Q = np.eye(half)[:, 1:] - h[:, None] * (h[1:] * (2.0 / float(h @ h)))
+            B0[axis::2, axis * (half - 1) : (axis + 1) * (half - 1)] = Q * a[:, None]
+        self.B0 = B0
         self.centre = np.add.reduce(x, 0) / x.shape[0]
         # below this |v| the rotation is a translation (every node at one point)
         self.floor = (1e-12 * length) ** 2 * float(inv_root @ inv_root)
 
     def __call__(self, x: NDArray) -> NDArray:
-        v = self.M @ (x - self.centre).ravel()
+        turn = (x - self.centre)[:, ::-1] * _TURN  # the rotation about the centre
+        v = turn.ravel() @ self.B0  # B0 = D^-1/2 Q0: Q0^T D^-1/2 turn
         v2 = float(v @ v)
         if v2 <= self.floor:
             return self.B0
