@@ -41,25 +41,35 @@ def default_pins(net: SpringNetwork, avoid: ArrayLike = ()) -> NDArray[np.bool_]
 
     Returns a (n_nodes, 2) bool mask.
     """
-    x = net.positions
     avoid = index_array("avoid", np.ravel(avoid), net.n_springs, what="spring indices")
+    return _far_pins(net, avoid)
+
+
+def _far_pins(net: SpringNetwork, avoid: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """:func:`default_pins` for checked spring indices ``avoid`` (distances compared
+    squared: the same nodes, without the norms' overhead)."""
+    x = net.positions
     if avoid.size:
         avoid_nodes = np.unique(net.springs[avoid].ravel())
-        dist = np.min(np.linalg.norm(x[:, None, :] - x[None, avoid_nodes, :], axis=2), axis=1)
+        diff = x[:, None, :] - x[None, avoid_nodes, :]
+        dist = np.min(np.einsum("ijk,ijk->ij", diff, diff), axis=1)
         dist[avoid_nodes] = -np.inf
         first = int(np.argmax(dist))
     else:
-        avoid_nodes = np.empty(0, dtype=np.int64)
-        first = int(np.argmin(np.linalg.norm(x - x.mean(axis=0), axis=1)))
-    far = np.linalg.norm(x - x[first], axis=1)
-    far[avoid_nodes] = -np.inf
+        avoid_nodes = None
+        c = x - np.add.reduce(x, 0) / x.shape[0]
+        first = int(np.argmin(np.add.reduce(c * c, 1)))
+    d = x - x[first]
+    far = np.add.reduce(d * d, 1)
+    if avoid_nodes is not None:
+        far[avoid_nodes] = -np.inf
     far[first] = -np.inf
     second = int(np.argmax(far))
     mask = np.zeros((net.n_nodes, 2), dtype=bool)
     mask[first] = True
     if net.n_nodes > 1:
-        d = x[second] - x[first]
-        mask[second, 1 if abs(d[0]) >= abs(d[1]) else 0] = True
+        dx, dy = d[second].tolist()
+        mask[second, 1 if abs(dx) >= abs(dy) else 0] = True
     return mask
 
 
@@ -204,7 +214,7 @@ class Problem:
         choice("clamp", clamp, ("exact", "rod"))
         rod_stiffness = real("rod_stiffness", rod_stiffness, low=0, low_open=True)
         idx, length = _clamp_arrays(net, clamped)
-        free = ~pin_mask(net, pinned, avoid=idx)
+        free = ~(_far_pins(net, idx) if pinned is None else pin_mask(net, pinned))
         return cls(net, free, idx, length, clamp, float(rod_stiffness))
 
     # -- the energy that is minimised -----------------------------------------------
@@ -270,15 +280,16 @@ class Problem:
         return sp.csr_matrix((vals[keep], (rows[keep], column[flat][keep])), shape=(m, coords.size))
 
     # -- the one residual used by every method ----------------------------------------
-    def residual(self, x: NDArray) -> Residual:
+    def residual(self, x: NDArray, *, force: tuple[NDArray, NDArray] | None = None) -> Residual:
         """Net force on free coordinates after removing clamp-normal forces, judged locally.
 
         The multipliers ``mu`` (the clamp tensions) minimise ``|grad E + A^T mu|_2`` over
         free coordinates; pin reactions are removed by looking at free coordinates only.
         The same definition holds for exact clamps and rods (whose axial force is a
-        clamp-normal component). Returns a :class:`Residual`.
+        clamp-normal component). ``force``: ``unbalanced_force(x, free_flat)`` when the
+        caller has it. Returns a :class:`Residual`.
         """
-        r, mu = self.unbalanced_force(x, self.free_flat)
+        r, mu = self.unbalanced_force(x, self.free_flat) if force is None else force
         if r.size:
             imbalance = float(np.max(np.abs(r) / self.scale[self.free_flat]))
             force = float(np.max(np.abs(r)))

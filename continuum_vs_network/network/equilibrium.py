@@ -224,9 +224,10 @@ def relax(
     x = _start(problem, x0)
     trace = Trace()
     solve = METHODS[method]
-    start_lengths = net.lengths(x)[problem.clamp_springs]
+    start_lengths = net.lengths(x)[problem.clamp_springs] if problem.n_clamps else None
     iterations = 0
     outcome = Outcome(x, 0, True)
+    reaction = None  # the pins' reaction at outcome.x, when known
     known = None  # (problem, x, its Residual): computed once, reused by _finish
     # Default pins only remove rigid motion. The dense trust-region Newton removes it
     # itself when nothing is pinned (a pin pair whose lever shortens in a large deformation
@@ -246,28 +247,35 @@ def relax(
     if floating:  # second order judged without pins (rigid motions removed), then placed
         outcome, extra = _second_order(solved, outcome, solve, stop, trace, iterations)
         iterations += extra
+    checked = None  # an outcome already judged to second order (placed rigidly since)
     if floating and outcome.converged:
-        outcome = replace(outcome, x=_place(outcome.x, x, problem.free), certified=True)
-        placed = problem.residual(outcome.x)
-        known = (problem, outcome.x, placed)
+        placed_x = _place(outcome.x, x, problem.free)
+        outcome = checked = Outcome(placed_x, outcome.iterations, True, certified=True)
+        placed, reaction = _residual_and_reaction(problem, placed_x)
+        known = (problem, placed_x, placed)
         if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
             trace.base = iterations
             outcome = replace(solve(problem, outcome.x, stop, trace), certified=True)
             iterations += outcome.iterations
+            reaction = None
     # Default pins only remove rigid motion, so they must carry no load. After a large
     # deformation two of them can line up and act as a strut: choose them anew at the
     # deformed positions and relax again from there.
     for _ in range(3):
         if pinned is not None or not outcome.converged:
             break
-        if _pin_reaction(problem, outcome.x) <= stop.tol:
+        if reaction is None or outcome is not checked:
+            reaction = _pin_reaction(problem, outcome.x)
+        if reaction <= stop.tol:
             break
         avoid = problem.clamp_springs
         problem = problem.with_free(~default_pins(net.with_positions(outcome.x), avoid))
         trace.base = iterations
         outcome = solve(problem, outcome.x, stop, trace)
         iterations += outcome.iterations
-    outcome, extra = _second_order(problem, outcome, solve, stop, trace, iterations)
+    extra = 0
+    if outcome is not checked:  # a placed outcome has the lengths just judged
+        outcome, extra = _second_order(problem, outcome, solve, stop, trace, iterations)
     res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
     return _finish(problem, outcome, iterations + extra, method, stop, trace, res)
 
@@ -354,18 +362,20 @@ def _place(x: NDArray, start: NDArray, free: NDArray) -> NDArray:
     closer to the start's orientation), or, when the network has shrunk too much for that,
     so that the pair has its start orientation.
     """
-    full = np.flatnonzero(~free.any(axis=1))
-    part = np.flatnonzero((~free).sum(axis=1) == 1)
-    if not full.size:
+    pins = np.flatnonzero(~free.ravel()).tolist()  # scalars: math, not numpy (~1 ms relax)
+    nodes = [p // 2 for p in pins]
+    full = [i for i in dict.fromkeys(nodes) if nodes.count(i) == 2]
+    part = [p for p in pins if nodes.count(p // 2) == 1]
+    if not full:
         return x
-    a = int(full[0])
-    y = x - x[a] + start[a]
-    if not part.size:
+    a = full[0]
+    start_a = start[a]
+    y = x - x[a] + start_a
+    if not part:
         return y
-    b = int(part[0])
-    c = int(np.flatnonzero(~free[b])[0])
-    (dx, dy), (d0x, d0y) = (y[b] - y[a]).tolist(), (start[b] - start[a]).tolist()
-    r = math.hypot(dx, dy)  # scalars: math, not numpy (a relax of N = 10 takes ~1 ms)
+    b, c = divmod(part[0], 2)
+    (dx, dy), (d0x, d0y) = (y[b] - y[a]).tolist(), (start[b] - start_a).tolist()
+    r = math.hypot(dx, dy)
     want = math.atan2(d0y, d0x)
     t = (d0x, d0y)[c] / max(r, 1e-300)
     if abs(t) <= 1.0:
@@ -374,24 +384,32 @@ def _place(x: NDArray, start: NDArray, free: NDArray) -> NDArray:
         want = min(options, key=lambda o: abs(math.remainder(o - want, 2 * math.pi)))
     turn = want - math.atan2(dy, dx)
     cos, sin = math.cos(turn), math.sin(turn)
-    rel = y - y[a]
-    y = np.empty_like(rel)
-    y[:, 0] = cos * rel[:, 0] - sin * rel[:, 1]
-    y[:, 1] = sin * rel[:, 0] + cos * rel[:, 1]
-    y += start[a]
+    y = (y - y[a]) @ np.array([[cos, sin], [-sin, cos]]) + start_a
     y[b, c] = start[b, c] if abs(t) <= 1.0 else y[b, c]  # exact, not to round-off
-    y[a] = start[a]
+    y[a] = start_a
     return y
 
 
-def _pin_reaction(problem: Problem, x: NDArray) -> float:
+def _residual_and_reaction(problem: Problem, x: NDArray) -> tuple[Residual, float]:
+    """``problem.residual(x)`` and :func:`_pin_reaction` at ``x``; from one net force on
+    every coordinate when there are no clamps (no multipliers to fit per coordinate set)."""
+    if problem.n_clamps:
+        return problem.residual(x), _pin_reaction(problem, x)
+    force, mu = problem.unbalanced_force(x, np.arange(problem.free.size))
+    return problem.residual(x, force=(force[problem.free_flat], mu)), _pin_reaction(
+        problem, x, force
+    )
+
+
+def _pin_reaction(problem: Problem, x: NDArray, force: NDArray | None = None) -> float:
     """Largest force the pins exert on the network at ``x``, clamp forces removed,
-    relative to the pinned coordinates' local force scale."""
+    relative to the pinned coordinates' local force scale (``force``: the unbalanced
+    force on every coordinate, when known)."""
     pinned = np.flatnonzero(~problem.free.ravel())
     if not pinned.size:
         return 0.0
-    everywhere = np.arange(problem.free.size)
-    force, _ = problem.unbalanced_force(x, everywhere)
+    if force is None:
+        force, _ = problem.unbalanced_force(x, np.arange(problem.free.size))
     return float(np.max(np.abs(force[pinned]) / problem.scale[pinned]))
 
 

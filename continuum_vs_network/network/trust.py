@@ -172,11 +172,12 @@ def _trial(
     stiff: StiffSprings | None,
     coords: NDArray,
     full: bool,
+    exact: bool,
 ) -> tuple[NDArray, float, float, float]:
     """The trust-region step of ``radius`` taken from ``model.x``: the new positions, the
     step's scaled length, and the predicted and actual energy changes (not finite when
     the positions are not). ``coords``: the free flat coordinates (``full``: all of them, in
-    order).
+    order); ``exact``: the problem has exact clamps.
 
     The step is bent by its geodesic acceleration (Transtrum & Sethna 2012): the
     second-order length change ``|dd_perp|^2 / r`` of every spring along the linear step
@@ -207,16 +208,18 @@ def _trial(
     move = step + 0.5 * accel if accel @ accel <= _ACCEL2 * (step @ step) else step
     x = model.x
     if full:
-        y = x + move.reshape(x.shape)
+        move = move.reshape(x.shape)
+        y = x + move
     else:
         y = x.copy()
         y.ravel()[coords] += move
+        move = None
     if stiff is not None:
         z = stiff.restore(y, x, step)
-        y = z if z is not None else y
-    if problem.exact:
-        y = _onto_clamps(problem, y, coords)
-    return y, length, predicted, terms.energy_change(y)
+        y, move = (z, None) if z is not None else (y, move)
+    if exact:
+        y, move = _onto_clamps(problem, y, coords), None
+    return y, length, predicted, terms.energy_change(y, move)
 
 
 def _onto_clamps(problem: Problem, y: NDArray, coords: NDArray) -> NDArray:
@@ -300,7 +303,9 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
 
         accepted = False
         for _ in range(40):
-            y, length, predicted, actual = _trial(problem, model, radius, stiff, coords, full)
+            y, length, predicted, actual = _trial(
+                problem, model, radius, stiff, coords, full, m > 0
+            )
             if math.isfinite(actual):
                 ratio = actual / predicted if predicted < 0 else -1.0
                 if ratio > _ETA:
@@ -308,7 +313,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         # the model holds to the boundary: look further along it at the
                         # same Hessian while the energy keeps falling
                         for _ in range(_GROW_TRIES):
-                            wider = _trial(problem, model, 2 * radius, stiff, coords, full)
+                            wider = _trial(problem, model, 2 * radius, stiff, coords, full, m > 0)
                             y2, length2, predicted2, actual2 = wider
                             if not (actual2 < actual and actual2 / predicted2 > 0.25):
                                 break

@@ -89,8 +89,9 @@ class SparseKernels:
         b = self.bending(step)
         return self.basis.T @ b if self.basis is not None else b * self.inv_root
 
-    def energy_change(self, y: NDArray) -> float:
-        """``E(y) - E(x)`` from the last ``x``, free of cancellation."""
+    def energy_change(self, y: NDArray, move: NDArray | None = None) -> float:
+        """``E(y) - E(x)`` from the last ``x``, free of cancellation (``move``: ``y - x``
+        (n_nodes, 2), when known)."""
         return spring_energy_change(y, self.x, *self.springs)
 
 
@@ -128,8 +129,7 @@ class DenseKernels(SparseKernels):
         d = self.E @ x
         r = np.hypot(d[:, 0], d[:, 1])
         r_safe = np.maximum(r, _TINY)
-        self.d, self.r, self.r_safe = d, r, r_safe
-        self.r_tiny, self.r_rest = r + _TINY, r - self.L2  # for energy_change
+        self.d, self.r, self.r_safe, self.r_rest = d, r, r_safe, r - self.L2
         t = (self.k * (r - self.L) / r_safe)[:, None] * d
         g = (self.Et @ t).ravel()
         return g if self.full else g[self.coords]
@@ -143,23 +143,22 @@ class DenseKernels(SparseKernels):
         turn = ((self.d / r[:, None]) @ _TURN).reshape(-1, 2, 2)  # (u; u_perp) per spring
         # rows 2j, 2j + 1: spring j's length and rotation Jacobians times the basis
         KB = np.matmul(turn, self._incident_basis(basis)).reshape(self.w.size, -1)
-        self.KB, self.k_r = KB, self.k / r
+        self.JBT, self.PB, self.k_r = KB[0::2].T, KB[1::2], self.k / r
         if np.count_nonzero(self.r) < r.size:  # a collapsed spring: u undefined, t I block
             return super().reduced_hessian(mu, basis)
         return KB.T @ (self.w * KB)
 
     def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
-        KB = self.KB
-        perp = KB[1::2] @ p
-        return KB[0::2].T @ (self.k_r * perp * perp)
+        perp = self.PB @ p
+        return self.JBT @ (self.k_r * perp * perp)
 
-    def energy_change(self, y: NDArray) -> float:
+    def energy_change(self, y: NDArray, move: NDArray | None = None) -> float:
         d0 = self.d
-        du = self.E @ (y - self.x)
+        du = self.E @ (y - self.x if move is None else move)
         d = d0 + du
         r = np.hypot(d[:, 0], d[:, 1])
         # r - r0 = du . (d + d0) / (r + r0), without cancellation
-        dr = np.add.reduce(du * (d + d0), 1) / (r + self.r_tiny)
+        dr = np.add.reduce(du * (d + d0), 1) / (r + self.r_safe)
         return float(self.k_half @ (dr * (r + self.r_rest)))
 
 
