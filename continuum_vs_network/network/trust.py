@@ -266,16 +266,18 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     model: Model | None = None  # the last iteration's model (its certificate)
     for it in range(stop.max_iter + 1):
         g = terms.gradient(x)
-        if not np.isfinite(g).all():
-            return Outcome(x, it, False, "forces became non-finite (the network blew up)")
         if problem.n_clamps:
+            if not np.isfinite(g).all():
+                return Outcome(x, it, False, "forces became non-finite (the network blew up)")
             A = problem.clamp_jacobian(x, coords, dense=True)
             mu = clamp_tensions(A, g, problem.scale[coords])
             force = g + A.T @ mu
         else:
             A, mu, force = None, _EMPTY, g
-        # stop.imbalance
+        # stop.imbalance (not finite where a force is not)
         residual = float(np.maximum.reduce(np.abs(force) / scale)) if n else 0.0
+        if not math.isfinite(residual):
+            return Outcome(x, it, False, "forces became non-finite (the network blew up)")
         if rod:
             clamp_error = stop.clamp_error(-mu / problem.rod_stiffness)
         else:

@@ -25,7 +25,7 @@ from .trust_kernels import SparseKernels
 __all__ = ["CURVATURE", "Model", "RigidBasis", "Spectrum", "null_basis", "rigid_motions"]
 
 CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
-_TURN = np.array([-1.0, 1.0])  # (y, x) -> (-y, x)
+_EYE: dict[int, NDArray] = {}  # identities by size (positive_factor)
 
 
 def null_basis(M: NDArray) -> NDArray:
@@ -73,13 +73,18 @@ class RigidBasis:
             Q = np.eye(half)[:, 1:] - h[:, None] * (h[1:] * (2.0 / float(h @ h)))
             B0[axis::2, axis * (half - 1) : (axis + 1) * (half - 1)] = Q * a[:, None]
         self.B0 = B0
-        self.centre = np.add.reduce(x, 0) / x.shape[0]
+        # the rotation about the centre c: turn(x) = (-(y - c_y), x - c_x) per node, so
+        # B0^T turn(x) = x.B0S - c.B0S with B0S the rows of B0 swapped, the x rows negated
+        B0S = np.empty_like(B0)
+        B0S[0::2], B0S[1::2] = B0[1::2], -B0[0::2]
+        self.B0S = B0S
+        centre = np.add.reduce(x, 0) / x.shape[0]
+        self.v_centre = np.tile(centre, x.shape[0]) @ B0S
         # below this |v| the rotation is a translation (every node at one point)
         self.floor = (1e-12 * length) ** 2 * float(inv_root @ inv_root)
 
     def __call__(self, x: NDArray) -> NDArray:
-        turn = (x - self.centre)[:, ::-1] * _TURN  # the rotation about the centre
-        v = turn.ravel() @ self.B0  # B0 = D^-1/2 Q0: Q0^T D^-1/2 turn
+        v = x.ravel() @ self.B0S - self.v_centre  # the rotation in Q0's coordinates
         v2 = float(v @ v)
         if v2 <= self.floor:
             return self.B0
@@ -207,10 +212,15 @@ def positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | 
     ``H - sigma I`` is positive definite (see :class:`Model`); else ``(None, None, inf)``."""
     if not H.size:
         return None, None, math.inf
-    sigma = max(CURVATURE, 1e-12 * float(np.maximum.reduce(np.add.reduce(np.abs(H), 1))))
-    shifted = H.copy()
-    shifted.flat[:: H.shape[0] + 1] -= sigma
-    _, info = lapack.dpotrf(shifted, overwrite_a=True)
+    r = H.shape[0]
+    top = float(np.maximum.reduce(np.abs(H), None))
+    # 1e-12 max row sum |H| exceeds CURVATURE only where r max |H_ij| does
+    norm = float(np.maximum.reduce(np.add.reduce(np.abs(H), 1))) if r * top > 1e4 else 0.0
+    sigma = max(CURVATURE, 1e-12 * norm)
+    eye = _EYE.get(r)
+    if eye is None:
+        eye = _EYE.setdefault(r, np.eye(r))
+    _, info = lapack.dpotrf(H - sigma * eye, overwrite_a=True)
     if info != 0:
         return None, None, math.inf
     factor, info = lapack.dpotrf(H)
