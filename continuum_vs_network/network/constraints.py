@@ -354,10 +354,13 @@ class Problem:
         Free coordinates minus constraints (springs with ``k > 0``, and clamps on springs
         with ``k == 0``) minus the rigid motions the pins leave, floored at 0.
         """
-        n_free = int(self.free.sum())
+        n_free = np.count_nonzero(self.free)  # count_nonzero: sums without numpy's overhead
         stiff = self.net.stiffness > 0
-        n_constraints = int(stiff.sum()) + int((~stiff[self.clamp_springs]).sum())
-        rigid_left = max(0, 3 - int((~self.free).sum()))
+        clamped = self.clamp_springs.size
+        n_constraints = (
+            np.count_nonzero(stiff) + clamped - np.count_nonzero(stiff[self.clamp_springs])
+        )
+        rigid_left = max(0, 3 - (self.free.size - n_free))
         return max(0, n_free - n_constraints - rigid_left)
 
     def start(self, x: NDArray) -> NDArray:

@@ -282,7 +282,7 @@ def relax(
 
 def _check_rank(problem: Problem) -> None:
     """Raise a clear error when the rigidity matrix is rank deficient (generic positions)."""
-    modes = floppy_modes(problem) - max(0, 3 - int((~problem.free).sum()))
+    modes = floppy_modes(problem) - max(0, 3 - (problem.free.size - np.count_nonzero(problem.free)))
     if modes <= 0:
         return
     net = problem.net

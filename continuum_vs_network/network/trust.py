@@ -188,7 +188,7 @@ def _trial(
     terms = model.terms
     if model.spectrum is None and model.newton_length <= radius:  # Newton, by Cholesky
         p, length = model.newton, model.newton_length
-        predicted = float(model.gr @ p + 0.5 * ((p @ model.H) @ p))
+        predicted = 0.5 * float(model.gr @ p)  # gr.p + p.H.p / 2 with H p = -gr
         step = model.lift(p)
         accel = -lapack.dpotrs(model.factor, terms.reduced_bending(p, step))[0]
     else:  # in the eigenbasis: the subproblem and the bending solve are vector operations

@@ -103,7 +103,7 @@ class DenseKernels(SparseKernels):
         _, k, L = self.springs
         s = len(k)
         self.E, self.Et = _incidence(self.springs[0], problem.net)
-        self.k, self.L, self.k_half, self.L2 = k, L, 0.5 * k, 2.0 * L
+        self.k, self.L, self.k_half, self.L2, self.kL = k, L, 0.5 * k, 2.0 * L, k * L
         self.clamps = problem.clamp_springs if self.m else None
         self.weights = np.empty((s, 2))  # per spring: k (length), t (rotation)
         self.weights[:, 0] = k
@@ -111,6 +111,7 @@ class DenseKernels(SparseKernels):
         self.n_nodes = problem.net.n_nodes
         self.full = bool(self.coords.size == 2 * self.n_nodes)  # natural order
         self.fixed = None  # E times diag(inv_root), the pinned problems' constant basis
+        self.tried: tuple = (None,)  # the last energy_change's positions, d and r
 
     def _incident_basis(self, basis: NDArray | None) -> NDArray:
         """``E`` applied to the x and the y rows of the basis: (s, 2, r)."""
@@ -125,9 +126,12 @@ class DenseKernels(SparseKernels):
         return (self.E @ basis.reshape(self.n_nodes, -1)).reshape(len(self.k), 2, -1)
 
     def gradient(self, x: NDArray) -> NDArray:
+        if x is self.tried[0]:  # the last trial's positions: their geometry is known
+            d, r = self.tried[1:]
+        else:
+            d = self.E @ x
+            r = np.hypot(d[:, 0], d[:, 1])
         self.x = x
-        d = self.E @ x
-        r = np.hypot(d[:, 0], d[:, 1])
         r_safe = np.maximum(r, _TINY)
         self.d, self.r, self.r_safe, self.r_rest = d, r, r_safe, r - self.L2
         t = (self.k * (r - self.L) / r_safe)[:, None] * d
@@ -136,7 +140,7 @@ class DenseKernels(SparseKernels):
 
     def reduced_hessian(self, mu: NDArray, basis: NDArray | None) -> NDArray:
         r = self.r_safe
-        tangential = self.k * (1.0 - self.L / r)
+        tangential = self.k - self.kL / r  # k (1 - L / r)
         if self.clamps is not None:
             tangential[self.clamps] += mu[: self.m] / r[self.clamps]
         self.weights[:, 1] = tangential
@@ -157,6 +161,7 @@ class DenseKernels(SparseKernels):
         du = self.E @ (y - self.x if move is None else move)
         d = d0 + du
         r = np.hypot(d[:, 0], d[:, 1])
+        self.tried = (y, d, r)
         # r - r0 = du . (d + d0) / (r + r0), without cancellation
         dr = np.add.reduce(du * (d + d0), 1) / (r + self.r_safe)
         return float(self.k_half @ (dr * (r + self.r_rest)))
