@@ -40,6 +40,8 @@ __all__ = [
 RANK_MAX = 20_000  # free coordinates up to which rigidity is checked by rank
 CURVATURE_DENSE_MAX = 1200  # dense eigenvalues of the reduced Hessian up to this size
 _CACHE: dict[int, dict] = {}
+_NONE = np.empty(0, dtype=np.int64)
+_NONE.setflags(write=False)
 
 
 def _generic(net: SpringNetwork) -> NDArray:
@@ -79,8 +81,10 @@ def floppy_modes(problem: Problem) -> int:
 def collapsed_springs(problem: Problem, x: NDArray) -> NDArray[np.int64]:
     """Springs with ``k > 0`` whose length at ``x`` is ``<= 1e-9`` of their rest length."""
     net = problem.net
-    r = net.lengths(x)
-    return np.flatnonzero((net.stiffness > 0) & (r <= 1e-9 * net.rest_length))
+    short = net.lengths(x) <= 1e-9 * net.rest_length
+    if not np.count_nonzero(short):  # the common case, without the index search
+        return _NONE
+    return np.flatnonzero(short & (net.stiffness > 0))
 
 
 def _reduced(problem: Problem, x: NDArray) -> tuple[NDArray, NDArray, Frame, NDArray]:
