@@ -3,7 +3,7 @@
 Each trial builds its network and task (from callables of a seeded generator, or uses the
 ones given), then repeats ``rule.update`` / ``step.apply`` with warm-started equilibria and
 one :class:`~.states.Tracker` (reused factorisations) per trial, measuring after every
-step (see :mod:`.history` for what is recorded).
+step (see :mod:`.record` and :mod:`.history` for what is recorded).
 
 Randomness: trial ``i`` uses ``SeedSequence(seeds[i]).spawn(2)``: the first child builds
 the network and the task, the second draws the read-out noise. The same seeds give the
@@ -34,9 +34,10 @@ from .. import _validate as check
 from ..network.equilibrium import Equilibrium, EquilibriumError
 from ..network.model import SpringNetwork
 from .examples import TaskSet
-from .history import LEGACY, MEASUREMENTS, UPDATES, History
+from .history import LEGACY, History
 from .medium import is_medium, learning_arrays, with_learning_arrays
 from .node_tasks import NodeTask
+from .record import COUNTERS, new_record, record_bytes, record_measure, record_time, record_update
 from .rules import LearningError, Rule, Step, Warm
 from .states import Tracker
 from .tasks import AllosteryTask
@@ -47,14 +48,6 @@ NetworkSpec = SpringNetwork | Callable[[np.random.Generator], SpringNetwork]
 TaskSpec = AllosteryTask | Callable[[SpringNetwork, np.random.Generator], AllosteryTask]
 Callback = Callable[[int, int, SpringNetwork], None]
 
-_PER_TARGET = {
-    "target_strain",
-    "target_length",
-    "target_rest_length",
-    "desired_length",
-    "clamp_length",
-}
-_COUNTERS = ("solves", "factorisations", "iterations")
 _LEARNING = ("rest_length", "stiffness", "eigenstrain", "modulus")
 _CURRENT_STATE = frozenset({*_LEARNING, "warm_free", "warm_clamped", "warm_previous_free"})
 
@@ -205,13 +198,6 @@ def _check_checkpoint(checkpoint: str | Path) -> Path:
     return path
 
 
-def record_bytes(steps: int, n_targets: int) -> int:
-    """Bytes of one trial's history arrays (:func:`_new_record`), a Python int (no overflow)."""
-    per_target = len(_PER_TARGET)
-    scalars = len(MEASUREMENTS) + len(UPDATES) - per_target
-    return 8 * (steps + 1) * (scalars + per_target * max(int(n_targets), 1))
-
-
 # -- one trial --------------------------------------------------------------------------
 def _build(seed: int, net: NetworkSpec, task: TaskSpec):
     build_ss, noise_ss = np.random.SeedSequence(seed).spawn(2)
@@ -319,9 +305,9 @@ def _run_trial(
                 free = measure_examples(cur, warm, step)
             else:
                 free = step.free if step.free is not None else measure_free(cur, warm)
-            _record_update(rec, t, step, cur, rule, mask)
-            _record_measure(rec, t, cur, task0, rule, free, mask)
-            _record_time(rec, t, time.perf_counter() - t_start, measure_seconds, counters())
+            record_update(rec, t, step, cur, rule, mask)
+            record_measure(rec, t, cur, task0, rule, free, mask)
+            record_time(rec, t, time.perf_counter() - t_start, measure_seconds, counters())
             nxt = step.apply(cur)
             warm = next_warm(warm, step, free)
             cur = nxt
@@ -347,140 +333,13 @@ def _run_trial(
             free = measure_examples(cur, warm, None)
         else:
             free = measure_free(cur, warm)
-        _record_measure(rec, steps, cur, task0, rule, free, mask)
-        _record_time(rec, steps, time.perf_counter() - t_start, measure_seconds, counters())
+        record_measure(rec, steps, cur, task0, rule, free, mask)
+        record_time(rec, steps, time.perf_counter() - t_start, measure_seconds, counters())
     except (EquilibriumError, LearningError) as err:
         reason = f"step {t}: {type(err).__name__}: {err}"
     if bar is not None and t < steps:
         bar.update(steps - t)
     state.finish_trial(i, t, reason, cur, rec)
-
-
-def _energy_gradient(net: SpringNetwork, x: NDArray, dof: str, mask: NDArray) -> float:
-    return _summed_gradient(net, [x], dof, mask)
-
-
-def _record_measure(rec, t, net, task, rule, free, mask) -> None:
-    if isinstance(task, TaskSet):
-        _record_examples(rec, t, net, task, rule, free, mask)
-        return
-    if isinstance(task, NodeTask):
-        _record_nodes(rec, t, net, task, rule, free, mask)
-        return
-    if is_medium(net):
-        if free is not None:
-            for name, value in net.measurements(task, free, rule.dof, mask).items():
-                rec[name][t] = value
-        return
-    ref = rule.strain_reference
-    rec["target_rest_length"][t] = net.rest_length[task.targets]
-    rec["desired_length"][t] = task.desired_lengths(net, ref)
-    if free is None:
-        return
-    x = free.positions
-    r_t = net.lengths(x)[task.targets]
-    rec["target_length"][t] = r_t
-    rec["target_strain"][t] = task.target_strains(net, r_t, ref)
-    rec["error_current"][t] = task.error(net, x, "current")
-    rec["error_initial"][t] = task.error(net, x, "initial")
-    rec["energy_free"][t] = free.energy
-    rec["energy_gradient_free"][t] = _energy_gradient(net, x, rule.dof, mask)
-    rec["residual"][t] = free.residual
-
-
-def _record_examples(rec, t, net, tasks: TaskSet, rule, free, mask) -> None:
-    """A task set: summed errors and energies, the examples' target values side by side,
-    ``|sum_e dE_e/dtheta|`` and the largest residual."""
-    ref = rule.strain_reference
-    node = tasks.node_outputs  # node examples: outputs and displacements, as _record_nodes
-    if not node:
-        rec["target_rest_length"][t] = net.rest_length[tasks.targets]
-    rec["desired_length"][t] = tasks.desired_lengths(net, ref)
-    if free is None:
-        return
-    xs = [f.positions for f in free]
-    if node:
-        out = [k.outputs(x) for x, k in zip(xs, tasks.tasks)]
-        rec["target_length"][t] = np.concatenate(out)
-        rec["target_strain"][t] = np.concatenate(
-            [o - k.reference for o, k in zip(out, tasks.tasks)]
-        )
-    else:
-        r_t = np.concatenate([net.lengths(x)[k.targets] for x, k in zip(xs, tasks.tasks)])
-        rec["target_length"][t] = r_t
-        rec["target_strain"][t] = np.concatenate(
-            [k.target_strains(net, net.lengths(x)[k.targets], ref) for x, k in zip(xs, tasks.tasks)]
-        )
-    rec["error_current"][t] = tasks.error(net, xs, "current")
-    rec["error_initial"][t] = tasks.error(net, xs, "initial")
-    rec["energy_free"][t] = float(sum(f.energy for f in free))
-    rec["energy_gradient_free"][t] = _summed_gradient(net, xs, rule.dof, mask)
-    rec["residual"][t] = float(max(f.residual for f in free))
-
-
-def _record_nodes(rec, t, net, task: NodeTask, rule, free, mask) -> None:
-    """A node task: ``target_length`` holds the target coordinates, ``target_strain`` their
-    displacements, ``desired_length`` the desired coordinates; one error (no strain)."""
-    rec["desired_length"][t] = task.desired
-    if free is None:
-        return
-    x = free.positions
-    out = task.outputs(x)
-    rec["target_length"][t] = out
-    rec["target_strain"][t] = out - task.reference
-    rec["error_current"][t] = rec["error_initial"][t] = task.error(net, x)
-    rec["energy_free"][t] = free.energy
-    rec["energy_gradient_free"][t] = _energy_gradient(net, x, rule.dof, mask)
-    rec["residual"][t] = free.residual
-
-
-def _summed_gradient(net: SpringNetwork, xs: list, dof: str, mask: NDArray) -> float:
-    """``|sum_x dE/dtheta(x)|`` over the learning springs (both rows for ``dof="both"``)."""
-    g = 0.0
-    for x in xs:
-        dr = net.lengths(x) - net.rest_length
-        by = {"rest_length": -net.stiffness * dr, "stiffness": 0.5 * dr**2}
-        g = g + (np.stack([by["rest_length"], by["stiffness"]]) if dof == "both" else by[dof])
-    return float(np.linalg.norm(np.asarray(g)[..., mask]))
-
-
-def _record_update(rec, t, step: Step, net, rule, mask) -> None:
-    rec["update_norm"][t] = float(np.linalg.norm(step.delta))
-    if step.examples is not None:
-        clamped = [s.clamped for s in step.examples]
-        if all(c is not None for c in clamped):
-            rec["energy_clamped"][t] = float(sum(c.energy for c in clamped))
-            xs = [c.positions for c in clamped]
-            rec["energy_gradient_clamped"][t] = _summed_gradient(net, xs, rule.dof, mask)
-            rec["clamp_length"][t] = np.concatenate([s.clamp_lengths for s in step.examples])
-        return
-    if step.clamped is not None and is_medium(net):
-        rec["energy_clamped"][t] = step.clamped.energy
-        g = net.local_gradient(step.clamped, rule.dof)
-        rec["energy_gradient_clamped"][t] = float(np.linalg.norm(g[mask]))
-    elif step.clamped is not None:
-        rec["energy_clamped"][t] = step.clamped.energy
-        rec["energy_gradient_clamped"][t] = _energy_gradient(
-            net, step.clamped.positions, rule.dof, mask
-        )
-    if step.clamp_lengths is not None:
-        rec["clamp_length"][t] = step.clamp_lengths
-
-
-def _record_time(rec, t, seconds, measure_seconds, counters) -> None:
-    rec["seconds"][t] = seconds
-    rec["measure_seconds"][t] = measure_seconds
-    for name in _COUNTERS:
-        rec[name][t] = counters[name]
-
-
-def _new_record(steps: int, n_targets: int) -> dict[str, NDArray]:
-    rec = {}
-    for names, length in ((MEASUREMENTS, steps + 1), (UPDATES, steps)):
-        for name in names:
-            shape = (length, n_targets) if name in _PER_TARGET else (length,)
-            rec[name] = np.full(shape, np.nan)
-    return rec
 
 
 def _progress_bar(progress: bool, total: int, done: int):
@@ -535,7 +394,7 @@ class _Checkpoint:
         self.warm = Warm()
         self.seconds = 0.0
         self.measure_seconds = 0.0
-        self.counters = dict.fromkeys(_COUNTERS, 0)
+        self.counters = dict.fromkeys(COUNTERS, 0)
 
     # -- opening ----------------------------------------------------------------------
     @classmethod
@@ -567,11 +426,11 @@ class _Checkpoint:
             self.measure_seconds = self._resume["measure_seconds"]
             self.counters = self._resume["counters"]
         else:
-            rec = _new_record(steps, task0.n_targets)
+            rec = new_record(steps, task0.n_targets)
             self.step = 0
             self.warm = Warm()
             self.seconds = self.measure_seconds = 0.0
-            self.counters = dict.fromkeys(_COUNTERS, 0)
+            self.counters = dict.fromkeys(COUNTERS, 0)
         self._current = (net0, task0, digest)
         return rec
 
