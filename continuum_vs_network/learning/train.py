@@ -9,7 +9,7 @@ Randomness: trial ``i`` uses ``SeedSequence(seeds[i]).spawn(2)``: the first chil
 the network and the task, the second draws the read-out noise. The same seeds give the
 same history, up to the wall-clock columns.
 
-Checkpoints: with ``checkpoint=path`` the state is written to ``path`` every
+Checkpoints (:mod:`.checkpoint`): with ``checkpoint=path`` the state is written to ``path`` every
 ``checkpoint_every`` steps (and when a trial ends); calling ``train`` again with the same
 arguments resumes from it and returns exactly the history an uninterrupted run returns
 (wall-clock columns aside: they carry on from the saved totals). The cached factorisations
@@ -19,10 +19,7 @@ A finished run's checkpoint is kept and a repeated call just loads it.
 
 from __future__ import annotations
 
-import hashlib
 import json
-import os
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -33,11 +30,12 @@ from numpy.typing import NDArray
 from .. import _validate as check
 from ..network.equilibrium import Equilibrium, EquilibriumError
 from ..network.model import SpringNetwork
+from .checkpoint import Checkpoint, check_checkpoint
 from .examples import TaskSet
-from .history import LEGACY, History
-from .medium import is_medium, learning_arrays, with_learning_arrays
+from .history import History
+from .medium import is_medium
 from .node_tasks import NodeTask
-from .record import COUNTERS, new_record, record_bytes, record_measure, record_time, record_update
+from .record import record_bytes, record_measure, record_time, record_update
 from .rules import LearningError, Rule, Step, Warm
 from .states import Tracker
 from .tasks import AllosteryTask
@@ -47,9 +45,6 @@ __all__ = ["train"]
 NetworkSpec = SpringNetwork | Callable[[np.random.Generator], SpringNetwork]
 TaskSpec = AllosteryTask | Callable[[SpringNetwork, np.random.Generator], AllosteryTask]
 Callback = Callable[[int, int, SpringNetwork], None]
-
-_LEARNING = ("rest_length", "stiffness", "eigenstrain", "modulus")
-_CURRENT_STATE = frozenset({*_LEARNING, "warm_free", "warm_clamped", "warm_previous_free"})
 
 
 def train(
@@ -126,7 +121,7 @@ def train(
     if callback is not None and not callable(callback):
         raise check.ArgumentError("callback", callback, "None or a callable f(trial, step, net)")
     if checkpoint is not None:
-        checkpoint = _check_checkpoint(checkpoint)
+        checkpoint = check_checkpoint(checkpoint)
 
     settings = dict(rule.settings())
     settings.update(steps=steps, noise=float(noise), measure=bool(measure))
@@ -137,7 +132,7 @@ def train(
         sort_keys=True,
         default=str,
     )
-    state = _Checkpoint.open(checkpoint, fingerprint)
+    state = Checkpoint.open(checkpoint, fingerprint)
     if state.finished(len(seeds)):
         return state.history(settings, steps, seeds)
 
@@ -175,29 +170,6 @@ def _check_seeds(seeds: Sequence[int]) -> NDArray[np.int64]:
     return out
 
 
-def _check_checkpoint(checkpoint: str | Path) -> Path:
-    """The checkpoint file: its folder must exist and take a new file, now (not at step 50)."""
-    if not isinstance(checkpoint, str | os.PathLike):
-        raise check.ArgumentError("checkpoint", checkpoint, "None or a path")
-    path = Path(checkpoint)
-    allowed = "None or a file path in an existing, writable folder"
-    if path.is_dir():
-        raise check.ArgumentError("checkpoint", str(checkpoint), allowed, detail="it is a folder")
-    if not path.parent.is_dir():
-        raise check.ArgumentError(
-            "checkpoint", str(checkpoint), allowed, detail=f"no folder {str(path.parent)!r}"
-        )
-    try:
-        fd, probe = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    except OSError as err:
-        raise check.ArgumentError(
-            "checkpoint", str(checkpoint), allowed, detail=f"cannot write there: {err.strerror}"
-        ) from None
-    os.close(fd)
-    os.unlink(probe)
-    return path
-
-
 # -- one trial --------------------------------------------------------------------------
 def _build(seed: int, net: NetworkSpec, task: TaskSpec):
     build_ss, noise_ss = np.random.SeedSequence(seed).spawn(2)
@@ -230,7 +202,7 @@ def _run_trial(
     steps: int,
     readout: tuple[float, float],
     measure: bool,
-    state: _Checkpoint,
+    state: Checkpoint,
     every: int,
     callback: Callback | None,
     bar,
@@ -350,220 +322,3 @@ def _progress_bar(progress: bool, total: int, done: int):
     except ImportError:  # progress bars are optional
         return None
     return tqdm(total=total, initial=done, desc="train", unit="step")
-
-
-def _digest(net: SpringNetwork) -> str:
-    h = hashlib.sha1()
-    arrays = net.to_arrays().values() if is_medium(net) else ()
-    for a in arrays or (net.positions, net.springs, net.stiffness, net.rest_length):
-        h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()
-
-
-def _saved_warm(files: dict, examples: int | None) -> Warm:
-    if examples is not None:
-        return Warm(examples=tuple(_saved_warm_one(files, f"example{e}_") for e in range(examples)))
-    return _saved_warm_one(files, "")
-
-
-def _saved_warm_one(files: dict, infix: str) -> Warm:
-    return Warm(
-        free=files.get(f"cur/warm_{infix}free"),
-        clamped=files.get(f"cur/warm_{infix}clamped"),
-        previous_free=files.get(f"cur/warm_{infix}previous_free"),
-    )
-
-
-# -- state of a run (and its checkpoint file) -----------------------------------------------
-class _Checkpoint:
-    """Completed trials plus the progress of the current one; optionally on disk."""
-
-    def __init__(self, path: Path | None, fingerprint: str) -> None:
-        self.path = path
-        self.fingerprint = fingerprint
-        self.trial = 0  # index of the trial in progress
-        self.step = 0
-        self.records: list[dict[str, NDArray]] = []
-        self.completed: list[int] = []
-        self.reasons: list[str] = []
-        self.initial: list[SpringNetwork] = []
-        self.final: list[SpringNetwork] = []
-        self.tasks: list[AllosteryTask] = []
-        self.digests: list[str] = []
-        self._resume: dict | None = None  # saved state of the trial in progress
-        self.warm = Warm()
-        self.seconds = 0.0
-        self.measure_seconds = 0.0
-        self.counters = dict.fromkeys(COUNTERS, 0)
-
-    # -- opening ----------------------------------------------------------------------
-    @classmethod
-    def open(cls, path: str | Path | None, fingerprint: str) -> _Checkpoint:
-        state = cls(None if path is None else Path(path), fingerprint)
-        if state.path is not None and state.path.exists():
-            state._load()
-        return state
-
-    def finished(self, n_trials: int) -> bool:
-        return len(self.completed) == n_trials
-
-    def steps_done(self, steps: int) -> int:
-        return len(self.completed) * steps + (self._resume or {}).get("step", 0)
-
-    # -- trials -----------------------------------------------------------------------
-    def start_trial(self, i, net0, task0, noise_rng, steps) -> dict[str, NDArray]:
-        digest = _digest(net0)
-        if self._resume is not None:
-            if self._resume["digest"] != digest:
-                raise ValueError(
-                    f"checkpoint {self.path} was written for a different network in trial {i}"
-                )
-            noise_rng.bit_generator.state = self._resume["rng"]
-            rec = self._resume["record"]
-            self.step = self._resume["step"]
-            self.warm = self._resume["warm"]
-            self.seconds = self._resume["seconds"]
-            self.measure_seconds = self._resume["measure_seconds"]
-            self.counters = self._resume["counters"]
-        else:
-            rec = new_record(steps, task0.n_targets)
-            self.step = 0
-            self.warm = Warm()
-            self.seconds = self.measure_seconds = 0.0
-            self.counters = dict.fromkeys(COUNTERS, 0)
-        self._current = (net0, task0, digest)
-        return rec
-
-    def current_network(self, net0: SpringNetwork) -> SpringNetwork:
-        if self._resume is None:
-            return net0
-        cur = with_learning_arrays(net0, self._resume["learning"])
-        self._resume = None
-        return cur
-
-    def save_progress(self, i, t, cur, warm, rng, rec, seconds, measure_seconds, counters):
-        if self.path is None:
-            return
-        arrays = {f"cur/{k}": v for k, v in rec.items()}
-        for name, value in learning_arrays(cur).items():
-            arrays[f"cur/{name}"] = value
-        if warm.free is not None:
-            arrays["cur/warm_free"] = np.asarray(warm.free)
-        if warm.clamped is not None:
-            arrays["cur/warm_clamped"] = np.asarray(warm.clamped)
-        if warm.previous_free is not None:
-            arrays["cur/warm_previous_free"] = np.asarray(warm.previous_free)
-        for e, w in enumerate(warm.examples or ()):
-            for name in ("free", "clamped", "previous_free"):
-                if getattr(w, name) is not None:
-                    arrays[f"cur/warm_example{e}_{name}"] = np.asarray(getattr(w, name))
-        progress = {
-            "examples": None if warm.examples is None else len(warm.examples),
-            "trial": i,
-            "step": t,
-            "digest": self._current[2],
-            "rng": rng.bit_generator.state,
-            "seconds": seconds,
-            "measure_seconds": measure_seconds,
-            "counters": {k: int(v) for k, v in counters.items()},
-        }
-        self._write(arrays, progress)
-
-    def finish_trial(self, i, t, reason, cur, rec) -> None:
-        net0, task0, digest = self._current
-        self.records.append(rec)
-        self.completed.append(t)
-        self.reasons.append(reason)
-        self.initial.append(net0)
-        self.final.append(cur)
-        self.tasks.append(task0)
-        self.digests.append(digest)
-        self.trial = i + 1
-        self._write({}, None)
-
-    def history(self, settings, steps, seeds) -> History:
-        data = {name: np.stack([r[name] for r in self.records]) for name in self.records[0]}
-        return History(
-            steps=steps,
-            seeds=seeds.copy(),
-            completed=np.array(self.completed, dtype=np.int64),
-            stop_reason=tuple(self.reasons),
-            settings=settings,
-            data=data,
-            initial=tuple(self.initial),
-            final=tuple(self.final),
-            tasks=tuple(self.tasks),
-        )
-
-    # -- disk -------------------------------------------------------------------------
-    def _write(self, current: dict[str, NDArray], progress: dict | None) -> None:
-        if self.path is None:
-            return
-        from .history import _net_arrays, _task_arrays
-
-        arrays = dict(current)
-        for j, rec in enumerate(self.records):
-            arrays.update({f"rec/{j}/{k}": v for k, v in rec.items()})
-            arrays.update(_net_arrays(f"initial/{j}", self.initial[j]))
-            arrays.update(_net_arrays(f"final/{j}", self.final[j]))
-            arrays.update(_task_arrays(f"task/{j}", self.tasks[j]))
-        meta = {
-            "fingerprint": self.fingerprint,
-            "completed": self.completed,
-            "reasons": self.reasons,
-            "digests": self.digests,
-            "progress": progress,
-        }
-        arrays["meta"] = np.array(json.dumps(meta))
-        from ..io.atomic import atomic_path
-
-        with atomic_path(self.path) as tmp, open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-
-    def _load(self) -> None:
-        from .history import _net_from, _task_from
-
-        with np.load(self.path, allow_pickle=False) as z:
-            files = {k: z[k] for k in z.files}
-        meta = json.loads(str(files["meta"]))
-        if meta["fingerprint"] != self.fingerprint:
-            raise ValueError(
-                f"checkpoint {self.path} belongs to a different run (rule, steps, seeds, noise "
-                f"or checkpoint_every differ); remove it or pass another path"
-            )
-        n = len(meta["completed"])
-        self.completed = list(meta["completed"])
-        self.reasons = list(meta["reasons"])
-        self.digests = list(meta["digests"])
-        for j in range(n):
-            prefix = f"rec/{j}/"
-            self.records.append(
-                {
-                    k[len(prefix) :]: v.copy()
-                    for k, v in files.items()
-                    if k.startswith(prefix) and k[len(prefix) :] not in LEGACY
-                }
-            )
-            self.initial.append(_net_from(files, f"initial/{j}"))
-            self.final.append(_net_from(files, f"final/{j}"))
-            self.tasks.append(_task_from(files, f"task/{j}"))
-        self.trial = n
-        progress = meta["progress"]
-        if progress is not None:
-            self._resume = {
-                "step": int(progress["step"]),
-                "digest": progress["digest"],
-                "rng": progress["rng"],
-                "seconds": float(progress["seconds"]),
-                "measure_seconds": float(progress["measure_seconds"]),
-                "counters": progress["counters"],
-                "record": {
-                    k[4:]: v.copy()
-                    for k, v in files.items()
-                    if k.startswith("cur/")
-                    and k[4:] not in _CURRENT_STATE | LEGACY
-                    and not k.startswith("cur/warm_example")
-                },
-                "learning": {k: files[f"cur/{k}"] for k in _LEARNING if f"cur/{k}" in files},
-                "warm": _saved_warm(files, progress.get("examples")),
-            }
