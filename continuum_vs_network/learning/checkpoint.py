@@ -23,7 +23,7 @@ from ..network.model import SpringNetwork
 from .history import LEGACY, History
 from .medium import is_medium, learning_arrays, with_learning_arrays
 from .record import COUNTERS, new_record
-from .rules import Warm
+from .step import Warm
 from .tasks import AllosteryTask
 
 __all__ = ["Checkpoint", "check_checkpoint"]

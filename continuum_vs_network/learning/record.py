@@ -16,7 +16,7 @@ from .examples import TaskSet
 from .history import MEASUREMENTS, UPDATES
 from .medium import is_medium
 from .node_tasks import NodeTask
-from .rules import Step
+from .step import Step
 
 __all__ = [
     "COUNTERS",
