@@ -78,6 +78,7 @@ from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
 from .examples import TaskSet
 from .node_tasks import NodeTask, node_cost_gradient
+from .readout import Readout
 from .sensitivity import Cost, Sensitivity, cost_gradient
 from .states import Solver, Tracker
 from .step import JOINT, Dof, LearningError, Step, Warm, check_finite_update
@@ -102,33 +103,6 @@ _NETWORK_DOFS = ("rest_length", "stiffness", "both")
 def _plain(value: object) -> object:
     """Tuples as lists, so that settings survive a JSON round trip unchanged."""
     return list(value) if isinstance(value, tuple) else value
-
-
-@dataclass(frozen=True)
-class Readout:
-    """How a rule reads a state: relative read-out noise and temperature (``k_B T``)."""
-
-    noise: float = 0.0
-    temperature: float = 0.0
-
-    def lengths(self, net, state, pinned, clamps, rng) -> NDArray:
-        """Spring lengths of ``state`` as read: one thermal draw around it
-        (:func:`~.thermal.thermal_sample`) when ``temperature > 0``, then read-out noise."""
-        x = state.positions
-        if self.temperature > 0:
-            from .thermal import thermal_sample
-
-            try:
-                x = thermal_sample(net, pinned, clamps, state, self.temperature, rng)
-            except ValueError as err:
-                raise LearningError(str(err)) from err
-        return _noisy(net.lengths(x), self.noise, rng)
-
-
-def _noisy(lengths: NDArray, noise: float, rng: np.random.Generator | None) -> NDArray:
-    if noise == 0.0:
-        return lengths
-    return lengths * (1.0 + noise * rng.standard_normal(lengths.shape))
 
 
 @dataclass(frozen=True, kw_only=True)
