@@ -36,8 +36,9 @@ from .history import History
 from .medium import is_medium
 from .node_tasks import NodeTask
 from .record import record_bytes, record_measure, record_time, record_update
-from .rules import LearningError, Rule, Step, Warm
+from .rule_base import Rule
 from .states import Tracker
+from .step import LearningError, Step, Warm
 from .tasks import AllosteryTask
 
 __all__ = ["train"]
