@@ -58,6 +58,7 @@ from .materials import (
     lattice_viscous_lame,
     node_drag_to_continuum,
 )
+from .maxwell import damping_arm
 from .probes import Probe
 from .static import Dirichlet, Ordering, factorise
 
@@ -333,7 +334,7 @@ def simulate_body(
     before = np.zeros(n) if u0 is None else np.asarray(u0, dtype=float).copy()
     u_full = np.concatenate([before, np.zeros(n_int)])
     if n_int:  # arms relaxed at the starting state
-        u_full[n:] = _arm(body, damping).strain @ before
+        u_full[n:] = damping_arm(body, damping).strain @ before
     u_full[b] = fixed.values
     u = u_full[fi].copy()
     v = np.zeros(fi.size)
@@ -425,18 +426,6 @@ def simulate_body(
     )
 
 
-def _arm(body: ElasticBody, damping: Damping):
-    from .maxwell import arm_operators
-
-    return arm_operators(
-        body,
-        arm_lam=damping.arm_lam,
-        arm_mu=damping.arm_mu,
-        viscous_lam=damping.arm_viscous_lam,
-        viscous_mu=damping.arm_viscous_mu,
-    )
-
-
 def _system(
     body: ElasticBody, damping: Damping, density: float
 ) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix | None, int]:
@@ -448,7 +437,7 @@ def _system(
     C = damping_matrix(body, damping, density=density, K=K, M=M)
     if not damping.has_arm:
         return K, C, M, 0
-    arm = _arm(body, damping)
+    arm = damping_arm(body, damping)
     B, S, V = arm.strain, arm.stiffness, arm.viscosity
     K = sp.bmat([[K + B.T @ S @ B, -(B.T @ S)], [-(S @ B), S]], format="csr")
     C = sp.bmat([[C, None], [None, V]], format="csr")
