@@ -184,3 +184,21 @@ def test_bad_arm_input_is_named(body_task):
     with pytest.raises(ValueError, match="dt must be finite"):
         learn_in_time(body, task, ProspectiveConfiguration(0.4, **BULK), viscosity=SLS,
                       duration=1.0, dt=-1.0)  # fmt: skip
+
+
+def test_stiff_fast_arm_is_stable_and_acts_as_its_dashpot(body_task):
+    """An arm 1e7 times faster than the step (k2 = 1e8, gamma2 = 0.3, dt = 0.05): backward
+    Euler stays stable and the arm acts as its dashpot alone (a spring dashpot gamma2, the
+    Kelvin-Voigt network), so learning in time matches the Kelvin-Voigt run (relative
+    error of order tau2 / dt)."""
+    body, task = body_task
+    rule = CoupledLearning(0.4, 0.1, **BULK)
+    kw = {"duration": 2.0, "dt": 0.05, "n_outputs": 8, "form": "twin"}
+    arm = learn_in_time(body, task, rule, viscosity=Viscosity(drag=1.0, arm_stiffness=1e8,
+                        arm_dashpot=0.3), **kw)  # fmt: skip
+    kv = learn_in_time(body, task, rule, viscosity=Viscosity(drag=1.0, dashpot=0.3), **kw)
+    drag = learn_in_time(body, task, rule, viscosity=Viscosity(drag=1.0), **kw)
+    np.testing.assert_allclose(arm.error, kv.error, rtol=1e-5)
+    np.testing.assert_allclose(arm.positions, kv.positions, atol=1e-7)
+    assert np.max(np.abs(drag.error - kv.error)) > 1e-3 * kv.error[0]  # the dashpot matters
+    assert arm.factorisations == 1  # eigenstrain learning: one factorisation per run
