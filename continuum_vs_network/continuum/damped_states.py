@@ -2,7 +2,7 @@
 
 The continuum side of :func:`~continuum_vs_network.learning.physical_time.learn_in_time`:
 the body moves against a damping ``C`` (substrate drag and/or Kelvin-Voigt viscosity,
-:class:`~.viscoelastic.Damping`) and, with a Maxwell arm (a standard linear solid,
+:class:`~.damping.Damping`) and, with a Maxwell arm (a standard linear solid,
 :mod:`.maxwell`), against the arm's stress ``S (B u - e)`` with an internal strain ``e`` per
 quadrature point, while its source material springs are held at the task's strains and,
 in a clamped copy, its targets at given strains::
@@ -45,9 +45,9 @@ class DampedStepper:
     """
 
     def __init__(self, medium, task, damping, dt: float) -> None:
+        from .damping import Damping, damping_matrix
         from .maxwell import arm_step, damping_arm
         from .probes import chord_strain_probe
-        from .viscoelastic import Damping, damping_matrix
 
         if not isinstance(damping, Damping):
             raise ValueError(f"damping must be a Damping, got {type(damping).__name__}")
@@ -187,7 +187,7 @@ def body_relaxation_time(
 
     from ..learning.physical_time import settling_time
     from ..network.kkt import factor_kkt
-    from .viscoelastic import damping_matrix
+    from .damping import damping_matrix
 
     if measure not in ("target", "force"):
         raise ValueError(f"measure must be 'target' or 'force', got {measure!r}")

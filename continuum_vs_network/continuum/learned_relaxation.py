@@ -3,7 +3,7 @@
 The body starts at rest with its source material springs held at zero strain ("sources
 off"); at ``t = 0`` they are stepped to the task's strains and held there exactly, and the
 body creeps, against a damping (substrate drag and/or Kelvin-Voigt viscosity, optionally a
-Maxwell arm relaxed at the start: :class:`~.viscoelastic.Damping`), to the free state the
+Maxwell arm relaxed at the start: :class:`~.damping.Damping`), to the free state the
 learning rule trained::
 
     C du/dt = f - K u - G_s^T lambda,     G_s u = S_sources

@@ -81,7 +81,7 @@ def arm_operators(
 
 
 def damping_arm(body: ElasticBody, damping) -> ArmOperators:
-    """The arm operators of a :class:`~.viscoelastic.Damping` with a Maxwell arm on ``body``."""
+    """The arm operators of a :class:`~.damping.Damping` with a Maxwell arm on ``body``."""
     if not damping.has_arm:
         raise ValueError("damping has no Maxwell arm (arm_mu and arm_viscous_mu are 0)")
     return arm_operators(
