@@ -32,12 +32,18 @@ to 25 iterations (p95 349 to 74). On its first 100 networks (median 71.5, p95 32
 rigid motions removed 50 / 240; with the geodesic step 37.5 / 161; with the radius tries
 33.5 / 126; with stiff springs from 10x the median (not 1e3x) 23 / 75.
 
-Cost on small problems (the paper's N = 10 patch: ~10 iterations, 20 coordinates), where
-numpy's per-call overhead is the cost: the spring terms are dense incidence products
-(:mod:`.trust_kernels`, up to 32 nodes); each model is first factored by Cholesky, whose
-success with a shift of ``1e-8`` is the second-order certificate, and is
-eigen-decomposed only when a trial needs a boundary step; LAPACK is called directly.
-``benchmarks/bench_patch.py --against OLD_CHECKOUT`` measures it.
+Cost on small problems (the paper's N = 10 patch: ~10 models and ~16 trials, 20
+coordinates), where numpy's per-call overhead is the cost: the spring terms are dense
+incidence products (:mod:`.trust_kernels`, up to 32 nodes) and the reduced Hessian is
+assembled in the model's basis from the springs' length and rotation Jacobians, without an
+(n, n) matrix; under default pins the rigid motions are removed by Householder
+reflections (:class:`~.trust_model.RigidBasis`: translations once, the rotation at each
+iterate) instead of an SVD; each model is first factored by Cholesky, whose success with a
+shift of ``1e-8`` is the second-order certificate, and is eigen-decomposed only when a
+trial needs a boundary step, after which every trial at that model solves the secular
+equation and the bending correction on the eigenvalues (:mod:`.trust_model`); an accepted
+trial's spring geometry is the next gradient's. ``benchmarks/bench_patch.py --against
+OLD_CHECKOUT`` measures it.
 
 Near the solution the radius no longer binds and the iteration is Newton's, quadratically
 convergent. Saddles cannot be returned: a step along a negative eigenvector always lowers
