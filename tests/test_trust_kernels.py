@@ -96,3 +96,24 @@ def test_model_newton_step_is_the_same_from_its_eigenvalues():
     eigen_move = model.lift(model.vecs @ spectrum.newton)
     np.testing.assert_allclose(eigen_move, move, atol=1e-10 * np.abs(move).max())
     assert spectrum.newton_length == pytest.approx(model.newton_length, rel=1e-10)
+
+
+def test_dense_reduced_hessian_of_a_collapsed_spring_matches_the_sparse_one():
+    """A spring at zero length has no direction: its block is ``t I`` (the sparse
+    kernels' Lagrangian blocks), which the length/rotation form cannot express; the dense
+    kernels must give the same reduced Hessian there."""
+    rng = np.random.default_rng(7)
+    net = paper_network(rng)
+    problem = Problem.build(net).with_free(np.ones((net.n_nodes, 2), dtype=bool))
+    frame = Frame(net, problem.free)
+    inv_root = rng.uniform(0.1, 1.0, frame.n)
+    x = net.positions.copy()
+    a, b = net.springs[0]
+    x[b] = x[a]  # spring 0 collapsed
+    dense, sparse = DenseKernels(problem, frame, inv_root), SparseKernels(problem, frame, inv_root)
+    dense.gradient(x)
+    sparse.gradient(x)
+    basis = null_basis(rng.normal(size=(3, frame.n))) * inv_root[:, None]
+    H = sparse.reduced_hessian(np.empty(0), basis)
+    assert np.abs(H).max() > 1e100  # the collapsed spring's tangential term dominates
+    np.testing.assert_allclose(dense.reduced_hessian(np.empty(0), basis), H, rtol=1e-12)
