@@ -294,3 +294,32 @@ draws = [2, 1]
     assert "N = 25: 2, N = 36: 1" in text and "Fewer draws at N = 36" in text
     assert "speed of learning cannot be addressed" in text
     assert "physical_time_speed" in text
+
+
+def test_draws_key_is_checked_against_the_sizes():
+    import tomllib
+
+    from continuum_vs_network.scenes.schema import SceneError, parse_scene
+
+    base = """
+name = "pt"
+description = "tiny"
+kind = "physical_time"
+[network]
+builder = "triangular"
+sizes = [5, 6]
+[task]
+kind = "stern"
+[physical_time]
+"""
+    scene = parse_scene(tomllib.loads(base + "draws = [2, 1]\n"), "pt.toml")
+    from continuum_vs_network.scenes.units_time import draws_per_size, plan_time
+
+    assert draws_per_size(scene) == [2, 1]
+    keys = [u.key for u in plan_time(scene)]
+    assert keys.count("physical_time/n5/d1/task") == 1 and "physical_time/n6/d1/task" not in keys
+    assert draws_per_size(parse_scene(tomllib.loads(base + "draws = [3]\n"), "pt.toml")) == [3, 3]
+    with pytest.raises(SceneError, match=r"draws.*one per size"):
+        parse_scene(tomllib.loads(base + "draws = [1, 2, 3]\n"), "pt.toml")
+    with pytest.raises(SceneError, match="draws"):
+        parse_scene(tomllib.loads(base + "draws = [0]\n"), "pt.toml")
