@@ -255,24 +255,24 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
     doc.table(["quantity"] + [f"N = {n}" for n in sizes], rows)
     parts = []
     for medium in media:
-        N = np.log([u.meta["n_nodes"] for u in tasks])
+        N = [u.meta["n_nodes"] for u in tasks]
         for key in ("tau", "tau_force"):
-            t = np.log([u.meta[medium][key] for u in tasks])
-            parts.append(f"{medium} {key}: {_describe_fit(*_slope(N, t), key)}")
+            t = [u.meta[medium][key] for u in tasks]
+            parts.append(f"{medium} {key}: {_fit(N, t, key)}")
     if parts:
         doc.add(
             "Relaxation times against N, least-squares fit of log tau on log N over every "
             f"size and draw ({len(tasks)} points; exponent +- its standard error; 'no "
-            "trend' when the exponent is within two standard errors of 0, 'no error "
-            "estimate' from fewer than three points or one size): " + "; ".join(parts) + "."
+            "trend' when the exponent is within two standard errors of 0, no error "
+            "estimate from two points): " + "; ".join(parts) + "."
         )
     fits = []
     for name, units in rules.items():
         ok = [u.meta for u in units if bracket_closed(u.meta)]
         if len({m["n_nodes"] for m in ok}) >= 2:
-            N = np.log([m["n_nodes"] for m in ok])
-            c = np.log([m["critical_ratio"] for m in ok])
-            fits.append(f"{_NAMES[name]} ({len(ok)} points): {_describe_fit(*_slope(N, c))}")
+            N = [m["n_nodes"] for m in ok]
+            c = [m["critical_ratio"] for m in ok]
+            fits.append(f"{_NAMES[name]} ({len(ok)} points): {_fit(N, c, 'rho*')}")
     if fits:
         doc.add(
             "Critical ratio against N, least-squares fit of log rho* on log N over every "
@@ -282,28 +282,14 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
         )
 
 
-def _slope(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
-    """Least-squares slope of ``y`` on ``x`` and its standard error (nan from fewer than
-    three points or one distinct ``x``)."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    spread = float(np.sum((x - x.mean()) ** 2)) if x.size else 0.0
-    if x.size < 2 or spread == 0:
-        return math.nan, math.nan
-    coef = np.polyfit(x, y, 1)
-    if x.size < 3:
-        return float(coef[0]), math.nan
-    rss = float(np.sum((y - np.polyval(coef, x)) ** 2))
-    return float(coef[0]), math.sqrt(rss / (x.size - 2) / spread)
+def _fit(n_nodes, values, quantity: str) -> str:
+    """The power law of ``values`` against N (:func:`~continuum_vs_network.fits.power_law`)."""
+    from ...fits import power_law
 
-
-def _describe_fit(slope: float, error: float, quantity: str = "rho*") -> str:
-    """``"quantity ~ N^(slope +- error), trend"``; no trend within two standard errors."""
-    if not math.isfinite(slope):
+    try:
+        return power_law(n_nodes, values).describe(quantity, "N")
+    except ValueError:
         return f"{quantity}: one size only (no fit)"
-    if not math.isfinite(error):
-        return f"{quantity} ~ N^{slope:.2f} (no error estimate)"
-    trend = "no trend" if abs(slope) <= 2 * error else ("grows" if slope > 0 else "falls")
-    return f"{quantity} ~ N^({slope:.2f} +- {error:.2f}), {trend}"
 
 
 def _speedups(units, *, below_critical: bool = False) -> list[float]:
