@@ -207,12 +207,13 @@ def _draws_text(doc: Document, tasks: list) -> None:
     text = ", ".join(f"N = {n}: {c}" for n, c in counts.items())
     most = max(counts.values())
     fewer = [n for n, c in counts.items() if c < most]
+    one = [n for n in fewer if counts[n] == 1]
     doc.add(
         f"Task draws (random sources, targets and strains; the same lattice) per size: {text}."
         + (
             f" Fewer draws at N = {', '.join(map(str, fewer))} (the scene's `draws`, set by "
-            "run time): the spread over draws is measured on fewer tasks there"
-            + (", not at all from one draw" if min(counts[n] for n in fewer) == 1 else "")
+            "run time), so the spread over draws rests on fewer tasks there"
+            + (f"; at N = {', '.join(map(str, one))} one draw, no spread" if one else "")
             + "."
             if fewer
             else ""

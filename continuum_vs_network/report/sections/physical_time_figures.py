@@ -97,7 +97,6 @@ def figures(doc: Document, rules: dict, tasks: list, ratios: np.ndarray, names: 
                     hi=[max(m["critical_high"] for m in p) for p in per],
                     marker="s",
                     color=c,
-                    alpha=0.25,
                 )
             )
             series.append(
