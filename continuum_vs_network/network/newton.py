@@ -69,6 +69,10 @@ class _SolveFailed(RuntimeError):
     """A reused factorisation did not solve the new system (indefinite or too far off)."""
 
 
+class _NegativeCurvature(_SolveFailed):
+    """Conjugate gradients met a direction ``d`` with ``d^T W d <= 0``: ``W`` is not > 0."""
+
+
 def _reuse_budget(size: int) -> int:
     """Preconditioned CG iterations allowed before a new factorisation of (size, size).
 
@@ -108,7 +112,7 @@ def _pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int
             Wp = W @ p
             curvature = p @ Wp
             if curvature <= 0:
-                raise _SolveFailed("negative curvature")
+                raise _NegativeCurvature("negative curvature")
             a = rz / curvature
             x += a * p
             r -= a * Wp
@@ -187,7 +191,7 @@ def _projected_pcg(
         Wd = W @ d
         curvature = float(d @ Wd)
         if curvature <= 0:
-            raise _SolveFailed("negative curvature")
+            raise _NegativeCurvature("negative curvature")
         alpha = rg / curvature
         x = x + alpha * d
         r = r + alpha * Wd
@@ -246,7 +250,11 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             return Outcome(x, it, False, f"time budget of {stop.max_seconds:g} s exceeded")
 
         step = lam = None
-        if reusable is not None:
+        skip_rung = False
+        # a shifted factorisation is not reused once the shift is 0: the exact Hessian is
+        # factorised instead, which gives a pure Newton step and certifies the minimum in
+        # the loop (else the second-order check of relax factorises it after convergence)
+        if reusable is not None and not (shift == 0.0 and not exact_ok):
             # inexact Newton (Eisenstat-Walker-like forcing term): a relative solve error eta
             # leaves a residual ~ eta * residual, superlinear with eta = sqrt(residual); at
             # N = 1e4 it needed 31-41 solves against 45-63 with eta = residual, same iterations
@@ -259,11 +267,14 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                 step, lam = _projected_pcg(
                     W, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
                 )
+            except _NegativeCurvature:
+                # W + shift D is indefinite: its factorisation would fail, start one rung up
+                skip_rung = shift > 0.0
             except (_SolveFailed, np.linalg.LinAlgError):
                 step = None
         if step is None:
             factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
-                problem, pattern, x, lam_ls[:m], rho, shift
+                problem, pattern, x, lam_ls[:m], rho, shift, skip_rung=skip_rung
             )
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
@@ -330,6 +341,8 @@ def _factor_lagrangian_hessian(
     lam: NDArray,
     rho: float,
     shift: float,
+    *,
+    skip_rung: bool = False,
 ) -> tuple[Factor | None, float, float, bool]:
     """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
@@ -344,6 +357,10 @@ def _factor_lagrangian_hessian(
     factorisation is positive definite. Clipping each spring's negative tangential curvature
     instead crept for hundreds of iterations on the paper's network under strain
     continuation.
+
+    ``skip_rung``: ``W + shift D`` is known to be indefinite (conjugate gradients met
+    negative curvature on it), so the ladder starts one rung above ``shift`` (the same
+    factorisations as without, less the one bound to fail).
 
     Returns ``(factor, rho, shift, exact_used)``. The exact Hessian is used whenever it is
     positive definite, so the last iterations are pure Newton steps.
@@ -379,6 +396,8 @@ def _factor_lagrangian_hessian(
         estimate = _shift_estimate(W, directions, scaling.diagonal())
         if estimate > shift:
             shift, growth = estimate, 10.0
+    if skip_rung and directions is None:
+        shift *= growth
     while shift <= 1e8:
         factor = factor_pd(W + shift * scaling, ordered=pattern.ordered)
         if factor is not None:
