@@ -50,10 +50,10 @@ from .kkt import (
     Factor,
     factor_spd,
     factor_spd_or_curvature,
-    range_space,
-    sparse_solver,
+    range_space_solve,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
+from .reuse import NegativeCurvature, SolveFailed, projected_pcg, reuse_budget
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX, StiffSprings, trust_region_newton
 
@@ -65,145 +65,11 @@ DENSE_JACOBIAN = 100_000  # entries: a clamp Jacobian this small is kept dense (
 DAMP_MIN = 1e-6
 
 
-class _SolveFailed(RuntimeError):
-    """A reused factorisation did not solve the new system (indefinite or too far off)."""
-
-
-class _NegativeCurvature(_SolveFailed):
-    """Conjugate gradients met a direction ``d`` with ``d^T W d <= 0``: ``W`` is not > 0."""
-
-
-def _reuse_budget(size: int) -> int:
-    """Preconditioned CG iterations allowed before a new factorisation of (size, size).
-
-    Measured here on 2D networks, one SuperLU nested-dissection factorisation costs about
-    ``0.15 sqrt(size)`` triangular solves (15 at N = 1e3, 20 at 1e4, 50 at 1e5 nodes); a
-    budget of twice that was fastest in benchmarks/bench_relax.py (0.075 and 0.15 were
-    slower). PARDISO with its analysis kept refactorises for about 9 solves at 1e5-3e5
-    nodes: twice that, 16. A count, not a timing, so that runs are reproducible bit for bit.
-    """
-    if sparse_solver() == "pardiso":
-        return 16
-    return max(2, int(0.3 * np.sqrt(size)))
-
-
-def _pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int) -> Factor:
-    """Conjugate gradients on ``W`` preconditioned by an earlier factorisation.
-
-    ``max_iter`` bounds the iterations of all right-hand sides together.
-
-    Raises :class:`_SolveFailed` on negative curvature (``W`` not positive definite) or when
-    ``max_iter`` iterations do not reach ``rtol``.
-    """
-
-    budget = [max_iter]
-
-    def solve_one(b: NDArray) -> NDArray:
-        x = preconditioner.solve(b)
-        r = b - W @ x
-        b_norm = np.linalg.norm(b)
-        if np.linalg.norm(r) <= rtol * b_norm:
-            return x
-        z = preconditioner.solve(r)
-        p = z.copy()
-        rz = r @ z
-        while budget[0] > 0:
-            budget[0] -= 1
-            Wp = W @ p
-            curvature = p @ Wp
-            if curvature <= 0:
-                raise _NegativeCurvature("negative curvature")
-            a = rz / curvature
-            x += a * p
-            r -= a * Wp
-            if np.linalg.norm(r) <= rtol * b_norm:
-                return x
-            z = preconditioner.solve(r)
-            rz, rz_old = r @ z, rz
-            p = z + (rz / rz_old) * p
-        raise _SolveFailed("no convergence")
-
-    def solve(b: NDArray) -> NDArray:
-        if b.ndim == 1:
-            return solve_one(b)
-        return np.column_stack([solve_one(col) for col in b.T])
-
-    return Factor(solve, W.shape[0])
-
-
-def _projected_pcg(
-    W: sp.csr_matrix,
-    preconditioner: Factor,
-    grad: NDArray,
-    A: sp.spmatrix | None,
-    viol: NDArray,
-    *,
-    rtol: float,
-    max_iter: int,
-) -> tuple[NDArray, NDArray]:
-    """The Newton step of ``[[W, A^T], [A, 0]] [step; lam] = [-grad; -viol]`` by projected
-    conjugate gradients with the constraint preconditioner ``[[W0, A^T], [A, 0]]``.
-
-    ``W0`` is an earlier factorisation (``preconditioner``), ``A`` the current clamp
-    Jacobian (m, n). Every iterate satisfies ``A step = -viol`` and the search stays in
-    the null space of ``A`` (Gould, Hribar & Nocedal 2001), so one CG run (one solve with
-    ``W0`` an iteration, after one m-column solve for the preconditioner's Schur
-    complement) replaces the ``m + 1`` separate CG runs of a range-space solve. Stops when
-    the step's force residual ``grad + W step + A^T lam`` (``lam`` by least squares) is
-    ``rtol`` times the force at ``step = 0``; the residual is kept projected, as Gould et al.
-    recommend (the clamp-force part of ``grad``, 1e9 times the tolerance near convergence,
-    otherwise spoils the preconditioned residual by round-off).
-
-    Raises :class:`_SolveFailed` on negative curvature in the null space or when
-    ``max_iter`` iterations do not reach ``rtol``.
-    """
-    if A is None:
-        return -np.asarray(_pcg(W, preconditioner, rtol=rtol, max_iter=max_iter).solve(grad)), (
-            np.empty(0)
-        )
-    m = A.shape[0]
-    kkt = range_space(preconditioner, A)
-    At = A.T  # formed once: scipy.sparse builds a new matrix at every .T
-    gram = A @ At
-    gram = gram.toarray() if sp.issparse(gram) else np.asarray(gram)
-    zero = np.zeros(m)
-
-    def multipliers(v: NDArray) -> NDArray:
-        """``lam`` minimising ``|v + A^T lam|``."""
-        return -np.linalg.solve(gram, A @ v)
-
-    tol = rtol * float(np.linalg.norm(grad + At @ multipliers(grad)))
-    x = kkt.solve(-grad, -viol)[0]
-    r = W @ x + grad
-    d = np.zeros_like(x)
-    rg_old = np.inf
-    for it in range(max_iter + 1):
-        # keep the residual projected (its large clamp-force part removed): otherwise its
-        # round-off through the preconditioner swamps a tight tolerance (Gould et al.)
-        r = r + At @ multipliers(r)
-        if np.linalg.norm(r) <= tol:
-            return x, multipliers(W @ x + grad)
-        if it == max_iter:
-            break
-        g = kkt.solve(r, zero)[0]  # projected, preconditioned residual: A g = 0
-        rg = float(r @ g)
-        d = -g + (rg / rg_old) * d
-        Wd = W @ d
-        curvature = float(d @ Wd)
-        if curvature <= 0:
-            raise _NegativeCurvature("negative curvature")
-        alpha = rg / curvature
-        x = x + alpha * d
-        r = r + alpha * Wd
-        rg_old = rg
-    raise _SolveFailed("no convergence")
-
-
 def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
     """Minimise ``problem`` from ``x`` (n_nodes, 2) by shifted sparse Newton (see module).
 
     After a full step the next step first tries projected conjugate gradients preconditioned
-    by the last factorisation (:func:`_projected_pcg`: a few triangular solves instead of a
+    by the last factorisation (:func:`~.reuse.projected_pcg`: a few triangular solves instead of a
     new factorisation); it refactorises when that fails. While the Levenberg-Marquardt shift
     is positive, that solve is of the shifted model the refactorisation would factorise
     (the exact Hessian, still indefinite, made every reuse fail on negative curvature).
@@ -259,18 +125,18 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             # leaves a residual ~ eta * residual, superlinear with eta = sqrt(residual); at
             # N = 1e4 it needed 31-41 solves against 45-63 with eta = residual, same iterations
             eta = min(1e-1, np.sqrt(residual))
-            budget = _reuse_budget(pattern.size)
+            budget = reuse_budget(pattern.size)
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             if shift > 0.0:  # the damped model a refactorisation would solve now
                 W = W + shift * _marquardt_scaling(W)
             try:
-                step, lam = _projected_pcg(
+                step, lam = projected_pcg(
                     W, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
                 )
-            except _NegativeCurvature:
+            except NegativeCurvature:
                 # W + shift D is indefinite: its factorisation would fail, start one rung up
                 skip_rung = shift > 0.0
-            except (_SolveFailed, np.linalg.LinAlgError):
+            except (SolveFailed, np.linalg.LinAlgError):
                 step = None
         if step is None:
             factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
@@ -324,7 +190,7 @@ def _kkt_step(
     with ``W step + A^T lam = -grad`` and ``A step = -viol``."""
     if not m:
         return -np.asarray(solver.solve(grad)), np.empty(0)
-    return range_space(solver, A).solve(-grad, -viol)
+    return range_space_solve(solver, A, -grad, -viol)[1]
 
 
 def _assemble(pattern: HessianPattern, blocks: NDArray) -> sp.csr_matrix | NDArray:
