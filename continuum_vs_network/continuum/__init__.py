@@ -9,7 +9,8 @@ the names below) needs only numpy and scipy; scikit-fem loads on the first mesh 
 - :mod:`.static`: Dirichlet conditions and static solves with one sparse factorisation;
 - :mod:`.probes`: sparse displacement and strain probes;
 - :mod:`.transmission`: source patches, the Eshelby inclusion, strain against distance;
-- :mod:`.viscoelastic`: mass, damping and implicit time stepping, relaxation times;
+- :mod:`.damping`: damping coefficients and matrices, the lattice mapping (:class:`Damping`);
+- :mod:`.viscoelastic`: mass and implicit time stepping, relaxation times;
 - :mod:`.maxwell`: the Maxwell arm of a standard linear solid (internal strains).
 - :mod:`.learnable`: a learning medium, element-wise eigenstrain and modulus fields
   (:func:`learnable_body`), trained by the same rules and ``train`` as networks;

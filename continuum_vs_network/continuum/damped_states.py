@@ -2,17 +2,22 @@
 
 The continuum side of :func:`~continuum_vs_network.learning.physical_time.learn_in_time`:
 the body moves against a damping ``C`` (substrate drag and/or Kelvin-Voigt viscosity,
-:class:`~.viscoelastic.Damping`) while its source material springs are held at the task's
-strains and, in a clamped copy, its targets at given strains::
+:class:`~.damping.Damping`) and, with a Maxwell arm (a standard linear solid,
+:mod:`.maxwell`), against the arm's stress ``S (B u - e)`` with an internal strain ``e`` per
+quadrature point, while its source material springs are held at the task's strains and,
+in a clamped copy, its targets at given strains::
 
-    C du/dt = f - K u - G_c^T lambda,     G_c u = v
+    C du/dt = f - K u - B^T S (B u - e) - G_c^T lambda,   V de/dt = S (B u - e),   G_c u = v
 
-Backward Euler, clamps exact: ``(C/dt + K) u1 + G_c^T lambda = C/dt u0 + f``. The matrix
-``A = C/dt + K`` (fixed DOFs removed) is factorised once per modulus field and
-``Z = A^-1 G^T`` formed for every source and target functional, so a step with any clamp
-set is one solve and a dense system the size of the clamp set (the Schur-complement reuse
-of :mod:`.learning_states`). Eigenstrain learning never changes ``A``: a whole run
-factorises once. L-stable: any ``dt``; ``dt = inf`` is the equilibrium.
+Backward Euler, clamps exact, the internal strain eliminated (:func:`.maxwell.arm_step`:
+``S (B u1 - e1) = S_dt (B u1 - e0)``): ``(C/dt + K + B^T S_dt B) u1 + G_c^T lambda = C/dt u0
++ f + B^T S_dt e0``, then ``e1 = B u1 - P (B u1 - e0)``. The matrix ``A = C/dt + K + B^T
+S_dt B`` (fixed DOFs removed) is factorised once per modulus field and ``Z = A^-1 G^T``
+formed for every source and target functional, so a step with any clamp set is one solve
+and a dense system the size of the clamp set (the Schur-complement reuse of
+:mod:`.learning_states`). Eigenstrain learning never changes ``A``: a whole run factorises
+once. L-stable: any ``dt``; ``dt = inf`` is the equilibrium (arms relaxed, no force).
+Every moving copy carries its own internal strains (:meth:`DampedStepper.rest_arm`).
 """
 
 from __future__ import annotations
@@ -34,19 +39,23 @@ class DampedStepper:
         Any body with the mesh (the matrices are rebuilt when the modulus field changes).
     task : MaterialTask
     damping : Damping
-        Drag and/or Kelvin-Voigt viscosity (no Maxwell arm).
+        Drag and/or Kelvin-Voigt viscosity (at least one), optionally a Maxwell arm.
     dt : float
-        Time step (> 0; ``math.inf``: every step an equilibrium).
+        Time step (> 0; ``math.inf``: every step an equilibrium, arms relaxed).
     """
 
     def __init__(self, medium, task, damping, dt: float) -> None:
+        from .damping import Damping, damping_matrix
+        from .maxwell import arm_step, damping_arm
         from .probes import chord_strain_probe
-        from .viscoelastic import Damping, damping_matrix
 
         if not isinstance(damping, Damping):
             raise ValueError(f"damping must be a Damping, got {type(damping).__name__}")
-        if damping.has_arm:
-            raise ValueError("learning in time on a body takes drag and Kelvin-Voigt damping only")
+        if damping.rayleigh_mass > 0 or damping.rayleigh_stiffness > 0:
+            raise ValueError(
+                "damping: learning in time on a body takes drag, Kelvin-Voigt viscosity and "
+                "a Maxwell arm, not Rayleigh damping"
+            )
         dt = float(dt)
         if not (dt > 0):
             raise ValueError(f"dt must be > 0, got {dt}")
@@ -57,6 +66,13 @@ class DampedStepper:
         if C.nnz == 0 and math.isfinite(dt):
             raise ValueError("damping must have a drag or a viscosity > 0")
         self.C_dt = C / dt if math.isfinite(dt) else None
+        self.arm = None  # the eliminated arm step; None without an arm or at equilibrium
+        self._arm_matrix = None
+        if damping.has_arm and math.isfinite(dt):
+            self.arm = arm_step(damping_arm(medium.body, damping), dt)
+            Bf = self.arm.operators.strain.tocsc()[:, self.free]
+            self._arm_pull = (Bf.T @ self.arm.stiffness).tocsr()  # B^T S_dt, free rows
+            self._arm_matrix = (self._arm_pull @ Bf).tocsr()
         probe = chord_strain_probe(
             medium.body,
             np.vstack([task.source_a, task.target_a]),
@@ -69,6 +85,12 @@ class DampedStepper:
         self.factorisations = 0
         self._key = None
 
+    def rest_arm(self, u: ArrayLike) -> NDArray | None:
+        """Internal strains (3 n_q,) of arms relaxed at ``u`` (``B u``); None without arms."""
+        if self.arm is None:
+            return None
+        return self.arm.operators.strain @ np.asarray(u, float)
+
     def _system(self, medium):
         from ..network.kkt import factor_spd
 
@@ -76,6 +98,8 @@ class DampedStepper:
             A = medium.stiffness()[self.free][:, self.free]
             if self.C_dt is not None:
                 A = A + self.C_dt
+            if self._arm_matrix is not None:
+                A = A + self._arm_matrix
             factor = factor_spd(A.tocsr(), certify=False)
             if factor is None:
                 raise ValueError(
@@ -88,13 +112,33 @@ class DampedStepper:
             self.factorisations += 1
         return self._sys
 
-    def step(self, medium, u: ArrayLike, target_strain: ArrayLike | None = None) -> NDArray:
-        """The displacement (n_dofs,) one step after ``u``: sources held at the task's
-        strains, targets at ``target_strain`` (n_targets,) or free (None)."""
+    def step(
+        self,
+        medium,
+        u: ArrayLike,
+        target_strain: ArrayLike | None = None,
+        *,
+        arm: ArrayLike | None = None,
+    ) -> tuple[NDArray, NDArray | None]:
+        """The displacement (n_dofs,) and arms' internal strains (3 n_q,; None without
+        arms) one step after ``(u, arm)``: sources held at the task's strains, targets at
+        ``target_strain`` (n_targets,) or free (None). ``arm`` is required with arms
+        (:meth:`rest_arm` for arms relaxed at a state)."""
         factor, Z, S = self._system(medium)
+        u = np.asarray(u, float)
         rhs = medium.load()[self.free]
         if self.C_dt is not None:
-            rhs = rhs + self.C_dt @ np.asarray(u, float)[self.free]
+            rhs = rhs + self.C_dt @ u[self.free]
+        if self.arm is not None:
+            n_int = self.arm.operators.n_internal
+            if arm is None or np.shape(arm) != (n_int,):
+                got = None if arm is None else np.shape(arm)
+                raise ValueError(
+                    f"arm must be the arms' internal strains, shape ({n_int},) "
+                    f"(rest_arm(u) for arms relaxed at u), got {got}"
+                )
+            arm = np.asarray(arm, float)
+            rhs = rhs + self._arm_pull @ arm
         z = np.asarray(factor.solve(rhs))
         ns = self.n_sources
         if target_strain is None:
@@ -106,9 +150,12 @@ class DampedStepper:
         uf = z - Z[:, rows] @ np.linalg.solve(S[np.ix_(rows, rows)], self.G[rows] @ z - values)
         out = np.zeros(medium.n_dofs)
         out[self.free] = uf
-        if not np.all(np.isfinite(out)):
+        new_arm = None
+        if self.arm is not None:
+            new_arm = self.arm.update(self.arm.operators.strain @ out, arm)
+        if not (np.all(np.isfinite(out)) and (new_arm is None or np.all(np.isfinite(new_arm)))):
             raise FloatingPointError("the damped step returned non-finite displacements")
-        return out
+        return out, new_arm
 
     def target_strain(self, u: ArrayLike) -> NDArray:
         """Strains of the target material springs at ``u``, (n_targets,)."""
@@ -124,7 +171,8 @@ def body_relaxation_time(
     ``t = 0`` onto the source clamps by the ``C``-weighted projection (the limit of a
     vanishing first step: ``min (u - u0)^T C (u - u0)`` subject to ``G_s u = S_s``), then
     relaxes (backward Euler, 200-step runs doubled in length until 3 times longer than
-    the time). The criteria are the network's
+    the time). Maxwell arms start relaxed at ``u0`` and hold still through the jump (their
+    dashpots); the end is the clamped equilibrium (arms relaxed). The criteria are the network's
     (:func:`~continuum_vs_network.learning.physical_time.network_relaxation_time`):
 
     ``measure="target"`` (default): the target strains stay within ``fraction`` (1 %) of
@@ -133,13 +181,13 @@ def body_relaxation_time(
     ``measure="force"``: the net force on the free DOFs, the damping force ``C u'`` (at
     ``t = 0+`` from the clamped velocity ``[C G_s^T; G_s 0] [u'; mu] = [f - K u; 0]``, then
     ``C (u1 - u0) / dt`` of each step), stays below ``fraction`` of its largest component
-    at the start.
+    at the start (arm forces included).
     """
     import dataclasses
 
     from ..learning.physical_time import settling_time
     from ..network.kkt import factor_kkt
-    from .viscoelastic import damping_matrix
+    from .damping import damping_matrix
 
     if measure not in ("target", "force"):
         raise ValueError(f"measure must be 'target' or 'force', got {measure!r}")
@@ -154,21 +202,26 @@ def body_relaxation_time(
     start = u0.copy()
     start[free] += dx
     s_start = probe.target_strain(u0)
-    s_end = DampedStepper(medium, task, damping, math.inf).step(medium, u0)
+    s_end = DampedStepper(medium, task, damping, math.inf).step(medium, u0)[0]
     s_end = probe.target_strain(s_end)
     K = medium.stiffness()[free][:, free]
-    v0, _ = kkt.solve(medium.load()[free] - K @ start[free])
+    arm0 = probe.rest_arm(u0)
+    push = medium.load()[free] - K @ start[free]
+    if arm0 is not None:  # the arm as a spring (S_dt -> S as dt -> 0) from its rest
+        ops = probe.arm.operators
+        push = push - (ops.strain.T @ (ops.stiffness @ (ops.strain @ start - arm0)))[free]
+    v0, _ = kkt.solve(push)
     f0 = float(np.max(np.abs(C @ v0)))
     if f0 == 0:
         return 0.0
     k = float(np.mean(medium.modulus)) * float(np.max(medium.body.mu))
-    eta = float(damping.drag) + float(damping.viscous_mu)
+    eta = float(damping.drag) + float(damping.viscous_mu) + float(damping.arm_viscous_mu)
     t_end = 4.0 * eta / max(k, 1e-300) * max(medium.n_dofs, 8) ** 0.5
     for _ in range(30):
         stepper = DampedStepper(medium, task, damping, t_end / 200)
-        u, force, strains = start, [], [probe.target_strain(start)]
+        u, arm, force, strains = start, arm0, [], [probe.target_strain(start)]
         for _ in range(200):
-            u1 = stepper.step(medium, u)
+            u1, arm = stepper.step(medium, u, arm=arm)
             force.append(float(np.max(np.abs(C @ (u1 - u)[free]))) / stepper.dt)
             strains.append(probe.target_strain(u1))
             u = u1

@@ -2,14 +2,15 @@
 
 The body starts at rest with its source material springs held at zero strain ("sources
 off"); at ``t = 0`` they are stepped to the task's strains and held there exactly, and the
-body creeps, against a damping (substrate drag and/or Kelvin-Voigt viscosity,
-:class:`~.viscoelastic.Damping`), to the free state the learning rule trained::
+body creeps, against a damping (substrate drag and/or Kelvin-Voigt viscosity, optionally a
+Maxwell arm relaxed at the start: :class:`~.damping.Damping`), to the free state the
+learning rule trained::
 
     C du/dt = f - K u - G_s^T lambda,     G_s u = S_sources
 
-Backward Euler: ``(C/dt + K) u' + G_s^T lambda = C/dt u + f`` with the clamps exact;
-``C/dt + K`` is factorised once and the clamp rows are eliminated through its Schur
-complement (as in :mod:`.learning_states`). Unconditionally stable, first order in ``dt``.
+Backward Euler with the clamps exact, the steps of learning in time
+(:class:`~.damped_states.DampedStepper`: one factorisation, the clamp rows eliminated
+through its Schur complement). Unconditionally stable, first order in ``dt``.
 """
 
 from __future__ import annotations
@@ -67,13 +68,11 @@ def source_step(medium, task, *, damping, dt: float, t_end: float) -> SourceStep
     medium : LearnableBody
     task : MaterialTask
     damping : Damping
-        Drag and/or Kelvin-Voigt viscosity (at least one > 0).
+        Drag and/or Kelvin-Voigt viscosity (at least one > 0), optionally a Maxwell arm.
     dt, t_end : float
         Time step and duration (> 0).
     """
-    from ..network.kkt import factor_kkt
-    from .probes import chord_strain_probe
-    from .viscoelastic import damping_matrix
+    from .damped_states import DampedStepper
 
     if not (np.isfinite(dt) and dt > 0 and np.isfinite(t_end) and t_end > 0):
         raise ValueError(f"dt and t_end must be finite and > 0, got {dt}, {t_end}")
@@ -81,25 +80,15 @@ def source_step(medium, task, *, damping, dt: float, t_end: float) -> SourceStep
     off = dataclasses.replace(task, source_strain=np.zeros(task.n_sources))
     u = medium.free_state(off).u
     final = medium.free_state(task).target_strain
-    keep = np.ones(medium.n_dofs, dtype=bool)
-    keep[task.fixed] = False
-    free = np.flatnonzero(keep)
-    C = damping_matrix(medium.body, damping)[free][:, free]
-    if C.nnz == 0:
-        raise ValueError("damping must have a drag or a viscosity > 0")
-    K = medium.stiffness()[free][:, free]
-    G = chord_strain_probe(medium.body, task.source_a, task.source_b).operator.tocsc()[:, free]
-    T = chord_strain_probe(medium.body, task.target_a, task.target_b).operator.tocsc()[:, free]
-    kkt = factor_kkt((C / dt + K).tocsc(), G)  # one factorisation, Schur complement of G
-    f = medium.load()[free]
-    x = u[free]
+    stepper = DampedStepper(medium, task, damping, dt)
+    arm = stepper.rest_arm(u)
     n = int(np.ceil(t_end / dt))
     times = dt * np.arange(n + 1)
     out = np.empty((n + 1, task.n_targets))
-    out[0] = T @ x
+    out[0] = stepper.target_strain(u)
     for i in range(n):
-        x, _ = kkt.solve(C @ x / dt + f, task.source_strain)
-        out[i + 1] = T @ x
+        u, arm = stepper.step(medium, u, arm=arm)
+        out[i + 1] = stepper.target_strain(u)
     if not np.all(np.isfinite(out)):
         raise FloatingPointError("the relaxation produced non-finite strains")
     return SourceStep(times, out, final, time.perf_counter() - t0)

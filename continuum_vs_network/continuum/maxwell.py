@@ -17,6 +17,7 @@ so per-spring arm lengths and a tensor internal strain are the same thing
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +25,7 @@ import scipy.sparse as sp
 
 from .body import ElasticBody
 
-__all__ = ["ArmOperators", "arm_operators", "voigt"]
+__all__ = ["ArmOperators", "ArmStep", "arm_operators", "arm_step", "damping_arm", "voigt"]
 
 
 def voigt(lam: float, mu: float) -> np.ndarray:
@@ -77,3 +78,80 @@ def arm_operators(
     S = sp.kron(sp.diags(w), sp.csr_matrix(voigt(arm_lam, arm_mu)), format="csr")
     V = sp.kron(sp.diags(w), sp.csr_matrix(voigt(viscous_lam, viscous_mu)), format="csr")
     return ArmOperators(B, S, V)
+
+
+def damping_arm(body: ElasticBody, damping) -> ArmOperators:
+    """The arm operators of a :class:`~.damping.Damping` with a Maxwell arm on ``body``."""
+    if not damping.has_arm:
+        raise ValueError("damping has no Maxwell arm (arm_mu and arm_viscous_mu are 0)")
+    return arm_operators(
+        body,
+        arm_lam=damping.arm_lam,
+        arm_mu=damping.arm_mu,
+        viscous_lam=damping.arm_viscous_lam,
+        viscous_mu=damping.arm_viscous_mu,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class ArmStep:
+    """A backward-Euler step of the arm with its internal strain eliminated.
+
+    ``V (e1 - e0) / dt = S (B u1 - e1)`` gives ``B u1 - e1 = P (B u1 - e0)`` with ``P =
+    (V + dt S)^-1 V`` per quadrature point, so the arm's stress over the step is
+    ``S_dt (B u1 - e0)``, ``S_dt = S P = (S^-1 + dt V^-1)^-1``: a spring (stiffness
+    ``B^T S_dt B``) pulled towards the old internal strain. L-stable: ``dt = inf`` gives
+    ``S_dt = 0`` and ``e1 = B u1`` (the arm relaxed, no force).
+
+    Attributes
+    ----------
+    operators : ArmOperators
+    dt : float
+    stiffness : (3 n_q, 3 n_q) sparse
+        ``S_dt`` (block diagonal).
+    memory : (3 n_q, 3 n_q) sparse
+        ``P`` (block diagonal).
+    """
+
+    operators: ArmOperators
+    dt: float
+    stiffness: sp.csr_matrix
+    memory: sp.csr_matrix
+
+    def update(self, strain: np.ndarray, arm: np.ndarray) -> np.ndarray:
+        """The internal strain ``e1`` (3 n_q,) after the step, from ``B u1`` and ``e0``."""
+        return strain - self.memory @ (strain - arm)
+
+    def force(self, strain: np.ndarray, arm: np.ndarray) -> np.ndarray:
+        """The arm's nodal force ``B^T S_dt (B u1 - e0)`` (n_dofs,) over the step."""
+        return self.operators.strain.T @ (self.stiffness @ (strain - arm))
+
+
+def _blocks(matrix: sp.spmatrix, n: int) -> np.ndarray:
+    """The (n, 3, 3) diagonal blocks of a block-diagonal (3 n, 3 n) matrix."""
+    coo = sp.coo_matrix(matrix)
+    if np.any(coo.row // 3 != coo.col // 3):
+        raise ValueError("the arm operators must be block diagonal (3 x 3 per point)")
+    out = np.zeros((n, 3, 3))
+    np.add.at(out, (coo.row // 3, coo.row % 3, coo.col % 3), coo.data)
+    return out
+
+
+def _block_diagonal(blocks: np.ndarray) -> sp.csr_matrix:
+    n = blocks.shape[0]
+    return sp.bsr_matrix((blocks, np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n)).tocsr()
+
+
+def arm_step(operators: ArmOperators, dt: float) -> ArmStep:
+    """The eliminated backward-Euler step of length ``dt`` (> 0, ``inf`` allowed) of an arm."""
+    dt = float(dt)
+    if not dt > 0:
+        raise ValueError(f"dt must be > 0, got {dt}")
+    n = operators.n_internal // 3
+    if not math.isfinite(dt):
+        zero = sp.csr_matrix((3 * n, 3 * n))
+        return ArmStep(operators, dt, zero, zero)
+    S = _blocks(operators.stiffness, n)
+    V = _blocks(operators.viscosity, n)
+    P = np.linalg.solve(V + dt * S, V)
+    return ArmStep(operators, dt, _block_diagonal(S @ P), _block_diagonal(P))

@@ -16,13 +16,13 @@ source (:func:`network_transmission`, :func:`continuum_transmission`, where the 
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..fits import power_law
 from ..network.model import SpringNetwork
 from .materials import Material
 
@@ -349,6 +349,8 @@ class DecayFit:
         Bins used in the fit.
     rms_log_residual : float
         Root-mean-square residual of ``log |strain|`` about the fit.
+    exponent_error : float
+        Standard error of the exponent (least squares on the bins' logarithms).
     """
 
     exponent: float
@@ -357,6 +359,7 @@ class DecayFit:
     r_max: float
     n_bins: int
     rms_log_residual: float
+    exponent_error: float
 
 
 def decay_exponent(
@@ -378,14 +381,13 @@ def decay_exponent(
     good = prof.strain > 0
     if good.sum() < 3:
         raise ValueError("fewer than 3 non-empty bins with non-zero strain in [r_min, r_max]")
-    lr, ls = np.log(prof.r[good]), np.log(prof.strain[good])
-    slope, intercept = np.polyfit(lr, ls, 1)
-    res = ls - (slope * lr + intercept)
+    fit = power_law(prof.r[good], prof.strain[good])
     return DecayFit(
-        exponent=float(-slope),
-        prefactor=float(math.exp(intercept)),
+        exponent=-fit.exponent,
+        prefactor=fit.prefactor,
         r_min=float(r_min),
         r_max=float(r_max),
-        n_bins=int(good.sum()),
-        rms_log_residual=float(np.sqrt(np.mean(res**2))),
+        n_bins=fit.points,
+        rms_log_residual=fit.rms_log_residual,
+        exponent_error=fit.exponent_error,
     )

@@ -40,6 +40,7 @@ __all__ = [
     "ROLE_HIDDEN",
     "ROLE_SOURCE",
     "ROLE_TARGET",
+    "body_history_series",
     "continuum_mesh",
     "default_mesh_dir",
     "network_mesh",
@@ -431,6 +432,57 @@ def time_history_series(
     frames = (
         network_mesh(net.with_rest_length(Li).with_stiffness(ki), xi, fields={"role": roles})
         for xi, Li, ki in zip(x, L, k)
+    )
+    return write_series(frames, times, folder, stem)
+
+
+def body_history_series(
+    points: ArrayLike,
+    triangles: ArrayLike,
+    times: ArrayLike,
+    positions: ArrayLike,
+    eigenstrain: ArrayLike,
+    modulus: ArrayLike,
+    folder: str | os.PathLike[str],
+    stem: str,
+) -> Path:
+    """A body learning in physical time as a PVD series: one frame per output time.
+
+    The continuum counterpart of :func:`time_history_series` (a learnable body's run of
+    :func:`~continuum_vs_network.learning.physical_time.learn_in_time`).
+
+    Parameters
+    ----------
+    points : (n_vertices, 2) float array
+        Undeformed vertices (``body.mesh.p.T``, length units).
+    triangles : (n_elements, 3) int array
+        The elements' vertices (``body.mesh.t.T``).
+    times : (T,) float array
+        Output times, strictly increasing; the PVD time steps.
+    positions : (T, n_vertices, 2) float array
+        Deformed vertices at each time (``TimeHistory.positions``); the frames carry
+        ``positions - points`` as the point array ``displacement``.
+    eigenstrain : (T, n_elements, 3) float array
+        Learned rest strain ``(xx, yy, xy)`` at each time (``TimeHistory.rest_length``):
+        cell tensor ``eigenstrain``.
+    modulus : (T, n_elements) float array
+        Learned modulus scale at each time (``TimeHistory.stiffness``): cell ``modulus``.
+    folder, stem : as for :func:`write_series`
+
+    Returns
+    -------
+    pathlib.Path of the ``.pvd`` index.
+    """
+    p, tri, T = _float_array("points", points, (None, 2)), np.asarray(triangles), np.size(times)
+    x = _float_array("positions", positions, (T, p.shape[0], 2))
+    ne = tri.shape[0] if tri.ndim == 2 else -1
+    eps = _float_array("eigenstrain", eigenstrain, (T, ne, 3))
+    s = _float_array("modulus", modulus, (T, ne))
+    e9 = np.zeros((T, ne, 9))  # ParaView tensors xx xy xz yx yy yz zx zy zz
+    e9[..., [0, 4, 1, 3]] = eps[..., [0, 1, 2, 2]]
+    frames = (
+        continuum_mesh(p, tri, xi - p, cell_fields={"eigenstrain": e, "modulus": m})
+        for xi, e, m in zip(x, e9, s)
     )
     return write_series(frames, times, folder, stem)
 

@@ -29,6 +29,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..fits import power_law
 from .history import History
 from .metrics import final_values, normalised
 from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
@@ -198,8 +199,7 @@ def floor_scaling(
     out = {"p": np.nan, "c": np.nan, "n": int(use.sum()), "spread": np.nan}
     if use.sum() < 3 or np.ptp(np.log10(r[use])) < 1.0:
         return out
-    x, y = np.log(r[use]), np.log(f[use])
-    p = float(np.polyfit(x, y, 1)[0])
+    p = power_law(r[use], f[use]).exponent
     pre = f[use] / r[use] ** p
     out.update(p=p, c=float(np.exp(np.mean(np.log(pre)))), spread=float(pre.max() / pre.min()))
     return out

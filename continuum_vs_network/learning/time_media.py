@@ -17,7 +17,9 @@ every medium; a medium adapter supplies
 :class:`NetworkTime` steps a :class:`~..network.model.SpringNetwork` with
 :class:`~..network.viscous.Stepper` (drag, dashpots, Maxwell arms); :class:`BodyTime` a
 learning medium (:class:`~..continuum.learnable.LearnableBody`) with the medium's
-:meth:`damped_stepper` (drag, Kelvin-Voigt; clamps exact).
+:meth:`damped_stepper` (drag, Kelvin-Voigt, Maxwell arms; clamps exact). Every moving copy
+carries its own arms' internal variables (a network's arm lengths, a body's internal
+strains), relaxed at its start.
 """
 
 from __future__ import annotations
@@ -147,19 +149,26 @@ class BodyTime:
 
             viscosity = lattice_damping(viscosity)
         check_rule_on_medium(medium, task, rule)
+        if not callable(getattr(medium, "damped_stepper", None)):
+            raise ValueError(
+                f"net: a {type(medium).__name__} has no damped steps (damped_stepper); "
+                "learning in time takes a SpringNetwork or a LearnableBody"
+            )
         self.task = task
         self.stepper = medium.damped_stepper(task, viscosity, np.inf if quasistatic else dt)
         self.ref = "initial"
 
     def copy(self, medium, target_strain, start=None):
-        u = np.zeros(medium.n_dofs) if start is None else start.u
-        return SimpleNamespace(u=u, stepper=self.stepper)
+        if start is None:
+            u = np.zeros(medium.n_dofs)
+            return SimpleNamespace(u=u, arm=self.stepper.rest_arm(u))
+        return SimpleNamespace(u=start.u, arm=start.arm)
 
     def take(self, copy, other) -> None:
-        copy.u = other.u
+        copy.u, copy.arm = other.u, other.arm
 
     def advance(self, medium, copy, target_strain) -> None:
-        copy.u = self.stepper.step(medium, copy.u, target_strain)
+        copy.u, copy.arm = self.stepper.step(medium, copy.u, target_strain, arm=copy.arm)
 
     def read(self, medium, copy) -> NDArray:
         return copy.u

@@ -16,7 +16,10 @@ What is written (``meshes/<scene>/`` by default):
   with ``series = true``, ``network_n<n>_relaxation.pvd`` (time = physical time);
 * physical_time (largest lattice, ``series = true``): ``<rule>_n<n>_physical_time.pvd``, the
   moving network learning in physical time at the ratio nearest 1 (one frame per output
-  time; time = physical time; :func:`~continuum_vs_network.io.export.time_history_series`).
+  time; time = physical time; :func:`~continuum_vs_network.io.export.time_history_series`),
+  and ``<rule>_n<n>_continuum_physical_time.pvd``, the moving body (displacement, learned
+  ``eigenstrain`` tensor and ``modulus`` per element;
+  :func:`~continuum_vs_network.io.export.body_history_series`).
 """
 
 from __future__ import annotations
@@ -83,7 +86,22 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
     for key, unit in result.units.items():
         a = unit.arrays
         if key.startswith("physical_time/"):
-            if export.series and "series/x" in a:
+            if export.series and "body/points" in a:
+                from ..io.export import body_history_series
+
+                written.append(
+                    body_history_series(
+                        a["body/points"],
+                        a["body/triangles"],
+                        a["series/times"],
+                        a["series/x"],
+                        a["series/rest_length"],
+                        a["series/stiffness"],
+                        folder,
+                        f"{unit.meta['rule']}_n{unit.meta['n']}_continuum_physical_time",
+                    )
+                )
+            elif export.series and "series/x" in a:
                 from ..io.export import time_history_series
 
                 written.append(

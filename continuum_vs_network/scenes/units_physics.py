@@ -100,18 +100,19 @@ def _material(scene: Scene, net):
     return network_moduli(net).material
 
 
-def _fit(distance, strain, n: int) -> tuple[float, float, float, float]:
-    """Power-law decay (exponent, prefactor, r_min, r_max) between 2 spacings and 0.3 n."""
+def _fit(distance, strain, n: int) -> tuple[float, float, float, float, float]:
+    """Power-law decay (exponent, prefactor, r_min, r_max, exponent's standard error)
+    between 2 spacings and 0.3 n."""
     from ..continuum.transmission import decay_exponent
 
     r_min, r_max = 2.0, 0.3 * n
     if r_max < 2 * r_min:
-        return (math.nan,) * 4
+        return (math.nan,) * 5
     try:
         fit = decay_exponent(distance, strain, r_min=r_min, r_max=r_max, n_bins=8)
     except ValueError:
-        return (math.nan,) * 4
-    return fit.exponent, fit.prefactor, fit.r_min, fit.r_max
+        return (math.nan,) * 5
+    return fit.exponent, fit.prefactor, fit.r_min, fit.r_max, fit.exponent_error
 
 
 def transmission_unit(scene: Scene, params: dict, ctx: UnitContext):
@@ -138,6 +139,7 @@ def transmission_unit(scene: Scene, params: dict, ctx: UnitContext):
         "strain": strain,
         "network_seconds": a.seconds,
         "network_exponent": fit[0],
+        "network_exponent_error": fit[4],
         "network_prefactor": fit[1],
         "fit_r_min": fit[2],
         "fit_r_max": fit[3],
@@ -161,6 +163,7 @@ def transmission_unit(scene: Scene, params: dict, ctx: UnitContext):
         meta.update(
             continuum_seconds=b.seconds,
             continuum_exponent=cfit[0],
+            continuum_exponent_error=cfit[4],
             continuum_prefactor=cfit[1],
             correlation=float(np.corrcoef(a.strain, b.strain)[0, 1]),
         )

@@ -326,16 +326,20 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
 
 
 def _series_arrays(net, task, run, idx, medium: str) -> dict[str, Any]:
-    """What the PVD export of a network run needs (networks only)."""
+    """What the PVD export of a run needs (the network, or the body's mesh, and the frames)."""
     if medium != "network":
-        return {}
+        mesh = {"body/points": net.body.mesh.p.T, "body/triangles": net.body.mesh.t.T}
+    else:
+        mesh = {
+            "net/positions": net.positions,
+            "net/springs": net.springs,
+            "net/stiffness": net.stiffness,
+            "net/rest_length": net.rest_length,
+            "net/sources": task.sources,
+            "net/targets": task.targets,
+        }
     return {
-        "net/positions": net.positions,
-        "net/springs": net.springs,
-        "net/stiffness": net.stiffness,
-        "net/rest_length": net.rest_length,
-        "net/sources": task.sources,
-        "net/targets": task.targets,
+        **mesh,
         "series/times": run.times[idx],
         "series/x": run.positions[idx],
         "series/rest_length": run.rest_length[idx],

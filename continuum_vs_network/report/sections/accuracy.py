@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from ...fits import power_law
 from ..document import Document, fmt
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
@@ -50,7 +51,7 @@ def convergence_order(step: np.ndarray, error: np.ndarray, points: int = _FIT_PO
     if step.size < 2:
         return math.nan
     order = np.argsort(step)[:points]
-    return float(np.polyfit(np.log(step[order]), np.log(error[order]), 1)[0])
+    return power_law(step[order], error[order]).exponent
 
 
 def _order_verdict(measured: float, expected: float, smallest_error: float) -> str:

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ...fits import power_law
 from ...learning.coupling import DECOUPLED_BELOW
 from ..document import Document
 from ..figures import COLORS, Panel, Series
@@ -371,11 +372,11 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     cont = np.array(needed[1:], dtype=float)
     if np.all(np.isfinite(cont)) and cont.size >= 2 and np.all(cont > 0):
         h = 0.5 ** np.arange(cont.size)
-        slope = float(np.polyfit(np.log(h), np.log(cont), 1)[0])
+        fit = power_law(h, cont)
         lines.append(
             f"- **Steps needed.** Steps to C/C0 <= {TOLERANCE:g}: "
-            f"{', '.join(_g(c) for c in cont)} from h to h/{2**R}, a power h^{slope:.2f} "
-            f"by least squares (network: {_g(needed[0])} steps)."
+            f"{', '.join(_g(c) for c in cont)} from h to h/{2**R}, by least squares "
+            f"{fit.describe('steps', 'h')} (network: {_g(needed[0])} steps)."
         )
     lines.append(
         f"- **Coupling.** Network: {metas['network']['outcome']}; continuum at h: "

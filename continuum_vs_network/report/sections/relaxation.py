@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...fits import power_law
 from ..document import (
     Document,
     fmt,
@@ -77,9 +78,9 @@ def section(doc: Document, result) -> None:
         t = np.array([u.meta[k] for u in units], dtype=float)
         ok = np.isfinite(t) & (t > 0)
         if ok.sum() >= 2:
-            slope = np.polyfit(np.log(n[ok]), np.log(t[ok]), 1)[0]
-            fits.append(f"{label}: tau ~ n^{slope:.2f}")
-            label = f"{label} (n^{slope:.2f})"
+            fit = power_law(n[ok], t[ok])
+            fits.append(f"{label}: {fit.describe('tau', 'n')}")
+            label = f"{label} (n^{fit.exponent:.2f})"
         series.append(
             Series(
                 n, t, label, style=style or "", marker="o" if not style else "s", color=COLORS[j]
@@ -130,5 +131,8 @@ def section(doc: Document, result) -> None:
         "n^2). Right: the relaxing displacement against time for every size.",
     )
     if fits:
-        doc.add("Fitted scaling: " + "; ".join(fits) + ".")
+        doc.add(
+            "Fitted scaling (least squares on logarithms; +- the exponent's standard error, "
+            "a trend only beyond two standard errors): " + "; ".join(fits) + "."
+        )
     side_by_side(doc, result, "relaxation/", "relaxation")

@@ -36,7 +36,7 @@ def section(doc: Document, result) -> None:
     panels = []
     for u in units.values():
         m, a = u.meta, u.arrays
-        row = [m["n"], m["n_nodes"], fmt(m["network_exponent"]), fmt(m["network_seconds"])]
+        row = [m["n"], m["n_nodes"], _exponent(m, "network"), fmt(m["network_seconds"])]
         floor = 1e-9 * float(np.max(np.abs(a["network_strain"])))
         series = [
             Series(
@@ -50,7 +50,7 @@ def section(doc: Document, result) -> None:
         ]
         if cont:
             row += [
-                fmt(m["continuum_exponent"]),
+                _exponent(m, "continuum"),
                 fmt(m["correlation"], 4),
                 fmt(m["continuum_seconds"]),
             ]
@@ -85,8 +85,9 @@ def section(doc: Document, result) -> None:
     doc.add(
         "Strains below 1e-9 of the largest (round-off; springs that only rotate) are not "
         "drawn. Decay exponents are fitted to |strain| binned in distance between 2 "
-        "spacings and 0.3 n (a force dipole in an infinite 2D body decays as r^-2); '-' "
-        "where the lattice is too small for a fit.",
+        "spacings and 0.3 n (a force dipole in an infinite 2D body decays as r^-2), with "
+        "the least-squares standard error over the bins; '-' where the lattice is too small "
+        "for a fit.",
         "",
     )
     doc.figure(
@@ -122,3 +123,10 @@ def section(doc: Document, result) -> None:
             ncols=1,
         )
     side_by_side(doc, result, "transmission/", "transmission")
+
+
+def _exponent(meta: dict, medium: str) -> str:
+    """``"2.01 +- 0.03"``: a medium's decay exponent and its standard error."""
+    value = fmt(meta[f"{medium}_exponent"])
+    error = meta.get(f"{medium}_exponent_error", float("nan"))
+    return f"{value} +- {fmt(error)}" if np.isfinite(error) else value

@@ -1,0 +1,104 @@
+"""Power laws fitted in log-log scale, with the exponent's standard error.
+
+One least-squares fit of ``log y = slope * log x + intercept`` for every scaling the package
+reports (relaxation time against size, error against step, strain against distance, noise
+floor against ratio, critical ratio against size), so that each states its exponent with
+the same error and the same trend rule.
+
+The standard error is the ordinary least-squares one,
+``sqrt(RSS / (n - 2) / sum((log x - mean)^2))``: NaN from two points, where a line fits
+exactly and the data say nothing about the error.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+__all__ = ["PowerLaw", "power_law", "trend"]
+
+
+@dataclass(frozen=True)
+class PowerLaw:
+    """``y = prefactor * x**exponent`` by least squares on logarithms.
+
+    Attributes
+    ----------
+    exponent : float
+        Slope of ``log y`` on ``log x``.
+    exponent_error : float
+        Its standard error; NaN when fewer than three points were fitted.
+    prefactor : float
+        ``exp(intercept)``, in the units of ``y``.
+    points : int
+        Points fitted (positive and finite ``x`` and ``y``).
+    rms_log_residual : float
+        Root-mean-square residual of ``log y`` about the line.
+    """
+
+    exponent: float
+    exponent_error: float
+    prefactor: float
+    points: int
+    rms_log_residual: float
+
+    def describe(self, quantity: str, variable: str) -> str:
+        """``"tau ~ N^(0.49 +- 0.13), grows"``; two points give no error and no trend."""
+        if not math.isfinite(self.exponent_error):
+            return f"{quantity} ~ {variable}^{self.exponent:.2f} (two points: no error estimate)"
+        return (
+            f"{quantity} ~ {variable}^({self.exponent:.2f} +- {self.exponent_error:.2f}), "
+            f"{trend(self)}"
+        )
+
+
+def power_law(x: ArrayLike, y: ArrayLike) -> PowerLaw:
+    """Fit ``y = prefactor * x**exponent`` to the points where both are positive and finite.
+
+    Parameters
+    ----------
+    x, y : array_like, shape (n,)
+        Abscissae and values; points with a non-positive or non-finite entry are skipped.
+
+    Raises
+    ------
+    ValueError
+        When ``x`` and ``y`` differ in length, or fewer than two usable points with two
+        distinct ``x`` remain.
+    """
+    x = np.asarray(x, dtype=np.float64).ravel()
+    y = np.asarray(y, dtype=np.float64).ravel()
+    if x.shape != y.shape:
+        raise ValueError(f"x and y must have the same length, got {x.size} and {y.size}")
+    use = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+    lx, ly = np.log(x[use]), np.log(y[use])
+    if lx.size < 2 or np.ptp(lx) == 0.0:
+        raise ValueError(
+            f"a power law needs two positive finite points with distinct x, got {lx.size}"
+        )
+    spread = float(np.sum((lx - lx.mean()) ** 2))
+    slope = float(np.sum((lx - lx.mean()) * (ly - ly.mean())) / spread)
+    intercept = float(ly.mean() - slope * lx.mean())
+    residual = ly - (slope * lx + intercept)
+    rss = float(residual @ residual)
+    error = math.sqrt(rss / (lx.size - 2) / spread) if lx.size > 2 else math.nan
+    return PowerLaw(
+        exponent=slope,
+        exponent_error=error,
+        prefactor=math.exp(intercept),
+        points=int(lx.size),
+        rms_log_residual=math.sqrt(rss / lx.size),
+    )
+
+
+def trend(fit: PowerLaw) -> str:
+    """``"grows"`` / ``"falls"`` when the exponent is more than two standard errors from 0,
+    else ``"no trend"``; ``"undetermined"`` without an error estimate."""
+    if not math.isfinite(fit.exponent_error):
+        return "undetermined"
+    if abs(fit.exponent) <= 2.0 * fit.exponent_error:
+        return "no trend"
+    return "grows" if fit.exponent > 0 else "falls"
