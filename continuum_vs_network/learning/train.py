@@ -3,13 +3,13 @@
 Each trial builds its network and task (from callables of a seeded generator, or uses the
 ones given), then repeats ``rule.update`` / ``step.apply`` with warm-started equilibria and
 one :class:`~.states.Tracker` (reused factorisations) per trial, measuring after every
-step (see :mod:`.history` for what is recorded).
+step (see :mod:`.record` and :mod:`.history` for what is recorded).
 
 Randomness: trial ``i`` uses ``SeedSequence(seeds[i]).spawn(2)``: the first child builds
 the network and the task, the second draws the read-out noise. The same seeds give the
 same history, up to the wall-clock columns.
 
-Checkpoints: with ``checkpoint=path`` the state is written to ``path`` every
+Checkpoints (:mod:`.checkpoint`): with ``checkpoint=path`` the state is written to ``path`` every
 ``checkpoint_every`` steps (and when a trial ends); calling ``train`` again with the same
 arguments resumes from it and returns exactly the history an uninterrupted run returns
 (wall-clock columns aside: they carry on from the saved totals). The cached factorisations
@@ -19,10 +19,7 @@ A finished run's checkpoint is kept and a repeated call just loads it.
 
 from __future__ import annotations
 
-import hashlib
 import json
-import os
-import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -33,12 +30,15 @@ from numpy.typing import NDArray
 from .. import _validate as check
 from ..network.equilibrium import Equilibrium, EquilibriumError
 from ..network.model import SpringNetwork
+from .checkpoint import Checkpoint, check_checkpoint
 from .examples import TaskSet
-from .history import LEGACY, MEASUREMENTS, UPDATES, History
-from .medium import is_medium, learning_arrays, with_learning_arrays
+from .history import History
+from .medium import is_medium
 from .node_tasks import NodeTask
-from .rules import LearningError, Rule, Step, Warm
+from .record import record_bytes, record_measure, record_time, record_update
+from .rule_base import Rule
 from .states import Tracker
+from .step import LearningError, Step, Warm
 from .tasks import AllosteryTask
 
 __all__ = ["train"]
@@ -46,17 +46,6 @@ __all__ = ["train"]
 NetworkSpec = SpringNetwork | Callable[[np.random.Generator], SpringNetwork]
 TaskSpec = AllosteryTask | Callable[[SpringNetwork, np.random.Generator], AllosteryTask]
 Callback = Callable[[int, int, SpringNetwork], None]
-
-_PER_TARGET = {
-    "target_strain",
-    "target_length",
-    "target_rest_length",
-    "desired_length",
-    "clamp_length",
-}
-_COUNTERS = ("solves", "factorisations", "iterations")
-_LEARNING = ("rest_length", "stiffness", "eigenstrain", "modulus")
-_CURRENT_STATE = frozenset({*_LEARNING, "warm_free", "warm_clamped", "warm_previous_free"})
 
 
 def train(
@@ -133,7 +122,7 @@ def train(
     if callback is not None and not callable(callback):
         raise check.ArgumentError("callback", callback, "None or a callable f(trial, step, net)")
     if checkpoint is not None:
-        checkpoint = _check_checkpoint(checkpoint)
+        checkpoint = check_checkpoint(checkpoint)
 
     settings = dict(rule.settings())
     settings.update(steps=steps, noise=float(noise), measure=bool(measure))
@@ -144,7 +133,7 @@ def train(
         sort_keys=True,
         default=str,
     )
-    state = _Checkpoint.open(checkpoint, fingerprint)
+    state = Checkpoint.open(checkpoint, fingerprint)
     if state.finished(len(seeds)):
         return state.history(settings, steps, seeds)
 
@@ -182,36 +171,6 @@ def _check_seeds(seeds: Sequence[int]) -> NDArray[np.int64]:
     return out
 
 
-def _check_checkpoint(checkpoint: str | Path) -> Path:
-    """The checkpoint file: its folder must exist and take a new file, now (not at step 50)."""
-    if not isinstance(checkpoint, str | os.PathLike):
-        raise check.ArgumentError("checkpoint", checkpoint, "None or a path")
-    path = Path(checkpoint)
-    allowed = "None or a file path in an existing, writable folder"
-    if path.is_dir():
-        raise check.ArgumentError("checkpoint", str(checkpoint), allowed, detail="it is a folder")
-    if not path.parent.is_dir():
-        raise check.ArgumentError(
-            "checkpoint", str(checkpoint), allowed, detail=f"no folder {str(path.parent)!r}"
-        )
-    try:
-        fd, probe = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    except OSError as err:
-        raise check.ArgumentError(
-            "checkpoint", str(checkpoint), allowed, detail=f"cannot write there: {err.strerror}"
-        ) from None
-    os.close(fd)
-    os.unlink(probe)
-    return path
-
-
-def record_bytes(steps: int, n_targets: int) -> int:
-    """Bytes of one trial's history arrays (:func:`_new_record`), a Python int (no overflow)."""
-    per_target = len(_PER_TARGET)
-    scalars = len(MEASUREMENTS) + len(UPDATES) - per_target
-    return 8 * (steps + 1) * (scalars + per_target * max(int(n_targets), 1))
-
-
 # -- one trial --------------------------------------------------------------------------
 def _build(seed: int, net: NetworkSpec, task: TaskSpec):
     build_ss, noise_ss = np.random.SeedSequence(seed).spawn(2)
@@ -244,7 +203,7 @@ def _run_trial(
     steps: int,
     readout: tuple[float, float],
     measure: bool,
-    state: _Checkpoint,
+    state: Checkpoint,
     every: int,
     callback: Callback | None,
     bar,
@@ -319,9 +278,9 @@ def _run_trial(
                 free = measure_examples(cur, warm, step)
             else:
                 free = step.free if step.free is not None else measure_free(cur, warm)
-            _record_update(rec, t, step, cur, rule, mask)
-            _record_measure(rec, t, cur, task0, rule, free, mask)
-            _record_time(rec, t, time.perf_counter() - t_start, measure_seconds, counters())
+            record_update(rec, t, step, cur, rule, mask)
+            record_measure(rec, t, cur, task0, rule, free, mask)
+            record_time(rec, t, time.perf_counter() - t_start, measure_seconds, counters())
             nxt = step.apply(cur)
             warm = next_warm(warm, step, free)
             cur = nxt
@@ -347,140 +306,13 @@ def _run_trial(
             free = measure_examples(cur, warm, None)
         else:
             free = measure_free(cur, warm)
-        _record_measure(rec, steps, cur, task0, rule, free, mask)
-        _record_time(rec, steps, time.perf_counter() - t_start, measure_seconds, counters())
+        record_measure(rec, steps, cur, task0, rule, free, mask)
+        record_time(rec, steps, time.perf_counter() - t_start, measure_seconds, counters())
     except (EquilibriumError, LearningError) as err:
         reason = f"step {t}: {type(err).__name__}: {err}"
     if bar is not None and t < steps:
         bar.update(steps - t)
     state.finish_trial(i, t, reason, cur, rec)
-
-
-def _energy_gradient(net: SpringNetwork, x: NDArray, dof: str, mask: NDArray) -> float:
-    return _summed_gradient(net, [x], dof, mask)
-
-
-def _record_measure(rec, t, net, task, rule, free, mask) -> None:
-    if isinstance(task, TaskSet):
-        _record_examples(rec, t, net, task, rule, free, mask)
-        return
-    if isinstance(task, NodeTask):
-        _record_nodes(rec, t, net, task, rule, free, mask)
-        return
-    if is_medium(net):
-        if free is not None:
-            for name, value in net.measurements(task, free, rule.dof, mask).items():
-                rec[name][t] = value
-        return
-    ref = rule.strain_reference
-    rec["target_rest_length"][t] = net.rest_length[task.targets]
-    rec["desired_length"][t] = task.desired_lengths(net, ref)
-    if free is None:
-        return
-    x = free.positions
-    r_t = net.lengths(x)[task.targets]
-    rec["target_length"][t] = r_t
-    rec["target_strain"][t] = task.target_strains(net, r_t, ref)
-    rec["error_current"][t] = task.error(net, x, "current")
-    rec["error_initial"][t] = task.error(net, x, "initial")
-    rec["energy_free"][t] = free.energy
-    rec["energy_gradient_free"][t] = _energy_gradient(net, x, rule.dof, mask)
-    rec["residual"][t] = free.residual
-
-
-def _record_examples(rec, t, net, tasks: TaskSet, rule, free, mask) -> None:
-    """A task set: summed errors and energies, the examples' target values side by side,
-    ``|sum_e dE_e/dtheta|`` and the largest residual."""
-    ref = rule.strain_reference
-    node = tasks.node_outputs  # node examples: outputs and displacements, as _record_nodes
-    if not node:
-        rec["target_rest_length"][t] = net.rest_length[tasks.targets]
-    rec["desired_length"][t] = tasks.desired_lengths(net, ref)
-    if free is None:
-        return
-    xs = [f.positions for f in free]
-    if node:
-        out = [k.outputs(x) for x, k in zip(xs, tasks.tasks)]
-        rec["target_length"][t] = np.concatenate(out)
-        rec["target_strain"][t] = np.concatenate(
-            [o - k.reference for o, k in zip(out, tasks.tasks)]
-        )
-    else:
-        r_t = np.concatenate([net.lengths(x)[k.targets] for x, k in zip(xs, tasks.tasks)])
-        rec["target_length"][t] = r_t
-        rec["target_strain"][t] = np.concatenate(
-            [k.target_strains(net, net.lengths(x)[k.targets], ref) for x, k in zip(xs, tasks.tasks)]
-        )
-    rec["error_current"][t] = tasks.error(net, xs, "current")
-    rec["error_initial"][t] = tasks.error(net, xs, "initial")
-    rec["energy_free"][t] = float(sum(f.energy for f in free))
-    rec["energy_gradient_free"][t] = _summed_gradient(net, xs, rule.dof, mask)
-    rec["residual"][t] = float(max(f.residual for f in free))
-
-
-def _record_nodes(rec, t, net, task: NodeTask, rule, free, mask) -> None:
-    """A node task: ``target_length`` holds the target coordinates, ``target_strain`` their
-    displacements, ``desired_length`` the desired coordinates; one error (no strain)."""
-    rec["desired_length"][t] = task.desired
-    if free is None:
-        return
-    x = free.positions
-    out = task.outputs(x)
-    rec["target_length"][t] = out
-    rec["target_strain"][t] = out - task.reference
-    rec["error_current"][t] = rec["error_initial"][t] = task.error(net, x)
-    rec["energy_free"][t] = free.energy
-    rec["energy_gradient_free"][t] = _energy_gradient(net, x, rule.dof, mask)
-    rec["residual"][t] = free.residual
-
-
-def _summed_gradient(net: SpringNetwork, xs: list, dof: str, mask: NDArray) -> float:
-    """``|sum_x dE/dtheta(x)|`` over the learning springs (both rows for ``dof="both"``)."""
-    g = 0.0
-    for x in xs:
-        dr = net.lengths(x) - net.rest_length
-        by = {"rest_length": -net.stiffness * dr, "stiffness": 0.5 * dr**2}
-        g = g + (np.stack([by["rest_length"], by["stiffness"]]) if dof == "both" else by[dof])
-    return float(np.linalg.norm(np.asarray(g)[..., mask]))
-
-
-def _record_update(rec, t, step: Step, net, rule, mask) -> None:
-    rec["update_norm"][t] = float(np.linalg.norm(step.delta))
-    if step.examples is not None:
-        clamped = [s.clamped for s in step.examples]
-        if all(c is not None for c in clamped):
-            rec["energy_clamped"][t] = float(sum(c.energy for c in clamped))
-            xs = [c.positions for c in clamped]
-            rec["energy_gradient_clamped"][t] = _summed_gradient(net, xs, rule.dof, mask)
-            rec["clamp_length"][t] = np.concatenate([s.clamp_lengths for s in step.examples])
-        return
-    if step.clamped is not None and is_medium(net):
-        rec["energy_clamped"][t] = step.clamped.energy
-        g = net.local_gradient(step.clamped, rule.dof)
-        rec["energy_gradient_clamped"][t] = float(np.linalg.norm(g[mask]))
-    elif step.clamped is not None:
-        rec["energy_clamped"][t] = step.clamped.energy
-        rec["energy_gradient_clamped"][t] = _energy_gradient(
-            net, step.clamped.positions, rule.dof, mask
-        )
-    if step.clamp_lengths is not None:
-        rec["clamp_length"][t] = step.clamp_lengths
-
-
-def _record_time(rec, t, seconds, measure_seconds, counters) -> None:
-    rec["seconds"][t] = seconds
-    rec["measure_seconds"][t] = measure_seconds
-    for name in _COUNTERS:
-        rec[name][t] = counters[name]
-
-
-def _new_record(steps: int, n_targets: int) -> dict[str, NDArray]:
-    rec = {}
-    for names, length in ((MEASUREMENTS, steps + 1), (UPDATES, steps)):
-        for name in names:
-            shape = (length, n_targets) if name in _PER_TARGET else (length,)
-            rec[name] = np.full(shape, np.nan)
-    return rec
 
 
 def _progress_bar(progress: bool, total: int, done: int):
@@ -491,220 +323,3 @@ def _progress_bar(progress: bool, total: int, done: int):
     except ImportError:  # progress bars are optional
         return None
     return tqdm(total=total, initial=done, desc="train", unit="step")
-
-
-def _digest(net: SpringNetwork) -> str:
-    h = hashlib.sha1()
-    arrays = net.to_arrays().values() if is_medium(net) else ()
-    for a in arrays or (net.positions, net.springs, net.stiffness, net.rest_length):
-        h.update(np.ascontiguousarray(a).tobytes())
-    return h.hexdigest()
-
-
-def _saved_warm(files: dict, examples: int | None) -> Warm:
-    if examples is not None:
-        return Warm(examples=tuple(_saved_warm_one(files, f"example{e}_") for e in range(examples)))
-    return _saved_warm_one(files, "")
-
-
-def _saved_warm_one(files: dict, infix: str) -> Warm:
-    return Warm(
-        free=files.get(f"cur/warm_{infix}free"),
-        clamped=files.get(f"cur/warm_{infix}clamped"),
-        previous_free=files.get(f"cur/warm_{infix}previous_free"),
-    )
-
-
-# -- state of a run (and its checkpoint file) -----------------------------------------------
-class _Checkpoint:
-    """Completed trials plus the progress of the current one; optionally on disk."""
-
-    def __init__(self, path: Path | None, fingerprint: str) -> None:
-        self.path = path
-        self.fingerprint = fingerprint
-        self.trial = 0  # index of the trial in progress
-        self.step = 0
-        self.records: list[dict[str, NDArray]] = []
-        self.completed: list[int] = []
-        self.reasons: list[str] = []
-        self.initial: list[SpringNetwork] = []
-        self.final: list[SpringNetwork] = []
-        self.tasks: list[AllosteryTask] = []
-        self.digests: list[str] = []
-        self._resume: dict | None = None  # saved state of the trial in progress
-        self.warm = Warm()
-        self.seconds = 0.0
-        self.measure_seconds = 0.0
-        self.counters = dict.fromkeys(_COUNTERS, 0)
-
-    # -- opening ----------------------------------------------------------------------
-    @classmethod
-    def open(cls, path: str | Path | None, fingerprint: str) -> _Checkpoint:
-        state = cls(None if path is None else Path(path), fingerprint)
-        if state.path is not None and state.path.exists():
-            state._load()
-        return state
-
-    def finished(self, n_trials: int) -> bool:
-        return len(self.completed) == n_trials
-
-    def steps_done(self, steps: int) -> int:
-        return len(self.completed) * steps + (self._resume or {}).get("step", 0)
-
-    # -- trials -----------------------------------------------------------------------
-    def start_trial(self, i, net0, task0, noise_rng, steps) -> dict[str, NDArray]:
-        digest = _digest(net0)
-        if self._resume is not None:
-            if self._resume["digest"] != digest:
-                raise ValueError(
-                    f"checkpoint {self.path} was written for a different network in trial {i}"
-                )
-            noise_rng.bit_generator.state = self._resume["rng"]
-            rec = self._resume["record"]
-            self.step = self._resume["step"]
-            self.warm = self._resume["warm"]
-            self.seconds = self._resume["seconds"]
-            self.measure_seconds = self._resume["measure_seconds"]
-            self.counters = self._resume["counters"]
-        else:
-            rec = _new_record(steps, task0.n_targets)
-            self.step = 0
-            self.warm = Warm()
-            self.seconds = self.measure_seconds = 0.0
-            self.counters = dict.fromkeys(_COUNTERS, 0)
-        self._current = (net0, task0, digest)
-        return rec
-
-    def current_network(self, net0: SpringNetwork) -> SpringNetwork:
-        if self._resume is None:
-            return net0
-        cur = with_learning_arrays(net0, self._resume["learning"])
-        self._resume = None
-        return cur
-
-    def save_progress(self, i, t, cur, warm, rng, rec, seconds, measure_seconds, counters):
-        if self.path is None:
-            return
-        arrays = {f"cur/{k}": v for k, v in rec.items()}
-        for name, value in learning_arrays(cur).items():
-            arrays[f"cur/{name}"] = value
-        if warm.free is not None:
-            arrays["cur/warm_free"] = np.asarray(warm.free)
-        if warm.clamped is not None:
-            arrays["cur/warm_clamped"] = np.asarray(warm.clamped)
-        if warm.previous_free is not None:
-            arrays["cur/warm_previous_free"] = np.asarray(warm.previous_free)
-        for e, w in enumerate(warm.examples or ()):
-            for name in ("free", "clamped", "previous_free"):
-                if getattr(w, name) is not None:
-                    arrays[f"cur/warm_example{e}_{name}"] = np.asarray(getattr(w, name))
-        progress = {
-            "examples": None if warm.examples is None else len(warm.examples),
-            "trial": i,
-            "step": t,
-            "digest": self._current[2],
-            "rng": rng.bit_generator.state,
-            "seconds": seconds,
-            "measure_seconds": measure_seconds,
-            "counters": {k: int(v) for k, v in counters.items()},
-        }
-        self._write(arrays, progress)
-
-    def finish_trial(self, i, t, reason, cur, rec) -> None:
-        net0, task0, digest = self._current
-        self.records.append(rec)
-        self.completed.append(t)
-        self.reasons.append(reason)
-        self.initial.append(net0)
-        self.final.append(cur)
-        self.tasks.append(task0)
-        self.digests.append(digest)
-        self.trial = i + 1
-        self._write({}, None)
-
-    def history(self, settings, steps, seeds) -> History:
-        data = {name: np.stack([r[name] for r in self.records]) for name in self.records[0]}
-        return History(
-            steps=steps,
-            seeds=seeds.copy(),
-            completed=np.array(self.completed, dtype=np.int64),
-            stop_reason=tuple(self.reasons),
-            settings=settings,
-            data=data,
-            initial=tuple(self.initial),
-            final=tuple(self.final),
-            tasks=tuple(self.tasks),
-        )
-
-    # -- disk -------------------------------------------------------------------------
-    def _write(self, current: dict[str, NDArray], progress: dict | None) -> None:
-        if self.path is None:
-            return
-        from .history import _net_arrays, _task_arrays
-
-        arrays = dict(current)
-        for j, rec in enumerate(self.records):
-            arrays.update({f"rec/{j}/{k}": v for k, v in rec.items()})
-            arrays.update(_net_arrays(f"initial/{j}", self.initial[j]))
-            arrays.update(_net_arrays(f"final/{j}", self.final[j]))
-            arrays.update(_task_arrays(f"task/{j}", self.tasks[j]))
-        meta = {
-            "fingerprint": self.fingerprint,
-            "completed": self.completed,
-            "reasons": self.reasons,
-            "digests": self.digests,
-            "progress": progress,
-        }
-        arrays["meta"] = np.array(json.dumps(meta))
-        from ..io.atomic import atomic_path
-
-        with atomic_path(self.path) as tmp, open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-
-    def _load(self) -> None:
-        from .history import _net_from, _task_from
-
-        with np.load(self.path, allow_pickle=False) as z:
-            files = {k: z[k] for k in z.files}
-        meta = json.loads(str(files["meta"]))
-        if meta["fingerprint"] != self.fingerprint:
-            raise ValueError(
-                f"checkpoint {self.path} belongs to a different run (rule, steps, seeds, noise "
-                f"or checkpoint_every differ); remove it or pass another path"
-            )
-        n = len(meta["completed"])
-        self.completed = list(meta["completed"])
-        self.reasons = list(meta["reasons"])
-        self.digests = list(meta["digests"])
-        for j in range(n):
-            prefix = f"rec/{j}/"
-            self.records.append(
-                {
-                    k[len(prefix) :]: v.copy()
-                    for k, v in files.items()
-                    if k.startswith(prefix) and k[len(prefix) :] not in LEGACY
-                }
-            )
-            self.initial.append(_net_from(files, f"initial/{j}"))
-            self.final.append(_net_from(files, f"final/{j}"))
-            self.tasks.append(_task_from(files, f"task/{j}"))
-        self.trial = n
-        progress = meta["progress"]
-        if progress is not None:
-            self._resume = {
-                "step": int(progress["step"]),
-                "digest": progress["digest"],
-                "rng": progress["rng"],
-                "seconds": float(progress["seconds"]),
-                "measure_seconds": float(progress["measure_seconds"]),
-                "counters": progress["counters"],
-                "record": {
-                    k[4:]: v.copy()
-                    for k, v in files.items()
-                    if k.startswith("cur/")
-                    and k[4:] not in _CURRENT_STATE | LEGACY
-                    and not k.startswith("cur/warm_example")
-                },
-                "learning": {k: files[f"cur/{k}"] for k in _LEARNING if f"cur/{k}" in files},
-                "warm": _saved_warm(files, progress.get("examples")),
-            }

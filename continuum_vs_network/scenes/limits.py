@@ -55,7 +55,7 @@ class Estimate:
 
 
 def _history_bytes(steps: int, n_targets: int) -> int:
-    from ..learning.train import record_bytes
+    from ..learning.record import record_bytes
 
     return record_bytes(steps, n_targets)
 
