@@ -7,10 +7,13 @@ import pytest
 import scipy.sparse as sp
 
 from continuum_vs_network.network import newton as nw
+from continuum_vs_network.network import reuse
 from continuum_vs_network.network.builders import triangular_lattice
+from continuum_vs_network.network.checks import lowest_curvature
 from continuum_vs_network.network.constraints import Problem
-from continuum_vs_network.network.kkt import factor_spd, range_space
+from continuum_vs_network.network.kkt import factor_spd, range_space, range_space_solve
 from continuum_vs_network.network.lagrangian import lagrangian_blocks, pattern_for
+from continuum_vs_network.network.stopping import Trace
 
 
 def _problem_and_two_points():
@@ -43,7 +46,7 @@ def test_projected_cg_step_equals_the_exact_kkt_step():
     grad = problem.gradient(x1).ravel()[coords]
     A = problem.clamp_jacobian(x1, coords)
     viol = problem.clamp_violation(x1)
-    step, mult = nw._projected_pcg(W, old, grad, A, viol, rtol=1e-10, max_iter=200)
+    step, mult = reuse.projected_pcg(W, old, grad, A, viol, rtol=1e-10, max_iter=200)
     exact, exact_mult = range_space(factor_spd(W, ordered=pattern.ordered), A).solve(-grad, -viol)
     np.testing.assert_allclose(A @ step, -viol, atol=1e-12)
     np.testing.assert_allclose(step, exact, atol=1e-8 * np.abs(exact).max())
@@ -61,11 +64,37 @@ def test_projected_cg_refuses_negative_curvature_and_a_short_budget():
     grad = problem.gradient(x1).ravel()[coords]
     A = problem.clamp_jacobian(x1, coords)
     viol = problem.clamp_violation(x1)
-    with pytest.raises(nw._SolveFailed, match="no convergence"):
-        nw._projected_pcg(W, old, grad, A, viol, rtol=1e-14, max_iter=1)
+    with pytest.raises(reuse.SolveFailed, match="no convergence"):
+        reuse.projected_pcg(W, old, grad, A, viol, rtol=1e-14, max_iter=1)
     negative = W - 2.0 * float(W.diagonal().max()) * sp.identity(W.shape[0], format="csr")
-    with pytest.raises(nw._SolveFailed, match="negative curvature"):
-        nw._projected_pcg(negative, old, grad, A, viol, rtol=1e-10, max_iter=50)
+    with pytest.raises(reuse.SolveFailed, match="negative curvature"):
+        reuse.projected_pcg(negative, old, grad, A, viol, rtol=1e-10, max_iter=50)
+
+
+def test_cg_is_given_up_only_when_its_rate_cannot_reach_the_tolerance_in_budget():
+    """After 4 iterations: no reduction from the start -> hopeless; 13.4 -> 9.46 (the slow
+    start of a run measured at N = 1e4 that then converged in 18) -> keep going; a rate
+    that needs more than 3x the budget -> hopeless; before 4 iterations -> never."""
+    hopeless = reuse._hopeless
+    assert hopeless(37.9, 88.8, 1.0, 4, 42)
+    assert not hopeless(13.4, 9.46, 1.0, 4, 42)
+    assert hopeless(13.4, 13.0, 1.0, 4, 42)  # rate 0.0076 per iteration: 340 needed
+    assert not hopeless(37.9, 187.0, 1.0, 3, 42)
+
+
+def test_batched_range_space_solve_equals_two_solves():
+    problem, x0, _ = _problem_and_two_points()
+    net = problem.net
+    pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
+    coords = pattern.coords
+    factor = factor_spd(_w(problem, pattern, x0, np.zeros(2)), ordered=pattern.ordered)
+    A = problem.clamp_jacobian(x0, coords)
+    b, c = problem.gradient(x0).ravel()[coords], np.array([0.01, -0.02])
+    _, (x, y) = range_space_solve(factor, A, b, c)
+    x_ref, y_ref = range_space(factor, A).solve(b, c)
+    np.testing.assert_allclose(A @ x, c, atol=1e-13)
+    np.testing.assert_allclose(x, x_ref, rtol=1e-10, atol=1e-12 * np.abs(x_ref).max())
+    np.testing.assert_allclose(y, y_ref, rtol=1e-10)
 
 
 def test_band_order_and_banded_cholesky_follow_superlus_path(monkeypatch):
@@ -92,3 +121,33 @@ def test_band_order_and_banded_cholesky_follow_superlus_path(monkeypatch):
     superlu = cvn.relax(net, clamped=clamp)
     assert banded.iterations == superlu.iterations > 5
     np.testing.assert_allclose(banded.positions, superlu.positions, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_start_that_needs_a_shift_ends_certified_by_the_loops_own_factorisation(
+    seed, monkeypatch
+):
+    """A prestressed 20x20 lattice pulled to strain 5 starts indefinite (Levenberg shifts);
+    once the shift has decayed to 0 the exact Hessian is factorised in the loop, so Newton
+    returns a certified minimum (relax then needs no second-order factorisation of its own;
+    before, these runs ended on a reused shifted factorisation, uncertified)."""
+    rng = np.random.default_rng(seed)
+    net = triangular_lattice(20, 20, noise=0.1, rng=rng)
+    net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
+    mid = net.positions[net.springs].mean(axis=1)
+    c = int(np.argmin(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1)))
+    problem = Problem.build(net, clamped={c: float(net.clamp_length(c, 5.0))})
+    stop = problem.stop_rule(1e-10, max_iter=200, max_seconds=60.0)
+    shifts = []
+    factorise = nw._factor_lagrangian_hessian
+
+    def recorded(*args, **kwargs):
+        out = factorise(*args, **kwargs)
+        shifts.append(out[2])
+        return out
+
+    monkeypatch.setattr(nw, "_factor_lagrangian_hessian", recorded)
+    outcome = nw.newton(problem, problem.start(net.positions), stop, Trace())
+    assert outcome.converged and outcome.certified
+    assert shifts[0] > 0.0 and shifts[-1] == 0.0
+    assert lowest_curvature(problem, outcome.x) >= 0.0  # the independent check agrees

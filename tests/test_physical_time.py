@@ -19,7 +19,7 @@ from continuum_vs_network.learning.physical_time import (
     settling_time,
 )
 from continuum_vs_network.network.viscous import Viscosity, simulate_viscous
-from continuum_vs_network.scenes.units_time import critical_ratio, crossing_time, rebound
+from continuum_vs_network.scenes.units_time import critical_bracket, crossing_time, rebound
 
 BULK = {"strain_reference": "initial", "learn_sources": False, "learn_targets": False}
 
@@ -183,13 +183,20 @@ def test_study_measures():
     assert rebound(np.array([1.0, 0.1, 1e-5, 2e-3, 1e-3])) == pytest.approx(200)  # overshoot
     assert rebound(np.array([1.0, 1e-8, 1e-7])) == 1.0  # below the floor
     assert rebound(np.array([1.0, 0.5, 0.25])) == 1.0
-    ratios = [1.0, 10.0, 100.0]
-    assert critical_ratio(ratios, [1.0, 1.0, 1.0], [1.0, 1.0, 1.0]) == (np.inf, "none")
-    r, by = critical_ratio(ratios, [1.0, 1.0, 4.0], [1.0, 1.0, 1.0])
-    assert by == "slowdown" and r == pytest.approx(10 * 10**0.5)  # log-log halfway to 4
-    r, by = critical_ratio(ratios, [1.0, 1.0, 1.0], [1.0, 1.0, 4.0])
-    assert by == "oscillation" and r == pytest.approx(10 * 10**0.5)
-    assert critical_ratio(ratios, [3.0, 1.0, 1.0], [1.0, 1.0, 1.0]) == (1.0, "slowdown")
+    ratios = [1.0, 10.0, 100.0, 1000.0]
+    assert critical_bracket(ratios, [False] * 4) == (1000.0, np.inf, 0)  # none past
+    assert critical_bracket(ratios, [True] * 4) == (0.0, 1.0, 0)  # the smallest already past
+    assert critical_bracket(ratios, [False, False, True, True]) == (10.0, 100.0, 0)
+    # non-monotone: 10 past but 100 not; the bracket is above the last ratio not past
+    assert critical_bracket(ratios, [False, True, False, True]) == (100.0, 1000.0, 1)
+    # order of the ratios run does not matter (bisection points are appended)
+    assert critical_bracket([1000.0, 1.0, 31.6, 10.0], [True, False, True, False]) == (
+        10.0,
+        31.6,
+        0,
+    )
+    with pytest.raises(ValueError, match="one length"):
+        critical_bracket(ratios, [True])
 
 
 def test_time_history_series_has_one_frame_per_output(small, tmp_path):
@@ -254,20 +261,65 @@ rules = ["gpc"]
 ratios = [0.3, 3.0]
 relaxation_times = 1.0
 learning_times = 3.0
+draws = [2, 1]
 """
     import tomllib
 
     scene = parse_scene(tomllib.loads(text), "pt.toml")
     result = run_scene(scene, tmp_path / "results")
     units = result.select("physical_time/")
-    assert sorted(units) == ["physical_time/n5/gpc", "physical_time/n6/gpc"]
-    for u in units.values():
+    assert sorted(units) == [
+        "physical_time/n5/d0/gpc",
+        "physical_time/n5/d0/task",
+        "physical_time/n5/d1/gpc",
+        "physical_time/n5/d1/task",
+        "physical_time/n6/d0/gpc",
+        "physical_time/n6/d0/task",
+    ]
+    for u in (u for u in units.values() if u.meta["kind"] == "run"):
         assert u.meta["tau"] > 0
         for r in u.meta["runs"]:
             # at the smallest ratio the run is quasi-static to a few percent
             if r["ratio"] == 0.3:
                 assert abs(r["error_at_qs_end"] - r["error_qs_end"]) < 0.05
+    # two draws of one size: two tasks on the same lattice, each with its own tau
+    d0, d1 = (units[f"physical_time/n5/d{d}/task"] for d in (0, 1))
+    assert not (
+        np.array_equal(d0.arrays["sources"], d1.arrays["sources"])
+        and np.array_equal(d0.arrays["targets"], d1.arrays["targets"])
+    )
+    assert units["physical_time/n5/d1/gpc"].meta["tau"] == d1.meta["network"]["tau"] > 0
     path = write_report(result, tmp_path / "report", render=False)
     text = path.read_text()
+    assert "N = 25: 2, N = 36: 1" in text and "Fewer draws at N = 36" in text
     assert "speed of learning cannot be addressed" in text
     assert "physical_time_speed" in text
+
+
+def test_draws_key_is_checked_against_the_sizes():
+    import tomllib
+
+    from continuum_vs_network.scenes.schema import SceneError, parse_scene
+
+    base = """
+name = "pt"
+description = "tiny"
+kind = "physical_time"
+[network]
+builder = "triangular"
+sizes = [5, 6]
+[task]
+kind = "stern"
+[physical_time]
+"""
+    scene = parse_scene(tomllib.loads(base + "draws = [2, 1]\n"), "pt.toml")
+    from continuum_vs_network.scenes.units_time import draws_per_size, plan_time
+
+    assert draws_per_size(scene) == [2, 1]
+    keys = [u.key for u in plan_time(scene)]
+    assert keys.count("physical_time/n5/d1/task") == 1 and "physical_time/n6/d1/task" not in keys
+    assert draws_per_size(parse_scene(tomllib.loads(base + "draws = [3]\n"), "pt.toml")) == [3, 3]
+    with pytest.raises(SceneError, match=r"draws.*one per size"):
+        parse_scene(tomllib.loads(base + "draws = [1, 2, 3]\n"), "pt.toml")
+    with pytest.raises(SceneError, match="draws"):
+        parse_scene(tomllib.loads(base + "draws = [0]\n"), "pt.toml")

@@ -205,14 +205,17 @@ learning_times = 3.0
 """
     scene = parse_scene(tomllib.loads(text), "ptc.toml")
     result = run_scene(scene, tmp_path / "results")
-    (unit,) = result.select("physical_time/").values()
+    (unit,) = [u for u in result.select("physical_time/").values() if u.meta["kind"] == "run"]
     m = unit.meta
     assert m["medium"] == "continuum" and m["tau"] > 0
     assert len(m["bisection"]) == 3
     rows = sorted(m["runs"] + m["bisection"], key=lambda r: r["ratio"])
     past = [r["slowdown"] >= SLOWDOWN or r["rebound"] >= OSCILLATION for r in rows]
-    j = past.index(True)
-    assert j > 0 and rows[j - 1]["ratio"] <= m["critical_ratio"] <= rows[j]["ratio"]
-    assert rows[j]["ratio"] / rows[j - 1]["ratio"] < (100 / 0.3) ** (1 / 8) * 1.0001
+    # the bracket rule: lo the largest ratio run not past, hi the next; all above hi past
+    j = max(i for i, p in enumerate(past) if not p)
+    assert (m["critical_low"], m["critical_high"]) == (rows[j]["ratio"], rows[j + 1]["ratio"])
+    assert all(past[j + 1 :])
+    assert m["critical_low"] < m["critical_ratio"] < m["critical_high"]
+    assert m["critical_high"] / m["critical_low"] < (100 / 0.3) ** (1 / 8) * 1.0001
     text = write_report(result, tmp_path / "report", render=False).read_text()
     assert "GCL, twin continua" in text

@@ -302,3 +302,30 @@ def test_stiff_rod_is_stable_at_any_step():
     assert tr.residual[-1] < 1e-6 * tr.residual[0]  # settled: net forces gone
     assert np.all(np.diff(tr.energy) <= 1e-12 * tr.energy[0])  # dissipative
     assert net.lengths(tr.positions[-1])[5] == pytest.approx(L[5], rel=1e-6)
+
+
+def test_a_first_iterate_changes_the_cost_of_a_step_not_its_result():
+    """Backward Euler has one solution per step: a predictor ``2 x1 - x0`` (or a poor guess)
+    gives the same state to the tolerance, and the predictor needs fewer iterations."""
+    from continuum_vs_network.network.dynamics import _boundary
+    from continuum_vs_network.network.viscous import Stepper
+
+    net = cvn.triangular_lattice(6, 6)
+    rng = np.random.default_rng(1)
+    net = net.with_rest_length(net.rest_length * (1 + 0.05 * rng.standard_normal(net.n_springs)))
+    pins = np.zeros((net.n_nodes, 2), bool)
+    pins[:6] = True  # the bottom row held
+    free = _boundary(net, pins, None, None, net.positions)[1]
+    steppers = [Stepper(net, Viscosity(drag=1.0), free, 0.01) for _ in range(3)]
+    xs = [net.positions] * 3
+    prev = None
+    for _ in range(20):
+        plain = steppers[0].step(net, xs[0])[0]
+        guess = None if prev is None else 2 * xs[1] - prev
+        predicted = steppers[1].step(net, xs[1], guess=guess)[0]
+        poor = steppers[2].step(net, xs[2], guess=xs[2] + 0.01)[0]
+        np.testing.assert_allclose(predicted, plain, atol=1e-8)
+        np.testing.assert_allclose(poor, plain, atol=1e-8)
+        prev = xs[1]
+        xs = [plain, predicted, poor]
+    assert steppers[1].newton_iterations < steppers[0].newton_iterations

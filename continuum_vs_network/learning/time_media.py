@@ -46,10 +46,20 @@ def _equilibrium_stepper(net: SpringNetwork, free: NDArray, tol: float) -> Stepp
 
 
 class _Copy:
-    """One moving network: positions, arms, held coordinates and its stepper."""
+    """One moving network: positions (and the previous ones, for the predictor), arms,
+    held coordinates and its stepper."""
 
     def __init__(self, x, free, arm, stepper) -> None:
         self.x, self.free, self.arm, self.stepper = x, free, arm, stepper
+        self.previous = None
+
+    def step(self, net, held, arm=None):
+        """One step to the held positions ``held``, from the linear predictor
+        ``2 x - x_previous`` (the converged step does not depend on it)."""
+        guess = None if self.previous is None else 2.0 * self.x - self.previous
+        x1, _, arm1 = self.stepper.step(net, self.x, x_held=held, arm=arm, guess=guess)
+        self.previous, self.x = self.x, x1
+        return arm1
 
 
 class NetworkTime:
@@ -80,11 +90,11 @@ class NetworkTime:
 
     def take(self, copy: _Copy, other: _Copy) -> None:
         """``copy`` continues from ``other``'s state (one network, another clamp set)."""
-        copy.x, copy.arm = other.x, other.arm
+        copy.x, copy.arm, copy.previous = other.x, other.arm, other.previous
 
     def advance(self, net, copy: _Copy, target_strain) -> None:
         held = _boundary(net, self.task.pinned, None, self._clamps(net, target_strain), copy.x)[0]
-        copy.x, _, copy.arm = copy.stepper.step(net, copy.x, x_held=held, arm=copy.arm)
+        copy.arm = copy.step(net, held, copy.arm)
 
     def read(self, net, copy: _Copy) -> NDArray:
         return net.lengths(copy.x)
@@ -122,7 +132,7 @@ class NetworkTime:
             self._free_eq.stepper = _equilibrium_stepper(net, self._free_eq.free, self.tol)
         eq = self._free_eq
         held = _boundary(net, task.pinned, None, self._clamps(net, None), eq.x)[0]
-        eq.x = eq.stepper.step(net, eq.x, x_held=held if ref == "current" else None)[0]
+        eq.step(net, held if ref == "current" else None)
         return task.error(net, eq.x, ref)
 
     def positions(self, net, copy: _Copy) -> NDArray:

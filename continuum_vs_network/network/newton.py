@@ -50,10 +50,10 @@ from .kkt import (
     Factor,
     factor_spd,
     factor_spd_or_curvature,
-    range_space,
-    sparse_solver,
+    range_space_solve,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
+from .reuse import NegativeCurvature, SolveFailed, projected_pcg, reuse_budget
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX, StiffSprings, trust_region_newton
 
@@ -65,141 +65,11 @@ DENSE_JACOBIAN = 100_000  # entries: a clamp Jacobian this small is kept dense (
 DAMP_MIN = 1e-6
 
 
-class _SolveFailed(RuntimeError):
-    """A reused factorisation did not solve the new system (indefinite or too far off)."""
-
-
-def _reuse_budget(size: int) -> int:
-    """Preconditioned CG iterations allowed before a new factorisation of (size, size).
-
-    Measured here on 2D networks, one SuperLU nested-dissection factorisation costs about
-    ``0.15 sqrt(size)`` triangular solves (15 at N = 1e3, 20 at 1e4, 50 at 1e5 nodes); a
-    budget of twice that was fastest in benchmarks/bench_relax.py (0.075 and 0.15 were
-    slower). PARDISO with its analysis kept refactorises for about 9 solves at 1e5-3e5
-    nodes: twice that, 16. A count, not a timing, so that runs are reproducible bit for bit.
-    """
-    if sparse_solver() == "pardiso":
-        return 16
-    return max(2, int(0.3 * np.sqrt(size)))
-
-
-def _pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int) -> Factor:
-    """Conjugate gradients on ``W`` preconditioned by an earlier factorisation.
-
-    ``max_iter`` bounds the iterations of all right-hand sides together.
-
-    Raises :class:`_SolveFailed` on negative curvature (``W`` not positive definite) or when
-    ``max_iter`` iterations do not reach ``rtol``.
-    """
-
-    budget = [max_iter]
-
-    def solve_one(b: NDArray) -> NDArray:
-        x = preconditioner.solve(b)
-        r = b - W @ x
-        b_norm = np.linalg.norm(b)
-        if np.linalg.norm(r) <= rtol * b_norm:
-            return x
-        z = preconditioner.solve(r)
-        p = z.copy()
-        rz = r @ z
-        while budget[0] > 0:
-            budget[0] -= 1
-            Wp = W @ p
-            curvature = p @ Wp
-            if curvature <= 0:
-                raise _SolveFailed("negative curvature")
-            a = rz / curvature
-            x += a * p
-            r -= a * Wp
-            if np.linalg.norm(r) <= rtol * b_norm:
-                return x
-            z = preconditioner.solve(r)
-            rz, rz_old = r @ z, rz
-            p = z + (rz / rz_old) * p
-        raise _SolveFailed("no convergence")
-
-    def solve(b: NDArray) -> NDArray:
-        if b.ndim == 1:
-            return solve_one(b)
-        return np.column_stack([solve_one(col) for col in b.T])
-
-    return Factor(solve, W.shape[0])
-
-
-def _projected_pcg(
-    W: sp.csr_matrix,
-    preconditioner: Factor,
-    grad: NDArray,
-    A: sp.spmatrix | None,
-    viol: NDArray,
-    *,
-    rtol: float,
-    max_iter: int,
-) -> tuple[NDArray, NDArray]:
-    """The Newton step of ``[[W, A^T], [A, 0]] [step; lam] = [-grad; -viol]`` by projected
-    conjugate gradients with the constraint preconditioner ``[[W0, A^T], [A, 0]]``.
-
-    ``W0`` is an earlier factorisation (``preconditioner``), ``A`` the current clamp
-    Jacobian (m, n). Every iterate satisfies ``A step = -viol`` and the search stays in
-    the null space of ``A`` (Gould, Hribar & Nocedal 2001), so one CG run (one solve with
-    ``W0`` an iteration, after one m-column solve for the preconditioner's Schur
-    complement) replaces the ``m + 1`` separate CG runs of a range-space solve. Stops when
-    the step's force residual ``grad + W step + A^T lam`` (``lam`` by least squares) is
-    ``rtol`` times the force at ``step = 0``; the residual is kept projected, as Gould et al.
-    recommend (the clamp-force part of ``grad``, 1e9 times the tolerance near convergence,
-    otherwise spoils the preconditioned residual by round-off).
-
-    Raises :class:`_SolveFailed` on negative curvature in the null space or when
-    ``max_iter`` iterations do not reach ``rtol``.
-    """
-    if A is None:
-        return -np.asarray(_pcg(W, preconditioner, rtol=rtol, max_iter=max_iter).solve(grad)), (
-            np.empty(0)
-        )
-    m = A.shape[0]
-    kkt = range_space(preconditioner, A)
-    At = A.T  # formed once: scipy.sparse builds a new matrix at every .T
-    gram = A @ At
-    gram = gram.toarray() if sp.issparse(gram) else np.asarray(gram)
-    zero = np.zeros(m)
-
-    def multipliers(v: NDArray) -> NDArray:
-        """``lam`` minimising ``|v + A^T lam|``."""
-        return -np.linalg.solve(gram, A @ v)
-
-    tol = rtol * float(np.linalg.norm(grad + At @ multipliers(grad)))
-    x = kkt.solve(-grad, -viol)[0]
-    r = W @ x + grad
-    d = np.zeros_like(x)
-    rg_old = np.inf
-    for it in range(max_iter + 1):
-        # keep the residual projected (its large clamp-force part removed): otherwise its
-        # round-off through the preconditioner swamps a tight tolerance (Gould et al.)
-        r = r + At @ multipliers(r)
-        if np.linalg.norm(r) <= tol:
-            return x, multipliers(W @ x + grad)
-        if it == max_iter:
-            break
-        g = kkt.solve(r, zero)[0]  # projected, preconditioned residual: A g = 0
-        rg = float(r @ g)
-        d = -g + (rg / rg_old) * d
-        Wd = W @ d
-        curvature = float(d @ Wd)
-        if curvature <= 0:
-            raise _SolveFailed("negative curvature")
-        alpha = rg / curvature
-        x = x + alpha * d
-        r = r + alpha * Wd
-        rg_old = rg
-    raise _SolveFailed("no convergence")
-
-
 def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
     """Minimise ``problem`` from ``x`` (n_nodes, 2) by shifted sparse Newton (see module).
 
     After a full step the next step first tries projected conjugate gradients preconditioned
-    by the last factorisation (:func:`_projected_pcg`: a few triangular solves instead of a
+    by the last factorisation (:func:`~.reuse.projected_pcg`: a few triangular solves instead of a
     new factorisation); it refactorises when that fails. While the Levenberg-Marquardt shift
     is positive, that solve is of the shifted model the refactorisation would factorise
     (the exact Hessian, still indefinite, made every reuse fail on negative curvature).
@@ -246,24 +116,31 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             return Outcome(x, it, False, f"time budget of {stop.max_seconds:g} s exceeded")
 
         step = lam = None
-        if reusable is not None:
+        skip_rung = False
+        # a shifted factorisation is not reused once the shift is 0: the exact Hessian is
+        # factorised instead, which gives a pure Newton step and certifies the minimum in
+        # the loop (else the second-order check of relax factorises it after convergence)
+        if reusable is not None and not (shift == 0.0 and not exact_ok):
             # inexact Newton (Eisenstat-Walker-like forcing term): a relative solve error eta
             # leaves a residual ~ eta * residual, superlinear with eta = sqrt(residual); at
             # N = 1e4 it needed 31-41 solves against 45-63 with eta = residual, same iterations
             eta = min(1e-1, np.sqrt(residual))
-            budget = _reuse_budget(pattern.size)
+            budget = reuse_budget(pattern.size)
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             if shift > 0.0:  # the damped model a refactorisation would solve now
                 W = W + shift * _marquardt_scaling(W)
             try:
-                step, lam = _projected_pcg(
+                step, lam = projected_pcg(
                     W, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
                 )
-            except (_SolveFailed, np.linalg.LinAlgError):
+            except NegativeCurvature:
+                # W + shift D is indefinite: its factorisation would fail, start one rung up
+                skip_rung = shift > 0.0
+            except (SolveFailed, np.linalg.LinAlgError):
                 step = None
         if step is None:
             factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
-                problem, pattern, x, lam_ls[:m], rho, shift
+                problem, pattern, x, lam_ls[:m], rho, shift, skip_rung=skip_rung
             )
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
@@ -313,7 +190,7 @@ def _kkt_step(
     with ``W step + A^T lam = -grad`` and ``A step = -viol``."""
     if not m:
         return -np.asarray(solver.solve(grad)), np.empty(0)
-    return range_space(solver, A).solve(-grad, -viol)
+    return range_space_solve(solver, A, -grad, -viol)[1]
 
 
 def _assemble(pattern: HessianPattern, blocks: NDArray) -> sp.csr_matrix | NDArray:
@@ -330,6 +207,8 @@ def _factor_lagrangian_hessian(
     lam: NDArray,
     rho: float,
     shift: float,
+    *,
+    skip_rung: bool = False,
 ) -> tuple[Factor | None, float, float, bool]:
     """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
@@ -340,10 +219,15 @@ def _factor_lagrangian_hessian(
     :func:`~.kkt.factor_spd_or_curvature`, stays negative under the larger ``rho``); then the
     exact Hessian plus a Levenberg-Marquardt shift ``mu diag(W)`` that starts at the ``mu``
     passed in (at least 1e-6; after a failed exact factorisation at least
-    :func:`_shift_estimate`) and grows (100-fold, 10-fold from an estimate) until the
+    :func:`_shift_estimate`) and grows (100-fold from ``DAMP_MIN``, 10-fold from an estimate
+    or from a shift carried over from the last iterations) until the
     factorisation is positive definite. Clipping each spring's negative tangential curvature
     instead crept for hundreds of iterations on the paper's network under strain
     continuation.
+
+    ``skip_rung``: ``W + shift D`` is known to be indefinite (conjugate gradients met
+    negative curvature on it), so the ladder starts one rung above ``shift`` (the same
+    factorisations as without, less the one bound to fail).
 
     Returns ``(factor, rho, shift, exact_used)``. The exact Hessian is used whenever it is
     positive definite, so the last iterations are pure Newton steps.
@@ -371,14 +255,18 @@ def _factor_lagrangian_hessian(
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
     # not freeze soft springs (stiffness ratios up to 1e12 are supported). Without a known
     # direction of negative curvature the shift grows by 100s from DAMP_MIN; with one, from
-    # the estimate of _shift_estimate by 10s
+    # the estimate of _shift_estimate by 10s; from a shift carried over (a decayed one) by
+    # 10s too: by 100s it climbed back over the shift needed and crawled (42 lattices of
+    # 576-1024 nodes at strains -0.5..8: 560 -> 487 iterations, the same equilibria)
     scaling = _marquardt_scaling(W)
     shift = max(shift, DAMP_MIN)
-    growth = 100.0
+    growth = 10.0 if shift > DAMP_MIN else 100.0
     if directions is not None:
         estimate = _shift_estimate(W, directions, scaling.diagonal())
         if estimate > shift:
             shift, growth = estimate, 10.0
+    if skip_rung and directions is None:
+        shift *= growth
     while shift <= 1e8:
         factor = factor_pd(W + shift * scaling, ordered=pattern.ordered)
         if factor is not None:

@@ -276,13 +276,16 @@ class Stepper:
         x_held: NDArray | None = None,
         v: NDArray | None = None,
         arm: NDArray | None = None,
+        guess: NDArray | None = None,
     ) -> tuple[NDArray, NDArray, NDArray | None]:
         """One step from positions ``x`` (n_nodes, 2).
 
         ``x_held``: positions at the end of the step whose held coordinates are imposed
         (default: held coordinates stay); their motion drives the dashpots. ``v``:
-        velocities (inertial). ``arm``: (n_springs,) arm lengths (with arms). Returns the
-        new positions, velocities ``(x1 - x) / dt`` and arms.
+        velocities (inertial). ``arm``: (n_springs,) arm lengths (with arms). ``guess``:
+        (n_nodes, 2) first Newton iterate for the free coordinates (default ``x``; a
+        predictor such as ``2 x - x_previous`` saves iterations, the converged step is
+        the same). Returns the new positions, velocities ``(x1 - x) / dt`` and arms.
         """
         vis, dt, rows = self.viscosity, self.dt, self.rows
         springs = net.springs
@@ -308,7 +311,7 @@ class Stepper:
 
         force_tol = self.tol * net.force_scale
         length_tol = self.tol * float(np.mean(net.rest_length))
-        y = x1
+        y = x1 if guess is None else np.where(self.free, guess, x1)
         g = grad(y)
         gnorm = float(np.max(np.abs(g))) if g.size else 0.0
         fresh = False  # self._stored was factorised at the current y
@@ -327,15 +330,15 @@ class Stepper:
                 z.ravel()[rows] += alpha * d
                 gz = grad(z)
                 gnz = float(np.max(np.abs(gz)))
+                if not fresh:  # a reused factor: keep the step only if it cuts 4-fold
+                    ok = np.isfinite(gnz) and gnz <= 0.25 * gnorm
+                    break
                 s = alpha * d
                 dphi = (
                     spring_energy_change(z, y, springs, kc, Lc)
                     + 0.5 * float(s @ (D @ (s + 2.0 * s0)))
                     - float(np.sum(b * s))
                 )
-                if not fresh:  # a reused factor: keep the step only if it cuts 4-fold
-                    ok = np.isfinite(gnz) and gnz <= 0.25 * gnorm
-                    break
                 ok = np.isfinite(gnz) and (dphi <= 1e-4 * alpha * slope or gnz <= 0.5 * gnorm)
                 if ok:
                     break

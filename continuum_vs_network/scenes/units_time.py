@@ -1,14 +1,19 @@
-"""Units of physical_time scenes: learning concurrent with the dynamics, one unit per size
-and rule (``physical_time/n<n>/<rule>``).
+"""Units of physical_time scenes: learning concurrent with the dynamics against the ratio
+of learning rate to relaxation rate, per size, task draw, rule and medium.
 
-For an ``n x n`` triangular lattice (k = 1) with a Stern-scale task (sources and targets
-frozen, bulk learning, strains against the initial rest lengths), the unit measures the
+Phase 0, one unit per size and task draw (``physical_time/n<n>/d<d>/task``): the ``n x n``
+triangular lattice (k = 1) with a Stern-scale task (sources and targets frozen, bulk
+learning, strains against the initial rest lengths; draw ``d`` from the generator seeded
+``(seed, n)`` for ``d = 0`` and ``(seed, n, d)`` after), and for each medium its
 relaxation time ``tau`` after the source step, the time for the target strains (what
 learning reads) to come within 1 % of their total change of their new equilibrium
 (:func:`~continuum_vs_network.learning.physical_time.network_relaxation_time`, the body's
 :func:`~continuum_vs_network.continuum.damped_states.body_relaxation_time`; the older
-net-force time ``tau_force`` is kept in the meta for comparison), then for
-every ratio ``rho = alpha k tau`` of ``[physical_time] ratios`` runs
+net-force time ``tau_force`` beside it). Computed once, read by every rule's unit.
+
+Phase 1, one unit per size, draw, rule and medium
+(``physical_time/n<n>/d<d>/<rule>[/continuum]``): for every ratio ``rho = alpha k tau`` of
+``[physical_time] ratios``
 
 * the rule in physical time (:func:`~continuum_vs_network.learning.physical_time.learn_in_time`)
   for ``max(learning_times / (alpha k), relaxation_times tau)``, and
@@ -22,7 +27,8 @@ and learning step equal; ``gcl_phases`` learns once per cycle of two phases of
 Measured per ratio (errors relative to the initial one): the time to make all but
 ``fraction`` of the quasi-static error drop, in both runs (``T`` and ``T_qs``) and their
 ratio (the slowdown), the final errors, and the oscillation: the largest factor by which
-the error climbs back above its running minimum (:func:`rebound`).
+the error climbs back above its running minimum (:func:`rebound`). The critical ratio is a
+bracket (:func:`critical_bracket`), narrowed by bisection inside the grid's bracket.
 """
 
 from __future__ import annotations
@@ -36,7 +42,15 @@ import numpy as np
 from .schema import Scene
 from .units import Unit, UnitContext
 
-__all__ = ["OSCILLATION", "SLOWDOWN", "critical_ratio", "crossing_time", "plan_time", "rebound"]
+__all__ = [
+    "OSCILLATION",
+    "SLOWDOWN",
+    "critical_bracket",
+    "crossing_time",
+    "draws_per_size",
+    "plan_time",
+    "rebound",
+]
 
 #: A run is past the quasi-static regime when it learns this many times slower than its
 #: quasi-static limit ...
@@ -47,29 +61,47 @@ OSCILLATION = 2.0
 FLOOR = 1e-6
 
 
+def draws_per_size(scene: Scene) -> list[int]:
+    """Task draws per size: ``[physical_time] draws`` (one number for every size or one
+    per size)."""
+    sizes, draws = scene.network.sizes, scene.physical_time.draws
+    return list(draws) * len(sizes) if len(draws) == 1 else list(draws)
+
+
 def plan_time(scene: Scene) -> list[Unit]:
-    """One unit per size and rule."""
+    """Phase 0: one task unit per size and draw; phase 1: one unit per size, draw, rule
+    and medium, the largest sizes first (the longest units start first)."""
     d = scene.to_dict()
     depends = {k: d[k] for k in ("seed", "network", "task", "physical_time") if k in d}
-    sizes = scene.network.sizes
-    rules = scene.physical_time.rules
+    sizes = [int(n) for n in scene.network.sizes]
+    draws = draws_per_size(scene)
     series = scene.export is not None and scene.export.series
-    return [
+    tasks = [
+        Unit(key=f"physical_time/n{n}/d{j}/task", func=task_unit, params={"n": n, "draw": j},
+             depends=depends)
+        for n, m in zip(sizes, draws)
+        for j in range(m)
+    ]  # fmt: skip
+    runs = [
         Unit(
-            key=f"physical_time/n{n}/{rule}" + ("" if medium == "network" else f"/{medium}"),
+            key=f"physical_time/n{n}/d{j}/{rule}" + ("" if medium == "network" else f"/{medium}"),
             func=time_unit,
             params={
-                "n": int(n),
+                "n": n,
+                "draw": j,
                 "rule": rule,
                 "medium": medium,
-                "series": bool(series and n == sizes[-1]),
+                "series": bool(series and n == sizes[-1] and j == 0),
             },
             depends=depends,
+            phase=1,
         )
+        for n, m in sorted(zip(sizes, draws), reverse=True)
+        for j in range(m)
         for medium in scene.physical_time.media
-        for n in sizes
-        for rule in rules
+        for rule in scene.physical_time.rules
     ]
+    return tasks + runs
 
 
 def crossing_time(times: np.ndarray, values: np.ndarray, level: float) -> float:
@@ -96,32 +128,28 @@ def rebound(values: np.ndarray, floor: float = FLOOR) -> float:
     return float(np.max(v[ok] / np.maximum(running[ok], floor * 1e-6)))
 
 
-def critical_ratio(ratios, slowdown, rebounds) -> tuple[float, str]:
-    """The smallest ratio past the quasi-static regime, and which criterion it met.
+def critical_bracket(ratios, past) -> tuple[float, float, int]:
+    """The critical ratio as a bracket ``(lo, hi]`` from the ratios run and whether each
+    is past the quasi-static regime (the criterion need not be monotone in the ratio).
 
-    A ratio is past when ``slowdown >= SLOWDOWN`` (learning time over its quasi-static
-    value; inf when the level is never reached) or ``rebound >= OSCILLATION``. Between the
-    last ratio before and the first one past, the crossing of the criterion is
-    interpolated in log-log (geometric mean when a value is inf or 0). Returns
-    ``(ratios[0], ...)`` when the first ratio is already past and ``(inf, "none")`` when
-    none is.
+    ``lo``: the largest ratio not past (0 when every ratio is past); ``hi``: the smallest
+    ratio run above it (inf when there is none), so ``hi`` and every ratio above it are
+    past. Also returns the number of ratios below ``lo`` that are past (the criterion's
+    non-monotone points, which the bracket does not count). Bisecting between ``lo`` and
+    ``hi`` and applying the rule again to all ratios run narrows the bracket.
     """
     r = np.asarray(ratios, float)
-    s = np.asarray(slowdown, float)
-    q = np.asarray(rebounds, float)
-    past = (s >= SLOWDOWN) | (q >= OSCILLATION)
-    if not past.any():
-        return math.inf, "none"
-    i = int(np.argmax(past))
-    which = "slowdown" if s[i] >= SLOWDOWN else "oscillation"
-    if i == 0:
-        return float(r[0]), which
-    values, level = (s, SLOWDOWN) if which == "slowdown" else (q, OSCILLATION)
-    v0, v1 = values[i - 1], values[i]
-    if not (np.isfinite(v1) and v0 > 0 and v1 > v0):
-        return float(math.sqrt(r[i - 1] * r[i])), which
-    f = math.log(level / v0) / math.log(v1 / v0)
-    return float(r[i - 1] * (r[i] / r[i - 1]) ** min(max(f, 0.0), 1.0)), which
+    p = np.asarray(past, bool)
+    if r.size == 0 or r.shape != p.shape:
+        raise ValueError("ratios and past must be non-empty and of one length")
+    order = np.argsort(r)
+    r, p = r[order], p[order]
+    calm = np.flatnonzero(~p)
+    if calm.size == 0:
+        return 0.0, float(r[0]), 0
+    i = int(calm[-1])
+    hi = float(r[i + 1]) if i + 1 < r.size else math.inf
+    return float(r[i]), hi, int(np.count_nonzero(p[:i]))
 
 
 def _rule(name: str, alpha: float, eta: float):
@@ -133,13 +161,15 @@ def _rule(name: str, alpha: float, eta: float):
     return CoupledLearning(alpha, eta, **kw)
 
 
-def _lattice_task(scene: Scene, n: int):
+def _lattice_task(scene: Scene, n: int, draw: int = 0):
+    """The lattice and task draw ``draw`` (generator ``(seed, n)`` for draw 0, ``(seed, n,
+    draw)`` after)."""
     from ..learning.tasks import stern_task
     from .units_physics import lattice
 
     t = scene.task
     net = lattice(scene, n)
-    rng = np.random.default_rng([scene.seed, n])
+    rng = np.random.default_rng([scene.seed, n] + ([draw] if draw else []))
     for _ in range(200):  # clamps are held end nodes: sources and targets share no node
         task = stern_task(
             net, t.n_sources, t.n_targets, rng, source_std=t.source_std, target_std=t.target_std
@@ -153,28 +183,78 @@ def _lattice_task(scene: Scene, n: int):
     )
 
 
-def _medium(scene: Scene, n: int, medium: str, vis):
-    """``(learner, task, tau, tau_force, n_nodes)``: the lattice, or its continuum (P1 on
-    the lattice's triangles, lattice Lamé parameters, the same task's material springs);
-    ``tau`` by the target strains, ``tau_force`` by the net force."""
-    from ..learning.physical_time import network_relaxation_time
+def _viscosity(scene: Scene):
+    from ..network.viscous import Viscosity
 
-    net, task = _lattice_task(scene, n)
-    if medium == "network":
-        times = [network_relaxation_time(net, task, vis, measure=m) for m in ("target", "force")]
-        return net, task, *times, net.n_nodes
-    from ..continuum.damped_states import body_relaxation_time
+    spec = scene.physical_time
+    return Viscosity(
+        drag=spec.drag,
+        dashpot=spec.dashpot,
+        arm_stiffness=spec.arm_stiffness,
+        arm_dashpot=spec.arm_dashpot,
+    )
+
+
+def _body(net, task):
+    """The lattice's continuum (P1 on its triangles, lattice Lamé parameters) and the same
+    task's material springs."""
     from ..continuum.learnable import learnable_body
     from ..continuum.material_task import MaterialTask
     from ..continuum.materials import lattice_lame
     from ..continuum.mesh import network_mesh
-    from ..continuum.viscoelastic import lattice_damping
 
     body = learnable_body(network_mesh(net), lattice_lame(float(np.mean(net.stiffness))))
-    mtask = MaterialTask.from_network(net, task, body)
-    damping = lattice_damping(vis)
-    times = [body_relaxation_time(body, mtask, damping, measure=m) for m in ("target", "force")]
-    return body, mtask, *times, net.n_nodes
+    return body, MaterialTask.from_network(net, task, body)
+
+
+def task_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """The task of one size and draw, and each medium's ``tau`` and ``tau_force``."""
+    from ..learning.physical_time import network_relaxation_time
+
+    n, draw = params["n"], params["draw"]
+    net, task = _lattice_task(scene, n, draw)
+    vis = _viscosity(scene)
+    meta: dict[str, Any] = {"n": n, "draw": draw, "n_nodes": net.n_nodes, "kind": "task"}
+    for medium in scene.physical_time.media:
+        if medium == "network":
+            tau, tau_force = (
+                network_relaxation_time(net, task, vis, measure=m) for m in ("target", "force")
+            )
+        else:
+            from ..continuum.damped_states import body_relaxation_time
+            from ..continuum.viscoelastic import lattice_damping
+
+            body, mtask = _body(net, task)
+            damping = lattice_damping(vis)
+            tau, tau_force = (
+                body_relaxation_time(body, mtask, damping, measure=m) for m in ("target", "force")
+            )
+        meta[medium] = {"tau": float(tau), "tau_force": float(tau_force)}
+    arrays = {
+        "sources": task.sources,
+        "source_strain": task.source_strain,
+        "targets": task.targets,
+        "target_strain": task.target_strain,
+        "pinned": task.pinned,
+    }
+    return arrays, meta
+
+
+def _medium(scene: Scene, params: dict, ctx: UnitContext):
+    """``(learner, task, tau, tau_force, n_nodes)`` from the task unit of this size and
+    draw: the lattice, or its continuum."""
+    from ..learning.tasks import AllosteryTask
+    from .units_physics import lattice
+
+    stored = ctx.read_unit(f"physical_time/n{params['n']}/d{params['draw']}/task")
+    a, times = stored.arrays, stored.meta[params["medium"]]
+    net = lattice(scene, params["n"])
+    task = AllosteryTask.create(
+        net, a["sources"], a["source_strain"], a["targets"], a["target_strain"],
+        pinned=a["pinned"],
+    )  # fmt: skip
+    learner, learn_task = (net, task) if params["medium"] == "network" else _body(net, task)
+    return learner, learn_task, times["tau"], times["tau_force"], net.n_nodes
 
 
 def _past(row: dict) -> bool:
@@ -182,20 +262,14 @@ def _past(row: dict) -> bool:
 
 
 def time_unit(scene: Scene, params: dict, ctx: UnitContext):
-    """Learning in physical time against the ratio, for one size, rule and medium."""
+    """Learning in physical time against the ratio, for one size, draw, rule and medium."""
     from ..learning.physical_time import learn_in_time
     from ..learning.rules import LearningError
-    from ..network.viscous import Viscosity
 
     spec = scene.physical_time
     n, name, medium = params["n"], params["rule"], params.get("medium", "network")
-    vis = Viscosity(
-        drag=spec.drag,
-        dashpot=spec.dashpot,
-        arm_stiffness=spec.arm_stiffness,
-        arm_dashpot=spec.arm_dashpot,
-    )
-    net, task, tau, tau_force, n_nodes = _medium(scene, n, medium, vis)
+    vis = _viscosity(scene)
+    net, task, tau, tau_force, n_nodes = _medium(scene, params, ctx)
     k = 1.0  # the lattice's spring stiffness: rho = alpha k tau in both media
     qs_cache: dict[tuple, tuple] = {}
 
@@ -291,27 +365,35 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         if params["series"] and ratio == series_ratio and run is not None:
             idx = np.unique(np.linspace(0, run.times.size - 1, spec.frames).round().astype(int))
             arrays.update(_series_arrays(net, task, run, idx, medium))
-    # bisection of the critical ratio in log scale between the bracketing grid ratios
+    # the grid's bracket, narrowed by bisection in log scale (critical_bracket over every
+    # ratio run: a bisection point past narrows from above, one not past from below)
     extra: list[dict] = []
-    past = [_past(r) for r in rows]
-    if any(past) and past.index(True) > 0:
-        j = past.index(True)
-        lo, hi = rows[j - 1], rows[j]
+    lo, hi, _ = critical_bracket([r["ratio"] for r in rows], [_past(r) for r in rows])
+    if lo > 0 and math.isfinite(hi):
         for _ in range(spec.bisections):
-            row, _ = one(math.sqrt(lo["ratio"] * hi["ratio"]))
+            row, _ = one(math.sqrt(lo * hi))
             extra.append(row)
-            lo, hi = (lo, row) if _past(row) else (row, hi)
+            lo, hi = (lo, row["ratio"]) if _past(row) else (row["ratio"], hi)
     every = sorted(rows + extra, key=lambda r: r["ratio"])
-    crit, which = critical_ratio(
-        [r["ratio"] for r in every], [r["slowdown"] for r in every], [r["rebound"] for r in every]
-    )
-    first = [r for r in every if _past(r)]
-    if first and first[0]["diverged"]:
+    lo, hi, exceptions = critical_bracket([r["ratio"] for r in every], [_past(r) for r in every])
+    first = next((r for r in every if r["ratio"] == hi), None)
+    if first is None:
+        which = "none"
+    elif first["diverged"]:
         which = "divergence"
+    else:
+        which = "slowdown" if first["slowdown"] >= SLOWDOWN else "oscillation"
     meta = {
-        "critical_ratio": crit,
+        "kind": "run",
+        "critical_low": lo,
+        "critical_high": hi,
+        "critical_ratio": math.sqrt(lo * hi)
+        if lo > 0 and math.isfinite(hi)
+        else (math.inf if lo > 0 else hi),
         "critical_by": which,
+        "non_monotone": exceptions,
         "n": n,
+        "draw": params.get("draw", 0),
         "n_nodes": n_nodes,
         "rule": name,
         "medium": medium,

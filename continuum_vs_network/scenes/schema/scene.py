@@ -214,6 +214,14 @@ def _check_physical_time(scene: Scene, file: str, need_key: Callable) -> None:
     need_key("network", "sizes", "for a physical_time scene")
     if task.kind != "stern":
         raise SceneError(file, "task", "kind", "kind 'physical_time' takes kind = 'stern'")
+    if len(spec.draws) not in (1, len(net.sizes)):
+        raise SceneError(
+            file,
+            "physical_time",
+            "draws",
+            f"must give one number for every size or one per size ({len(net.sizes)} sizes), "
+            f"got {len(spec.draws)}",
+        )
     if (spec.arm_stiffness > 0) != (spec.arm_dashpot > 0):
         raise SceneError(
             file,

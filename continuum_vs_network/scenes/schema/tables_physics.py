@@ -258,9 +258,16 @@ class PhysicalTimeSpec:
     bisections: int = _key(
         "int",
         0,
-        "bisections of the critical ratio between the last ratio before it and the first "
-        "past it (log scale)",
+        "bisections of the critical ratio between the largest ratio not past and the next "
+        "ratio (log scale)",
         check=_at_least(0),
+    )
+    draws: tuple[int, ...] = _key(
+        "list[int]",
+        (1,),
+        "task draws (random sources and targets) per size: one number for every size, or "
+        "one per size",
+        check=_all(lambda v: None if v else "must list at least one entry", _each(_at_least(1))),
     )
     eta: float = _key(
         "float",

@@ -1,0 +1,171 @@
+"""Newton steps solved with an earlier factorisation: preconditioned conjugate gradients.
+
+:func:`~.newton.newton` refactorises the Lagrangian Hessian only when these fail: after a
+full step the next one is first tried by (projected) conjugate gradients preconditioned by
+the last factorisation, a few triangular solves instead of a factorisation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from numpy.typing import NDArray
+
+from .kkt import Factor, range_space_solve, sparse_solver
+
+__all__ = ["NegativeCurvature", "SolveFailed", "pcg", "projected_pcg", "reuse_budget"]
+
+
+class SolveFailed(RuntimeError):
+    """A reused factorisation did not solve the new system (indefinite or too far off)."""
+
+
+class NegativeCurvature(SolveFailed):
+    """Conjugate gradients met a direction ``d`` with ``d^T W d <= 0``: ``W`` is not > 0."""
+
+
+def reuse_budget(size: int) -> int:
+    """Preconditioned CG iterations allowed before a new factorisation of (size, size).
+
+    Measured here on 2D networks, one SuperLU nested-dissection factorisation costs about
+    ``0.15 sqrt(size)`` triangular solves (15 at N = 1e3, 20 at 1e4, 50 at 1e5 nodes); a
+    budget of twice that was fastest in benchmarks/bench_relax.py (0.075 and 0.15 were
+    slower). PARDISO with its analysis kept refactorises for about 9 solves at 1e5-3e5
+    nodes: twice that, 16. A count, not a timing, so that runs are reproducible bit for bit.
+    """
+    if sparse_solver() == "pardiso":
+        return 16
+    return max(2, int(0.3 * np.sqrt(size)))
+
+
+def pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int) -> Factor:
+    """Conjugate gradients on ``W`` preconditioned by an earlier factorisation.
+
+    ``max_iter`` bounds the iterations of all right-hand sides together.
+
+    Raises :class:`SolveFailed` on negative curvature (``W`` not positive definite) or when
+    ``max_iter`` iterations do not reach ``rtol``.
+    """
+
+    budget = [max_iter]
+
+    def solve_one(b: NDArray) -> NDArray:
+        x = preconditioner.solve(b)
+        r = b - W @ x
+        b_norm = np.linalg.norm(b)
+        if np.linalg.norm(r) <= rtol * b_norm:
+            return x
+        z = preconditioner.solve(r)
+        p = z.copy()
+        rz = r @ z
+        while budget[0] > 0:
+            budget[0] -= 1
+            Wp = W @ p
+            curvature = p @ Wp
+            if curvature <= 0:
+                raise NegativeCurvature("negative curvature")
+            a = rz / curvature
+            x += a * p
+            r -= a * Wp
+            if np.linalg.norm(r) <= rtol * b_norm:
+                return x
+            z = preconditioner.solve(r)
+            rz, rz_old = r @ z, rz
+            p = z + (rz / rz_old) * p
+        raise SolveFailed("no convergence")
+
+    def solve(b: NDArray) -> NDArray:
+        if b.ndim == 1:
+            return solve_one(b)
+        return np.column_stack([solve_one(col) for col in b.T])
+
+    return Factor(solve, W.shape[0])
+
+
+def projected_pcg(
+    W: sp.csr_matrix,
+    preconditioner: Factor,
+    grad: NDArray,
+    A: sp.spmatrix | None,
+    viol: NDArray,
+    *,
+    rtol: float,
+    max_iter: int,
+) -> tuple[NDArray, NDArray]:
+    """The Newton step of ``[[W, A^T], [A, 0]] [step; lam] = [-grad; -viol]`` by projected
+    conjugate gradients with the constraint preconditioner ``[[W0, A^T], [A, 0]]``.
+
+    ``W0`` is an earlier factorisation (``preconditioner``), ``A`` the current clamp
+    Jacobian (m, n). Every iterate satisfies ``A step = -viol`` and the search stays in
+    the null space of ``A`` (Gould, Hribar & Nocedal 2001), so one CG run (one solve with
+    ``W0`` an iteration, after one m-column solve for the preconditioner's Schur
+    complement) replaces the ``m + 1`` separate CG runs of a range-space solve. Stops when
+    the step's force residual ``grad + W step + A^T lam`` (``lam`` by least squares) is
+    ``rtol`` times the force at ``step = 0``; the residual is kept projected, as Gould et al.
+    recommend (the clamp-force part of ``grad``, 1e9 times the tolerance near convergence,
+    otherwise spoils the preconditioned residual by round-off).
+
+    Raises :class:`SolveFailed` on negative curvature in the null space or when
+    ``max_iter`` iterations do not reach ``rtol``.
+    """
+    if A is None:
+        return -np.asarray(pcg(W, preconditioner, rtol=rtol, max_iter=max_iter).solve(grad)), (
+            np.empty(0)
+        )
+    m = A.shape[0]
+    kkt, (x, _) = range_space_solve(preconditioner, A, -grad, -viol)  # one batched solve
+    At = A.T  # formed once: scipy.sparse builds a new matrix at every .T
+    gram = A @ At
+    gram = gram.toarray() if sp.issparse(gram) else np.asarray(gram)
+    zero = np.zeros(m)
+
+    def multipliers(v: NDArray) -> NDArray:
+        """``lam`` minimising ``|v + A^T lam|``."""
+        return -np.linalg.solve(gram, A @ v)
+
+    tol = rtol * float(np.linalg.norm(grad + At @ multipliers(grad)))
+    r = W @ x + grad
+    d = np.zeros_like(x)
+    rg_old = np.inf
+    first = best = np.inf
+    for it in range(max_iter + 1):
+        # keep the residual projected (its large clamp-force part removed): otherwise its
+        # round-off through the preconditioner swamps a tight tolerance (Gould et al.)
+        r = r + At @ multipliers(r)
+        norm = float(np.linalg.norm(r))
+        if norm <= tol:
+            return x, multipliers(W @ x + grad)
+        first = norm if it == 0 else first
+        best = min(best, norm)  # CG's residual is not monotone: judged by the best so far
+        if it == max_iter or _hopeless(first, best, tol, it, max_iter):
+            break
+        g = kkt.solve(r, zero)[0]  # projected, preconditioned residual: A g = 0
+        rg = float(r @ g)
+        d = -g + (rg / rg_old) * d
+        Wd = W @ d
+        curvature = float(d @ Wd)
+        if curvature <= 0:
+            raise NegativeCurvature("negative curvature")
+        alpha = rg / curvature
+        x = x + alpha * d
+        r = r + alpha * Wd
+        rg_old = rg
+    raise SolveFailed("no convergence")
+
+
+def _hopeless(first: float, best: float, tol: float, done: int, max_iter: int) -> bool:
+    """True when CG's mean residual reduction over its first ``done >= 4`` iterations
+    (from ``first`` to the ``best`` so far) is none, or would need more than three times
+    ``max_iter`` iterations to reach ``tol``.
+
+    At N = 1e4 and strains 1-2 (benchmarks/bench_relax.py) the preconditioners that failed
+    had not brought the residual below its start in 4 iterations and then used the whole
+    budget (44 SuperLU solves, 1.5 factorisations' time). The margin of 3 is there because
+    CG accelerates: predicting with the budget itself stopped some that then succeeded.
+    """
+    if done < 4:
+        return False
+    if best >= first:
+        return True
+    rate = np.log(best / first) / done
+    return bool(np.log(tol / first) / rate > 3 * max_iter)
