@@ -85,6 +85,8 @@ def show(value: Any, width: int = 80) -> str:
 
 # -- scalars --------------------------------------------------------------------------------
 def _is_real(value: Any) -> bool:
+    if type(value) is float or type(value) is int:  # the common case, before the ABC checks
+        return True
     if isinstance(value, bool | np.bool_):
         return False
     if isinstance(value, np.ndarray):
@@ -100,20 +102,19 @@ def integer(
     Accepted: Python and numpy integers, and floats with an integral value (``1e3``).
     Refused: bools, strings, None, non-integral or non-finite floats, complex numbers.
     """
-    allowed = what or _int_range(low, high)
-    if not _is_real(value):
-        raise ArgumentError(name, value, allowed)
-    if isinstance(value, numbers.Integral) or (
-        isinstance(value, np.ndarray) and value.dtype.kind in "iu"
-    ):
-        out = int(value)
-    else:
-        f = float(value)
-        if not (math.isfinite(f) and f.is_integer()):
-            raise ArgumentError(name, value, allowed)
-        out = int(f)
-    if (low is not None and out < low) or (high is not None and out > high):
-        raise ArgumentError(name, value, allowed)
+    ok = _is_real(value)
+    if ok:
+        if isinstance(value, numbers.Integral) or (
+            isinstance(value, np.ndarray) and value.dtype.kind in "iu"
+        ):
+            out = int(value)
+        else:
+            f = float(value)
+            ok = math.isfinite(f) and f.is_integer()
+            out = int(f) if ok else 0
+        ok = ok and not ((low is not None and out < low) or (high is not None and out > high))
+    if not ok:  # the message is built only on failure
+        raise ArgumentError(name, value, what or _int_range(low, high))
     return out
 
 
@@ -141,23 +142,26 @@ def real(
 
     Refused: bools, strings, None, complex numbers, NaN and infinities, arrays of size > 1.
     """
+    ok = _is_real(value)
+    if ok:
+        f = float(value)
+        ok = math.isfinite(f)
+        if ok and low is not None:
+            ok = f > low if low_open else f >= low
+        if ok and high is not None:
+            ok = f < high if high_open else f <= high
+    if not ok:  # the message is built only here: relax checks several reals per call
+        raise ArgumentError(name, value, what or _real_range(low, high, low_open, high_open))
+    return f
+
+
+def _real_range(low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
     parts = ["a finite number"]
     if low is not None:
         parts.append(f"{'>' if low_open else '>='} {low:g}")
     if high is not None:
         parts.append(f"{'<' if high_open else '<='} {high:g}")
-    allowed = what or (" ".join(parts[:2]) + (f" and {parts[2]}" if len(parts) > 2 else ""))
-    if not _is_real(value):
-        raise ArgumentError(name, value, allowed)
-    f = float(value)
-    ok = math.isfinite(f)
-    if ok and low is not None:
-        ok = f > low if low_open else f >= low
-    if ok and high is not None:
-        ok = f < high if high_open else f <= high
-    if not ok:
-        raise ArgumentError(name, value, allowed)
-    return f
+    return " ".join(parts[:2]) + (f" and {parts[2]}" if len(parts) > 2 else "")
 
 
 def boolean(name: str, value: Any) -> bool:

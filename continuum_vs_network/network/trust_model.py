@@ -212,18 +212,21 @@ def positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | 
     ``H - sigma I`` is positive definite (see :class:`Model`); else ``(None, None, inf)``."""
     if not H.size:
         return None, None, math.inf
+    # H itself first: where it is not positive definite, neither is H - sigma I (the
+    # shifted factorisation is then skipped; both must succeed either way)
+    factor, info = lapack.dpotrf(H)
+    if info != 0:
+        return None, None, math.inf
     r = H.shape[0]
-    top = float(np.maximum.reduce(np.abs(H), None))
+    magnitude = np.abs(H)
+    top = float(np.maximum.reduce(magnitude, None))
     # 1e-12 max row sum |H| exceeds CURVATURE only where r max |H_ij| does
-    norm = float(np.maximum.reduce(np.add.reduce(np.abs(H), 1))) if r * top > 1e4 else 0.0
+    norm = float(np.maximum.reduce(np.add.reduce(magnitude, 1))) if r * top > 1e4 else 0.0
     sigma = max(CURVATURE, 1e-12 * norm)
     eye = _EYE.get(r)
     if eye is None:
         eye = _EYE.setdefault(r, np.eye(r))
     _, info = lapack.dpotrf(H - sigma * eye, overwrite_a=True)
-    if info != 0:
-        return None, None, math.inf
-    factor, info = lapack.dpotrf(H)
     if info != 0:
         return None, None, math.inf
     step, info = lapack.dpotrs(factor, gr)
