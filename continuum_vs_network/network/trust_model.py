@@ -63,25 +63,13 @@ class RigidBasis:
     """
 
     def __init__(self, x: NDArray, inv_root: NDArray, length: float) -> None:
-        n = inv_root.size
-        half = n // 2
-        B0 = np.zeros((n, n - 2))
-        for axis in (0, 1):  # translation along axis: inv_root on that axis' rows
-            a = inv_root[axis::2]
-            h = a.copy()
-            h[0] += math.copysign(math.sqrt(float(a @ a)), float(a[0]))
-            Q = np.eye(half)[:, 1:] - h[:, None] * (h[1:] * (2.0 / float(h @ h)))
-            B0[axis::2, axis * (half - 1) : (axis + 1) * (half - 1)] = Q * a[:, None]
-        self.B0 = B0
+        self.B0, self.B0S, inv2, pairs = _translations(inv_root)
         # the rotation about the centre c: turn(x) = (-(y - c_y), x - c_x) per node, so
         # B0^T turn(x) = x.B0S - c.B0S with B0S the rows of B0 swapped, the x rows negated
-        B0S = np.empty_like(B0)
-        B0S[0::2], B0S[1::2] = B0[1::2], -B0[0::2]
-        self.B0S = B0S
         centre = np.add.reduce(x, 0) / x.shape[0]
-        self.v_centre = np.tile(centre, x.shape[0]) @ B0S
+        self.v_centre = centre[pairs] @ self.B0S  # centre[pairs]: np.tile(centre, n_nodes)
         # below this |v| the rotation is a translation (every node at one point)
-        self.floor = (1e-12 * length) ** 2 * float(inv_root @ inv_root)
+        self.floor = (1e-12 * length) ** 2 * inv2
 
     def __call__(self, x: NDArray) -> NDArray:
         v = x.ravel() @ self.B0S - self.v_centre  # the rotation in Q0's coordinates
@@ -92,6 +80,40 @@ class RigidBasis:
         h[0] += math.copysign(math.sqrt(v2), float(v[0]))
         B0 = self.B0
         return B0[:, 1:] - (B0 @ h)[:, None] * (h[1:] * (2.0 / float(h @ h)))
+
+
+_TRANSLATIONS: dict[bytes, tuple[NDArray, NDArray, float, NDArray]] = {}
+_TRANSLATIONS_N = 64  # coordinates up to which they are cached (by the bytes of inv_root)
+_TRANSLATIONS_MAX = 64  # entries kept (the oldest is dropped)
+
+
+def _translations(inv_root: NDArray) -> tuple[NDArray, NDArray, float, NDArray]:
+    """:class:`RigidBasis`'s constants for ``inv_root`` (n,): ``B0``, ``B0S`` (read-only),
+    ``inv_root . inv_root`` and the flat index ``0, 1, 0, 1, ...`` (n,); cached for small
+    ``n`` (repeated solves of one network at the same stiffness)."""
+    key = inv_root.tobytes() if inv_root.size <= _TRANSLATIONS_N else None
+    hit = _TRANSLATIONS.get(key) if key is not None else None
+    if hit is not None:
+        return hit
+    n = inv_root.size
+    half = n // 2
+    B0 = np.zeros((n, n - 2))
+    for axis in (0, 1):  # translation along axis: inv_root on that axis' rows
+        a = inv_root[axis::2]
+        h = a.copy()
+        h[0] += math.copysign(math.sqrt(float(a @ a)), float(a[0]))
+        Q = np.eye(half)[:, 1:] - h[:, None] * (h[1:] * (2.0 / float(h @ h)))
+        B0[axis::2, axis * (half - 1) : (axis + 1) * (half - 1)] = Q * a[:, None]
+    B0S = np.empty_like(B0)
+    B0S[0::2], B0S[1::2] = B0[1::2], -B0[0::2]
+    B0.setflags(write=False)
+    B0S.setflags(write=False)
+    hit = (B0, B0S, float(inv_root @ inv_root), np.arange(n) % 2)
+    if key is not None:
+        if len(_TRANSLATIONS) >= _TRANSLATIONS_MAX:
+            _TRANSLATIONS.pop(next(iter(_TRANSLATIONS)))
+        _TRANSLATIONS[key] = hit
+    return hit
 
 
 def _eigh(H: NDArray) -> tuple[NDArray, NDArray]:
