@@ -196,7 +196,7 @@ def _trial(
         p, length = model.newton, model.newton_length
         predicted = 0.5 * float(model.gr @ p)  # gr.p + p.H.p / 2 with H p = -gr
         step = model.lift(p)
-        accel = -lapack.dpotrs(model.factor, terms.reduced_bending(p, step))[0]
+        back = lapack.dpotrs(model.factor, terms.reduced_bending(p, step))[0]
     else:  # in the eigenbasis: the subproblem and the bending solve are vector operations
         spec = model.eigen()
         c, den, length = subproblem(spec, radius)
@@ -206,12 +206,13 @@ def _trial(
         step = model.lift(p)
         bend = terms.reduced_bending(p, step) @ vecs
         if den[0] > spec.tiny:  # ascending: every shifted eigenvalue is kept
-            accel = vecs @ -(bend / den)
+            back = vecs @ (bend / den)
         else:
             ok = den > spec.tiny
-            accel = vecs @ np.where(ok, -bend / np.where(ok, den, 1.0), 0.0)
-    accel = model.lift(accel)
-    move = step + 0.5 * accel if accel @ accel <= _ACCEL2 * (step @ step) else step
+            back = vecs @ np.where(ok, bend / np.where(ok, den, 1.0), 0.0)
+    # the acceleration is -lift(back): negated at the end (the same numbers, one call less)
+    back = model.lift(back)
+    move = step - 0.5 * back if back @ back <= _ACCEL2 * (step @ step) else step
     x = model.x
     if full:
         move = move.reshape(x.shape)

@@ -25,7 +25,7 @@ from .trust_kernels import SparseKernels
 __all__ = ["CURVATURE", "Model", "RigidBasis", "Spectrum", "null_basis", "rigid_motions"]
 
 CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
-_EYE: dict[int, NDArray] = {}  # identities by size (positive_factor)
+_EYE: dict[int, tuple[NDArray, NDArray]] = {}  # CURVATURE I, I by size (positive_factor)
 
 
 def null_basis(M: NDArray) -> NDArray:
@@ -245,10 +245,12 @@ def positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | 
     # 1e-12 max row sum |H| exceeds CURVATURE only where r max |H_ij| does
     norm = float(np.maximum.reduce(np.add.reduce(magnitude, 1))) if r * top > 1e4 else 0.0
     sigma = max(CURVATURE, 1e-12 * norm)
-    eye = _EYE.get(r)
-    if eye is None:
-        eye = _EYE.setdefault(r, np.eye(r))
-    _, info = lapack.dpotrf(H - sigma * eye, overwrite_a=True)
+    shifts = _EYE.get(r)  # CURVATURE I and I: the usual shift is one subtraction
+    if shifts is None:
+        eye = np.eye(r)
+        shifts = _EYE.setdefault(r, (CURVATURE * eye, eye))
+    shift = shifts[0] if sigma == CURVATURE else sigma * shifts[1]
+    _, info = lapack.dpotrf(H - shift, overwrite_a=True)
     if info != 0:
         return None, None, math.inf
     step, info = lapack.dpotrs(factor, gr)
