@@ -11,7 +11,8 @@ same energy, gradient, constraint Jacobian and residual.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import weakref
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
@@ -71,6 +72,28 @@ def _far_pins(net: SpringNetwork, avoid: NDArray[np.int64]) -> NDArray[np.bool_]
         dx, dy = d[second].tolist()
         mask[second, 1 if abs(dx) >= abs(dy) else 0] = True
     return mask
+
+
+# What a network alone determines (its arrays are read-only), kept while it lives: repeated
+# solves of one network (sweeps over clamps or starts, benchmarks) build their problem fast
+_KNOWN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _known(net: SpringNetwork, key: object, make: Callable[[SpringNetwork], NDArray]) -> NDArray:
+    """``make(net)`` (read-only), computed once per network and ``key``."""
+    per = _KNOWN.get(net)
+    if per is None:
+        per = _KNOWN[net] = {}
+    value = per.get(key)
+    if value is None:
+        value = make(net)
+        value.setflags(write=False)
+        per[key] = value
+    return value
+
+
+def _scale(net: SpringNetwork) -> NDArray[np.float64]:
+    return coordinate_scale(net.springs, net.stiffness, net.rest_length, net.n_nodes)
 
 
 def pin_mask(net: SpringNetwork, pinned: Pins, avoid: ArrayLike = ()) -> NDArray[np.bool_]:
@@ -165,9 +188,7 @@ class Problem:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "free_flat", np.flatnonzero(self.free.ravel()))
-        net = self.net
-        scale = coordinate_scale(net.springs, net.stiffness, net.rest_length, net.n_nodes)
-        object.__setattr__(self, "scale", scale)
+        object.__setattr__(self, "scale", _known(self.net, "scale", _scale))
 
     def with_clamp_lengths(self, lengths: NDArray) -> Problem:
         """The same problem with other clamp lengths (strain continuation)."""
@@ -214,7 +235,10 @@ class Problem:
         choice("clamp", clamp, ("exact", "rod"))
         rod_stiffness = real("rod_stiffness", rod_stiffness, low=0, low_open=True)
         idx, length = _clamp_arrays(net, clamped)
-        free = ~(_far_pins(net, idx) if pinned is None else pin_mask(net, pinned))
+        if pinned is None:
+            free = _known(net, ("free", idx.tobytes()), lambda net: ~_far_pins(net, idx))
+        else:
+            free = ~pin_mask(net, pinned)
         return cls(net, free, idx, length, clamp, float(rod_stiffness))
 
     # -- the energy that is minimised -----------------------------------------------
