@@ -18,6 +18,8 @@ Per spring ``j`` between nodes ``a -> b`` with ``d = x_b - x_a``, ``r = |d|``, `
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
@@ -40,6 +42,7 @@ __all__ = [
 ]
 
 _TINY = 1e-300
+_XY = np.arange(2)
 
 
 def _geometry(x: NDArray, springs: NDArray) -> tuple[NDArray, NDArray]:
@@ -64,12 +67,38 @@ def spring_gradient(x: NDArray, springs: NDArray, k: NDArray, L: NDArray) -> NDA
 
 def _scatter_nodes(t: NDArray, springs: NDArray, n_nodes: int) -> NDArray:
     """Node sums of ``+t`` at each spring's second node and ``-t`` at its first."""
-    g = np.empty((n_nodes, 2))
-    for c in range(2):
-        g[:, c] = np.bincount(springs[:, 1], t[:, c], n_nodes) - np.bincount(
-            springs[:, 0], t[:, c], n_nodes
-        )
-    return g
+    ends = _flat_ends(springs)
+    if ends is None:
+        g = np.empty((n_nodes, 2))
+        for c in range(2):
+            g[:, c] = np.bincount(springs[:, 1], t[:, c], n_nodes) - np.bincount(
+                springs[:, 0], t[:, c], n_nodes
+            )
+        return g
+    # one bincount per end on the flat coordinates 2 node + c: every bin sums the same
+    # terms in the same (spring) order as the bincounts per coordinate, so the same values
+    w = t.ravel()
+    g = np.bincount(ends[1], w, 2 * n_nodes)
+    g -= np.bincount(ends[0], w, 2 * n_nodes)
+    return g.reshape(n_nodes, 2)
+
+
+_ENDS: dict[int, tuple[NDArray, NDArray]] = {}
+
+
+def _flat_ends(springs: NDArray) -> tuple[NDArray, NDArray] | None:
+    """The flat coordinates ``2 a + (0, 1)`` and ``2 b + (0, 1)`` of every spring, (2 s,)
+    each, for a network's read-only springs array (kept while it lives); None for others
+    (rods appended, writeable arrays) and above :data:`SCATTER_MAX_SPRINGS`."""
+    key = id(springs)  # the entry goes when the array does: an id is not reused before
+    hit = _ENDS.get(key)
+    if hit is not None:
+        return hit
+    if springs.flags.writeable or len(springs) > SCATTER_MAX_SPRINGS or springs.ndim != 2:
+        return None
+    hit = _ENDS[key] = tuple((2 * springs[:, e, None] + _XY).ravel() for e in (0, 1))
+    weakref.finalize(springs, _ENDS.pop, key, None)
+    return hit
 
 
 def spring_hessian_blocks(x: NDArray, springs: NDArray, k: NDArray, L: NDArray) -> NDArray:
