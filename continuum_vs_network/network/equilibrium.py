@@ -10,6 +10,7 @@ length.
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
@@ -209,15 +210,7 @@ def relax(
     problem = Problem.build(
         net, pinned=pinned, clamped=clamped, clamp=clamp, rod_stiffness=rod_stiffness
     )
-    floppy = problem.maxwell_zero_modes()
-    if floppy:
-        raise ValueError(
-            f"network is floppy: at least {floppy} zero modes beyond rigid motion "
-            f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
-            f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
-        )
-    lone_nodes(net, problem.free)
-    _check_rank(problem)
+    _check_rigid(problem)
     stop = problem.stop_rule(
         tol, max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]), max_seconds=max_seconds
     )
@@ -278,6 +271,31 @@ def relax(
         outcome, extra = _second_order(problem, outcome, solve, stop, trace, iterations)
     res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
     return _finish(problem, outcome, iterations + extra, method, stop, trace, res)
+
+
+_RIGID: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # net: the passed keys
+
+
+def _check_rigid(problem: Problem) -> None:
+    """Refuse a floppy problem (Maxwell's count, lone nodes, the rigidity rank); a pin mask
+    and clamp set that passed is remembered while the network lives (read-only arrays)."""
+    net = problem.net
+    passed = _RIGID.get(net)
+    key = (problem.free.tobytes(), problem.clamp_springs.tobytes())
+    if passed is not None and key in passed:
+        return
+    floppy = problem.maxwell_zero_modes()
+    if floppy:
+        raise ValueError(
+            f"network is floppy: at least {floppy} zero modes beyond rigid motion "
+            f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
+            f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
+        )
+    lone_nodes(net, problem.free)
+    _check_rank(problem)
+    if passed is None:
+        passed = _RIGID[net] = set()
+    passed.add(key)
 
 
 def _check_rank(problem: Problem) -> None:
