@@ -21,7 +21,7 @@ from .. import _validate as check
 from .arguments import lone_nodes, relax_arguments
 from .checks import collapsed_springs, escape_direction, floppy_modes, lowest_curvature
 from .constraints import ClampMode, Pins, Problem, Residual, default_pins
-from .energy import spring_energy
+from .energy import spring_energy, spring_gradient
 from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
 from .newton import newton
@@ -413,10 +413,17 @@ def _residual_and_reaction(problem: Problem, x: NDArray) -> tuple[Residual, floa
     every coordinate when there are no clamps (no multipliers to fit per coordinate set)."""
     if problem.n_clamps:
         return problem.residual(x), _pin_reaction(problem, x)
-    force, mu = problem.unbalanced_force(x, np.arange(problem.free.size))
-    return problem.residual(x, force=(force[problem.free_flat], mu)), _pin_reaction(
-        problem, x, force
+    net = problem.net
+    force = np.abs(spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel())
+    relative = force / problem.scale  # the same numbers Problem.residual and _pin_reaction use
+    free, pinned = problem.free_flat, np.flatnonzero(~problem.free.ravel())
+    res = Residual(
+        float(np.max(relative[free])) if free.size else 0.0,
+        float(np.max(force[free])) if free.size else 0.0,
+        0.0,
+        np.empty(0),
     )
+    return res, float(np.max(relative[pinned])) if pinned.size else 0.0
 
 
 def _pin_reaction(problem: Problem, x: NDArray, force: NDArray | None = None) -> float:
