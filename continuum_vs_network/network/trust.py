@@ -311,6 +311,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         model = Model(x, H, gr, basis, inv_root, terms)
 
         accepted = False
+        level = None  # the energy change at round-off (computed when first needed)
         for _ in range(40):
             y, length, predicted, actual = _trial(
                 problem, model, radius, stiff, coords, full, m > 0
@@ -336,8 +337,9 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                     x, accepted = y, True
                     break
                 # the energy change is at round-off: judge by the force instead
-                flat = abs(actual) <= 1e-13 * abs(problem.energy(x)) + 1e-300
-                if flat and abs(predicted) <= 1e-13 * abs(problem.energy(x)) + 1e-300:
+                if level is None:  # |E(x)| once per model (x is fixed until a step is taken)
+                    level = 1e-13 * abs(problem.energy(x)) + 1e-300
+                if abs(actual) <= level and abs(predicted) <= level:
                     if problem.residual(y).imbalance < residual:
                         x, accepted = y, True
                         break
