@@ -53,6 +53,7 @@ the model.
 from __future__ import annotations
 
 import math
+import weakref
 
 import numpy as np
 import scipy.sparse as sp
@@ -165,6 +166,39 @@ def _node_stiffness(problem: Problem) -> NDArray:
     return np.repeat(kappa, 2)
 
 
+_SETUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # net: {key: setup}
+
+
+def _setup(problem: Problem) -> tuple:
+    """What a solve needs that the network, pins and clamp set alone decide: the frame,
+    the stiff springs, ``D^-1/2`` on the free coordinates (read-only), the mean rest
+    length, and the median and the sum of ``kappa`` there; kept while the network lives
+    (its arrays are read-only), so repeated solves of one network skip them."""
+    net = problem.net
+    key = (
+        problem.free.tobytes(), problem.clamp_springs.tobytes(), problem.clamp,
+        problem.rod_stiffness,
+    )  # fmt: skip
+    per = _SETUPS.get(net)
+    if per is None:
+        per = _SETUPS[net] = {}
+    hit = per.get(key)
+    if hit is not None:
+        return hit
+    frame = Frame(net, problem.free)
+    coords = frame.coords
+    stiff = StiffSprings.find(problem, coords, contrast=_CONTRAST)
+    kappa = _node_stiffness(problem)
+    kappa = kappa if coords.size == 2 * net.n_nodes else kappa[coords]
+    inv_root = 1.0 / np.sqrt(kappa)
+    inv_root.setflags(write=False)
+    mean_rest = float(np.add.reduce(net.rest_length)) / net.n_springs
+    hit = per[key] = (
+        frame, stiff, inv_root, mean_rest, _median(kappa), float(np.add.reduce(kappa))
+    )  # fmt: skip
+    return hit
+
+
 def _median(a: NDArray) -> float:
     """``np.median`` of a non-empty 1-d array (the same value), without its overhead."""
     s = np.sort(a)
@@ -243,15 +277,11 @@ def _onto_clamps(problem: Problem, y: NDArray, coords: NDArray) -> NDArray:
 def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
     """Minimise ``problem`` from ``x`` (n_nodes, 2) by the trust-region method of the module."""
     net = problem.net
-    frame = Frame(net, problem.free)
+    frame, stiff, inv_root, mean_rest, kappa_median, kappa_sum = _setup(problem)
     coords = frame.coords
     n = coords.size
     full = n == 2 * net.n_nodes  # every coordinate free, in natural order
     m = problem.n_clamps if problem.exact else 0
-    stiff = StiffSprings.find(problem, coords, contrast=_CONTRAST)
-    kappa = _node_stiffness(problem)
-    kappa = kappa if full else kappa[coords]
-    inv_root = 1.0 / np.sqrt(kappa)
     terms = kernels(problem, frame, inv_root)
     x = _onto_clamps(problem, np.array(x, dtype=np.float64), coords)
     if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
@@ -264,10 +294,9 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             "triangle of clamped springs that violates the triangle inequality",
         )
     rigid = not problem.free_flat.size < problem.free.size  # nothing pinned
-    mean_rest = float(np.add.reduce(net.rest_length)) / net.n_springs
     rigid_basis = RigidBasis(x, inv_root, mean_rest) if rigid and not m else None
-    radius = 0.25 * mean_rest * math.sqrt(_median(kappa) * n)
-    smallest = 1e-15 * math.sqrt(float(np.add.reduce(kappa))) * mean_rest  # collapsed radius
+    radius = 0.25 * mean_rest * math.sqrt(kappa_median * n)
+    smallest = 1e-15 * math.sqrt(kappa_sum) * mean_rest  # collapsed radius
     scale = stop.scale if full else stop.scale[coords]
     rod = problem.clamp == "rod"
     model: Model | None = None  # the last iteration's model (its certificate)
