@@ -42,8 +42,10 @@ iterate) instead of an SVD; each model is first factored by Cholesky, whose succ
 shift of ``1e-8`` is the second-order certificate, and is eigen-decomposed only when a
 trial needs a boundary step, after which every trial at that model solves the secular
 equation and the bending correction on the eigenvalues (:mod:`.trust_model`); an accepted
-trial's spring geometry is the next gradient's. ``benchmarks/bench_patch.py --against
-OLD_CHECKOUT`` measures it.
+trial's spring geometry is the next gradient's. What the network, pins and clamp set alone
+decide (the frame, ``D^-1/2``, the stiff springs, the translation basis) is kept while the
+network lives (:func:`_setup`), so repeated solves of one network skip it.
+``benchmarks/bench_patch.py --against OLD_CHECKOUT`` measures it.
 
 Near the solution the radius no longer binds and the iteration is Newton's, quadratically
 convergent. Saddles cannot be returned: a step along a negative eigenvector always lowers
