@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import continuum_vs_network as cvn
-from continuum_vs_network.network.energy import HessianPattern
+from continuum_vs_network.network.energy import HessianPattern, spring_gradient
 
 
 def _random_network(rng, n=12):
@@ -89,3 +89,21 @@ def test_pattern_restricted_to_free_coordinates_equals_slice():
     keep = np.flatnonzero(free.ravel())
     H_full = cvn.hessian(net.positions, net).toarray()
     np.testing.assert_allclose(H_free, H_full[np.ix_(keep, keep)], atol=1e-13)
+
+
+def test_gradient_follows_a_changed_springs_array_behind_a_read_only_view():
+    """The cached scatter indices are only kept for arrays that own their data: a read-only
+    view of an array that is later changed must give the changed network's gradient."""
+    rng = np.random.default_rng(4)
+    x = rng.normal(size=(5, 2))
+    base = np.array([[0, 1], [1, 2], [2, 3], [3, 4]])
+    view = base[:]
+    view.setflags(write=False)
+    k, L = np.ones(4), np.full(4, 0.5)
+    first = spring_gradient(x, view, k, L)
+    base[:] = [[0, 2], [2, 4], [4, 1], [1, 3]]
+    fresh = base.copy()
+    fresh.setflags(write=False)
+    changed = spring_gradient(x, view, k, L)
+    assert np.array_equal(changed, spring_gradient(x, fresh, k, L))
+    assert not np.allclose(changed, first)

@@ -88,13 +88,19 @@ _ENDS: dict[int, tuple[NDArray, NDArray]] = {}
 
 def _flat_ends(springs: NDArray) -> tuple[NDArray, NDArray] | None:
     """The flat coordinates ``2 a + (0, 1)`` and ``2 b + (0, 1)`` of every spring, (2 s,)
-    each, for a network's read-only springs array (kept while it lives); None for others
-    (rods appended, writeable arrays) and above :data:`SCATTER_MAX_SPRINGS`."""
+    each, for a network's read-only springs array that owns its data (kept while it lives);
+    None for others (rods appended, writeable arrays, views) and above
+    :data:`SCATTER_MAX_SPRINGS`."""
     key = id(springs)  # the entry goes when the array does: an id is not reused before
     hit = _ENDS.get(key)
     if hit is not None:
         return hit
-    if springs.flags.writeable or len(springs) > SCATTER_MAX_SPRINGS or springs.ndim != 2:
+    if (
+        springs.flags.writeable
+        or not springs.flags.owndata  # a read-only view of an array that may still change
+        or len(springs) > SCATTER_MAX_SPRINGS
+        or springs.ndim != 2
+    ):
         return None
     hit = _ENDS[key] = tuple((2 * springs[:, e, None] + _XY).ravel() for e in (0, 1))
     weakref.finalize(springs, _ENDS.pop, key, None)
