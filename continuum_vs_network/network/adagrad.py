@@ -34,10 +34,10 @@ def paper_adagrad(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) ->
     obj = Objective(problem)
     free = obj.free_flat
     x = np.array(x, dtype=np.float64)
-    springs = torch.as_tensor(obj.springs, dtype=torch.int64)
+    springs = torch.tensor(obj.springs, dtype=torch.int64)
     a, b = springs[:, 0], springs[:, 1]
-    k = torch.as_tensor(obj.k, dtype=torch.float64)
-    L = torch.as_tensor(obj.L, dtype=torch.float64)
+    k = torch.tensor(obj.k, dtype=torch.float64)
+    L = torch.tensor(obj.L, dtype=torch.float64)
     base = torch.as_tensor(x.ravel().copy(), dtype=torch.float64)
     free_t = torch.as_tensor(free, dtype=torch.int64)
     p = torch.nn.Parameter(base[free_t].clone())
