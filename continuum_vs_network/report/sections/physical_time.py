@@ -321,7 +321,7 @@ def _median(values: list) -> float:
 def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
     findings = []
     for name, units in rules.items():
-        sp = _speedups(units)
+        sp = _speedups(units, below_critical=True)
         worst = min(sp) if sp and all(np.isfinite(sp)) else math.nan
         best = max(sp) if sp else math.nan
         if np.isfinite(worst) and worst >= SPEEDUP_YES:
@@ -343,8 +343,10 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                 ),
                 metric=(
                     "speed-up = learning time at the smallest ratio / shortest learning time "
-                    f"over the ratios run ({ratios[0]:g}..{ratios[-1]:g} and the bisection), "
-                    "per size and task draw"
+                    f"over the ratios run ({ratios[0]:g}..{ratios[-1]:g} and the bisection) "
+                    "that are not past the quasi-static regime (up to the bracket's low end: "
+                    "a run that rebounds or oscillates has not learned faster), per size and "
+                    "task draw"
                 ),
                 measured=measured,
                 verdict=verdict,
