@@ -131,27 +131,22 @@ class Step:
 
 def _apply_one(net: SpringNetwork, dof: str, delta: NDArray) -> SpringNetwork:
     """``net`` with ``delta`` added to its rest lengths or stiffnesses (checked)."""
-    if dof == "rest_length":
-        new = net.rest_length + delta
-        check_finite_update(new, dof)
-        bad = np.flatnonzero(new <= 0)
-        if bad.size:
-            j = int(bad[0])
-            raise LearningError(
-                f"rest length of spring {j} would become {new[j]:.3g} <= 0 "
-                f"({bad.size} springs); set min_rest_length to floor it"
-            )
-        return net.with_rest_length(new)
-    new = net.stiffness + delta
+    rest = dof == "rest_length"
+    new = (net.rest_length if rest else net.stiffness) + delta
     check_finite_update(new, dof)
-    bad = np.flatnonzero(new < 0)
+    bad = np.flatnonzero(new <= 0 if rest else new < 0)
     if bad.size:
         j = int(bad[0])
-        raise LearningError(
-            f"stiffness of spring {j} would become {new[j]:.3g} < 0 "
-            f"({bad.size} springs); set min_stiffness to floor it"
+        name, bound, floor = (
+            ("rest length", "<= 0", "min_rest_length")
+            if rest
+            else ("stiffness", "< 0", "min_stiffness")
         )
-    return net.with_stiffness(new)
+        raise LearningError(
+            f"{name} of spring {j} would become {new[j]:.3g} {bound} "
+            f"({bad.size} springs); set {floor} to floor it"
+        )
+    return net.with_rest_length(new) if rest else net.with_stiffness(new)
 
 
 def check_finite_update(values: NDArray, dof: str) -> None:
