@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["PowerLaw", "power_law", "trend"]
+__all__ = ["PowerLaw", "RobustTrend", "power_law", "robust_trend", "trend"]
 
 
 @dataclass(frozen=True)
@@ -102,3 +102,66 @@ def trend(fit: PowerLaw) -> str:
     if abs(fit.exponent) <= 2.0 * fit.exponent_error:
         return "no trend"
     return "grows" if fit.exponent > 0 else "falls"
+
+
+@dataclass(frozen=True)
+class RobustTrend:
+    """A power law and its fits with each distinct ``x`` (a size) left out in turn.
+
+    Attributes
+    ----------
+    fit : PowerLaw
+        The fit over every point.
+    left_out : tuple of float
+        The ``x`` left out, one per entry of ``exponents``.
+    exponents : tuple of float
+        Exponent of the fit without each ``x`` (NaN where fewer than two ``x`` remain).
+    trend : str
+        ``"grows"`` / ``"falls"`` when the full fit and every leave-one-out fit have an
+        exponent of that sign more than two standard errors from 0, else
+        ``"no robust trend"`` (also when fewer than three distinct ``x``).
+    """
+
+    fit: PowerLaw
+    left_out: tuple[float, ...]
+    exponents: tuple[float, ...]
+    trend: str
+
+    def describe(self, quantity: str, variable: str) -> str:
+        """``"tau ~ N^(0.65 +- 0.23), no robust trend (leave-one-out exponents -0.1..0.9)"``."""
+        f = self.fit
+        err = f"{f.exponent_error:.2f}" if math.isfinite(f.exponent_error) else "n/a"
+        text = f"{quantity} ~ {variable}^({f.exponent:.2f} +- {err}), {self.trend}"
+        e = [x for x in self.exponents if math.isfinite(x)]
+        if e:
+            text += f" (exponent {min(e):.2f} to {max(e):.2f} with one {variable} left out)"
+        return text
+
+
+def robust_trend(x: ArrayLike, y: ArrayLike) -> RobustTrend:
+    """:func:`power_law` of ``y`` on ``x``, claimed as a trend only when it survives leaving
+    out every distinct ``x`` in turn (:class:`RobustTrend`); raises as :func:`power_law`."""
+    x = np.asarray(x, dtype=np.float64).ravel()
+    y = np.asarray(y, dtype=np.float64).ravel()
+    fit = power_law(x, y)
+    use = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+    values = np.unique(x[use])
+    sign = trend(fit)
+    fits = []
+    for v in values:
+        keep = x != v
+        try:
+            fits.append(power_law(x[keep], y[keep]))
+        except ValueError:
+            fits.append(None)
+    robust = (
+        values.size >= 3
+        and sign in ("grows", "falls")
+        and all(f is not None and trend(f) == sign for f in fits)
+    )
+    return RobustTrend(
+        fit=fit,
+        left_out=tuple(float(v) for v in values),
+        exponents=tuple(f.exponent if f is not None else math.nan for f in fits),
+        trend=sign if robust else "no robust trend",
+    )

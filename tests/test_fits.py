@@ -72,3 +72,25 @@ def test_trend_is_stated_only_beyond_two_standard_errors():
 def test_too_few_or_mismatched_points_are_one_clear_error(x, y, match):
     with pytest.raises(ValueError, match=match):
         power_law(x, y)
+
+
+def test_robust_trend_needs_every_size_left_out_to_agree():
+    from continuum_vs_network.fits import robust_trend
+
+    rng = np.random.default_rng(0)
+    n = np.repeat([64.0, 256.0, 1024.0, 4096.0], 3)
+    clean = 2.0 * n**0.5 * np.exp(0.05 * rng.standard_normal(n.size))
+    r = robust_trend(n, clean)
+    assert r.trend == "grows" and len(r.exponents) == 4
+    assert all(abs(e - 0.5) < 0.1 for e in r.exponents)
+    # flat except at the largest size: the full fit "grows", without N = 4096 it does not
+    step = np.where(n == 4096.0, 30.0, 1.0) * np.tile([0.5, 1.0, 2.0], 4)
+    assert trend(power_law(n, step)) == "grows"
+    r = robust_trend(n, step)
+    assert r.trend == "no robust trend"
+    assert min(r.exponents) == pytest.approx(0.0, abs=1e-12) and max(r.exponents) > 0.4
+    assert "no robust trend" in r.describe("rho*", "N")
+    # two sizes: nothing can be left out and keep a trend
+    assert robust_trend([64.0, 64.0, 256.0, 256.0], [1.0, 1.1, 2.0, 2.1]).trend == (
+        "no robust trend"
+    )

@@ -182,6 +182,18 @@ def test_study_measures():
     assert rebound(np.array([1.0, 0.5, 0.7, 0.2, 0.3])) == pytest.approx(1.5)
     assert rebound(np.array([1.0, 0.1, 1e-5, 2e-3, 1e-3])) == pytest.approx(200)  # overshoot
     assert rebound(np.array([1.0, 1e-8, 1e-7])) == 1.0  # below the floor
+    # the running minimum is floored at 1e-6: 3.5e-9 -> 1.16e-6 is no rebound of 335
+    assert rebound(np.array([1.0, 3.5e-9, 1.16e-6])) == pytest.approx(1.16)
+    # a rebound the quasi-static run shares (same times) is the learning step's: not past
+    e = np.array([1.0, 0.1, 0.01, 0.05, 0.2, 0.1])
+    qs = np.array([1.0, 0.1, 0.005, 0.06, 0.3, 0.1])
+    assert rebound(e) == pytest.approx(20.0)
+    assert rebound(e, qs) == 1.0
+    # one that climbs above the quasi-static error is the dynamics'
+    qs_calm = np.array([1.0, 0.1, 0.005, 0.003, 0.002, 0.001])
+    assert rebound(e, qs_calm) == pytest.approx(20.0)
+    with pytest.raises(ValueError, match="reference"):
+        rebound(e, qs[:-1])
     assert rebound(np.array([1.0, 0.5, 0.25])) == 1.0
     ratios = [1.0, 10.0, 100.0, 1000.0]
     assert critical_bracket(ratios, [False] * 4) == (1000.0, np.inf, 0)  # none past

@@ -17,8 +17,9 @@ Phase 1, one unit per size, draw, rule and medium
 
 * the rule in physical time (:func:`~continuum_vs_network.learning.physical_time.learn_in_time`)
   for ``max(learning_times / (alpha k), relaxation_times tau)``, and
-* its quasi-static limit (every physical step an equilibrium) for ``learning_times /
-  (alpha k)`` with the same steps,
+* its quasi-static limit (every physical step an equilibrium) over the same window with
+  the same steps (one run per learning step in units of ``1 / (alpha k)``, over the longest
+  window of any ratio, shared),
 
 with ``dt = min(tau / steps_per_tau, 1 / (steps_per_rate alpha k))`` for both (physical
 and learning step equal; ``gcl_phases`` learns once per cycle of two phases of
@@ -26,9 +27,12 @@ and learning step equal; ``gcl_phases`` learns once per cycle of two phases of
 
 Measured per ratio (errors relative to the initial one): the time to make all but
 ``fraction`` of the quasi-static error drop, in both runs (``T`` and ``T_qs``) and their
-ratio (the slowdown), the final errors, and the oscillation: the largest factor by which
-the error climbs back above its running minimum (:func:`rebound`). The critical ratio is a
-bracket (:func:`critical_bracket`), narrowed by bisection inside the grid's bracket.
+ratio (the slowdown; ``T_qs`` within the first ``learning_times``), the final errors, and
+the oscillation: the largest factor by which the error climbs back above its running
+minimum (floored at ``FLOOR``) at a time when it is above the quasi-static run's error
+(:func:`rebound`; a rebound the quasi-static run shares is the learning step's). The
+critical ratio is a bracket (:func:`critical_bracket`), narrowed by bisection inside the
+grid's bracket.
 """
 
 from __future__ import annotations
@@ -116,16 +120,21 @@ def crossing_time(times: np.ndarray, values: np.ndarray, level: float) -> float:
     return float(times[i - 1] + (times[i] - times[i - 1]) * (v0 - level) / (v0 - v1))
 
 
-def rebound(values: np.ndarray, floor: float = FLOOR) -> float:
-    """Largest ``v[j] / min(v[:j+1])`` over the ``v[j] >= floor``: how far the error climbs
-    back above its running minimum (1 for a monotone decrease; an overshoot through zero
-    and back gives a large value)."""
+def rebound(values: np.ndarray, reference: np.ndarray | None = None, floor: float = FLOOR) -> float:
+    """Largest ``v[j] / max(min(v[:j+1]), floor)``: how far the error climbs back above its
+    running minimum, the minimum floored at ``floor`` (errors below it are at the solver's
+    floor; 1 for a monotone decrease). With ``reference`` (the quasi-static run's error at
+    the same times, same shape), only the ``j`` where ``v[j] > reference[j]`` count: a
+    rebound the quasi-static run shares is the discrete learning step's, not the dynamics'.
+    """
     v = np.asarray(values, float)
-    running = np.minimum.accumulate(v)
-    ok = v >= floor
-    if not ok.any():
-        return 1.0
-    return float(np.max(v[ok] / np.maximum(running[ok], floor * 1e-6)))
+    ratio = v / np.maximum(np.minimum.accumulate(v), floor)
+    if reference is not None:
+        ref = np.asarray(reference, float)
+        if ref.shape != v.shape:
+            raise ValueError(f"reference must have the shape of values {v.shape}, got {ref.shape}")
+        ratio = ratio[v > ref]
+    return float(max(1.0, ratio.max(initial=1.0)))
 
 
 def critical_bracket(ratios, past) -> tuple[float, float, int]:
@@ -284,6 +293,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
             opts = {"form": "phases", "phase": phase}
         t_learn = spec.learning_times / (alpha * k)
         duration = max(t_learn, spec.relaxation_times * tau)
+        longest = max(spec.learning_times, spec.relaxation_times * max(spec.ratios))
         outputs = min(300, max(20, round(60 * duration / t_learn)))
         t0 = time.perf_counter()
         try:
@@ -294,13 +304,15 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
             run = None
         seconds = time.perf_counter() - t0
         # the quasi-static run depends on alpha only through the time unit 1 / (alpha k):
-        # one run per learning step in those units, rescaled
+        # one run per learning step in those units, over the longest window any ratio needs
+        # (learning units), every step recorded, rescaled and cut to each run's window
         key = (round(alpha * k * dt, 12), round(alpha * k * opts.get("phase", 0.0), 12))
         if key not in qs_cache:
+            steps = math.ceil(longest / (alpha * k * dt) - 1e-9)
             try:
                 qs = learn_in_time(
-                    net, task, rule, viscosity=vis, duration=t_learn, dt=dt, n_outputs=60,
-                    quasistatic=True, **opts,
+                    net, task, rule, viscosity=vis, duration=longest / (alpha * k), dt=dt,
+                    n_outputs=steps, quasistatic=True, **opts,
                 )  # fmt: skip
             except (LearningError, RuntimeError) as err:
                 raise ValueError(
@@ -309,12 +321,16 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
                 ) from err
             qs_cache[key] = (
                 qs.times * alpha * k, qs.error / qs.error[0], qs.dt_learn * alpha * k,
-                float(qs.seconds[-1]), float(qs.error[0]),
+                qs.seconds, float(qs.error[0]),
             )  # fmt: skip
-        times_qs, e_qs, dt_learn_qs, seconds_qs, error0 = qs_cache[key]
-        times_qs = times_qs / (alpha * k)
-        level = e_qs[-1] + spec.fraction * (1.0 - e_qs[-1])
-        T_qs = crossing_time(times_qs, e_qs, level)
+        times_l, e_all, dt_learn_qs, secs_all, error0 = qs_cache[key]
+        window = times_l <= duration * alpha * k * (1 + 1e-9)
+        times_qs, e_qs = times_l[window] / (alpha * k), e_all[window]
+        first = times_l <= spec.learning_times * (1 + 1e-9)  # the quasi-static learning time
+        e_first = e_all[first]
+        seconds_qs = float(secs_all[window][-1])
+        level = e_first[-1] + spec.fraction * (1.0 - e_first[-1])
+        T_qs = crossing_time(times_qs[first[window]], e_first, level)
         row = {
             "ratio": ratio,
             "alpha": alpha,
@@ -322,7 +338,9 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
             "dt_learn": dt_learn_qs / (alpha * k),
             "duration": duration,
             "T_qs": T_qs,
-            "error_qs_end": float(e_qs[-1]),
+            "error_qs_end": float(e_first[-1]),
+            "error_qs_window_end": float(e_qs[-1]),
+            "rebound_qs": rebound(e_qs),
             "seconds": seconds,
             "seconds_qs": seconds_qs,
             "diverged": run is None,
@@ -336,6 +354,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
                     "error_final": None,
                     "error_at_qs_end": None,
                     "rebound": math.inf,
+                    "rebound_raw": math.inf,
                 }
             )
             e, times = np.empty(0), np.empty(0)
@@ -348,7 +367,8 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
                     "slowdown": T / T_qs if T_qs > 0 else math.inf,
                     "error_final": float(e[-1]),
                     "error_at_qs_end": float(np.interp(t_learn, times, e)),
-                    "rebound": rebound(e),
+                    "rebound": rebound(e, np.interp(times, times_qs, e_qs)),
+                    "rebound_raw": rebound(e),
                 }
             )
         return row, {"times": times, "error": e, "times_qs": times_qs, "error_qs": e_qs, "run": run}
@@ -382,7 +402,8 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     elif first["diverged"]:
         which = "divergence"
     else:
-        which = "slowdown" if first["slowdown"] >= SLOWDOWN else "oscillation"
+        slow, osc = first["slowdown"] >= SLOWDOWN, first["rebound"] >= OSCILLATION
+        which = "both" if slow and osc else ("slowdown" if slow else "oscillation")
     meta = {
         "kind": "run",
         "critical_low": lo,
