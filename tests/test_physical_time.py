@@ -335,3 +335,23 @@ kind = "stern"
         parse_scene(tomllib.loads(base + "draws = [1, 2, 3]\n"), "pt.toml")
     with pytest.raises(SceneError, match="draws"):
         parse_scene(tomllib.loads(base + "draws = [0]\n"), "pt.toml")
+
+
+@pytest.mark.parametrize("form", ["twin", "phases"])
+def test_quasi_static_run_depends_on_alpha_only_through_the_learning_step(small, form):
+    # the study shares one quasi-static run between ratios with the same alpha dt_learn:
+    # step for step (times in units of 1 / alpha) its errors must not depend on alpha
+    net, task = small
+    runs = []
+    for alpha in (0.05, 0.5):
+        dt = 0.1 / alpha
+        opts = {"phase": dt} if form == "phases" else {}
+        h = learn_in_time(
+            net, task, CoupledLearning(alpha, 0.1, **BULK), viscosity=Viscosity(),
+            duration=4.0 / alpha, dt=dt, n_outputs=40, quasistatic=True, form=form, **opts,
+        )  # fmt: skip
+        runs.append(h)
+    a, b = runs
+    np.testing.assert_allclose(a.times * 0.05, b.times * 0.5)
+    np.testing.assert_allclose(a.error, b.error, rtol=1e-6, atol=1e-12)
+    assert a.error[-1] < 0.5 * a.error[0]  # it learned
