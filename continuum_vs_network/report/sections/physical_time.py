@@ -103,9 +103,10 @@ def section(doc: Document, result) -> None:
         f"{OSCILLATION:g} times its running minimum (the minimum floored at {FLOOR:g} of the "
         "initial error, the solver's floor) at a time when it is also above the quasi-static "
         "run's error at that time. The quasi-static run covers the same window as the "
-        "physical one with the same steps (alpha dt_learn is the same at every ratio above "
-        "the smallest, so one quasi-static run over the longest window, in units of "
-        "1 / (alpha k), serves them all, compared step for step): a rebound the quasi-static "
+        "physical one with the same steps (it depends on alpha only through alpha k dt_learn"
+        f"{_steps_text(rules)}; one quasi-static run per value over the longest window, in "
+        "units of 1 / (alpha k), serves every ratio, compared step for step): a rebound the "
+        "quasi-static "
         "run shares is the discrete learning step's, not the breakdown of quasi-staticity"
         f"{_qs_rebound_text(rules)}. The criterion "
         "need not be monotone in the ratio, so the critical ratio rho* is a bracket "
@@ -230,11 +231,16 @@ def _phase_text(rules: dict) -> str:
     if not c:
         return ""
     lo, hi = min(c), max(c)
+    smallest = min(r["ratio"] for units in rules.values() for r in _all_runs(units))
     if hi <= lo * (1 + 1e-6):
         return (
             f" of {fmt(lo)} tau / ratio (half of every phase run's learning step): shorter "
-            f"than one relaxation time at every ratio above {fmt(lo)}, so the material never "
-            "settles within a phase at the ratios run"
+            f"than one relaxation time at every ratio above {fmt(lo)}"
+            + (
+                ", so the material never settles within a phase at the ratios run"
+                if smallest > lo
+                else ""
+            )
         )
     return f" of {fmt(lo)} to {fmt(hi)} tau / ratio (half of each phase run's learning step)"
 
@@ -250,6 +256,16 @@ def _qs_rebound_text(rules: dict) -> str:
     )
 
 
+def _steps_text(rules: dict) -> str:
+    """The distinct learning steps alpha k dt_learn (k = 1) over the ratios run."""
+    steps = sorted(
+        {round(r["alpha"] * r["dt_learn"], 9) for u in rules.values() for r in _all_runs(u)}
+    )
+    if not steps:
+        return ""
+    return f", which takes the values {', '.join(fmt(x) for x in steps)} over the ratios run"
+
+
 def _tau_ratio_text(result) -> str:
     """Range of continuum tau / network tau over every task draw of the run."""
     q = [
@@ -261,8 +277,12 @@ def _tau_ratio_text(result) -> str:
         return ""
     return (
         f"; over every size and task draw of this run continuum tau / network tau runs from "
-        f"{fmt(min(q))} to {fmt(max(q))} ({len(q)} draws), so the 20 % agreement does not "
-        "carry over to the study's clamps"
+        f"{fmt(min(q))} to {fmt(max(q))} ({len(q)} draws)"
+        + (
+            ", so the 20 % agreement does not carry over to the study's clamps"
+            if max(q) > 1.2 or min(q) < 1 / 1.2
+            else ""
+        )
     )
 
 
