@@ -306,6 +306,9 @@ draws = [2, 1]
     assert "N = 25: 2, N = 36: 1" in text and "Fewer draws at N = 36" in text
     assert "speed of learning cannot be addressed" in text
     assert "physical_time_speed" in text
+    # the oscillation rule and the trend rule are stated; two sizes give no robust trend
+    assert "above the quasi-static" in text and "QS rebound" in text
+    assert "no robust trend" in text
 
 
 def test_draws_key_is_checked_against_the_sizes():
