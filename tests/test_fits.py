@@ -72,3 +72,11 @@ def test_trend_is_stated_only_beyond_two_standard_errors():
 def test_too_few_or_mismatched_points_are_one_clear_error(x, y, match):
     with pytest.raises(ValueError, match=match):
         power_law(x, y)
+
+
+def test_against_states_consistency_within_two_standard_errors():
+    from continuum_vs_network.fits import against
+
+    assert against(PowerLaw(2.05, 0.03, 1.0, 6, 0.1), 2.0) == "consistent with 2 (within 2 SE)"
+    assert against(PowerLaw(2.26, 0.03, 1.0, 6, 0.1), 2.0) == "differs from 2 by 8.7 SE"
+    assert "no error estimate" in against(PowerLaw(2.26, math.nan, 1.0, 2, 0.0), 2.0)
