@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["PowerLaw", "RobustTrend", "power_law", "robust_trend", "trend"]
+__all__ = ["PowerLaw", "RobustTrend", "against", "power_law", "robust_trend", "trend"]
 
 
 @dataclass(frozen=True)
@@ -53,6 +53,19 @@ class PowerLaw:
             f"{quantity} ~ {variable}^({self.exponent:.2f} +- {self.exponent_error:.2f}), "
             f"{trend(self)}"
         )
+
+
+def against(fit: PowerLaw, expected: float) -> str:
+    """How the exponent compares with an ``expected`` one, by the two-standard-error rule:
+    ``"consistent with 2 (within 2 SE)"`` or ``"differs from 2 by 8.7 SE"``."""
+    if not math.isfinite(fit.exponent_error):
+        return f"no error estimate to compare with {expected:g}"
+    if fit.exponent_error == 0.0:
+        return f"{'equals' if fit.exponent == expected else 'differs from'} {expected:g} exactly"
+    z = abs(fit.exponent - expected) / fit.exponent_error
+    if z <= 2.0:
+        return f"consistent with {expected:g} (within 2 SE)"
+    return f"differs from {expected:g} by {z:.1f} SE"
 
 
 def power_law(x: ArrayLike, y: ArrayLike) -> PowerLaw:

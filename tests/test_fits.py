@@ -94,3 +94,11 @@ def test_robust_trend_needs_every_size_left_out_to_agree():
     assert robust_trend([64.0, 64.0, 256.0, 256.0], [1.0, 1.1, 2.0, 2.1]).trend == (
         "no robust trend"
     )
+
+
+def test_against_states_consistency_within_two_standard_errors():
+    from continuum_vs_network.fits import against
+
+    assert against(PowerLaw(2.05, 0.03, 1.0, 6, 0.1), 2.0) == "consistent with 2 (within 2 SE)"
+    assert against(PowerLaw(2.26, 0.03, 1.0, 6, 0.1), 2.0) == "differs from 2 by 8.7 SE"
+    assert "no error estimate" in against(PowerLaw(2.26, math.nan, 1.0, 2, 0.0), 2.0)

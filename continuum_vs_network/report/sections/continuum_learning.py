@@ -376,7 +376,8 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
         lines.append(
             f"- **Steps needed.** Steps to C/C0 <= {TOLERANCE:g}: "
             f"{', '.join(_g(c) for c in cont)} from h to h/{2**R}, by least squares "
-            f"{fit.describe('steps', 'h')} (network: {_g(needed[0])} steps)."
+            f"{fit.describe('steps', 'h')} with the element size h (whole step counts: the "
+            f"standard error is a lower bound) (network: {_g(needed[0])} steps)."
         )
     lines.append(
         f"- **Coupling.** Network: {metas['network']['outcome']}; continuum at h: "

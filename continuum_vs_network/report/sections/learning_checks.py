@@ -137,7 +137,7 @@ def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> 
                         metric=f"median final C/C0 ({hist.strain_reference} L) and the coupling "
                         "verdict of the median source share over trials",
                         measured={"C/C0": med, "source share (median)": median_share},
-                        verdict=_run_verdict(outcome(med, major)),
+                        verdict=_run_verdict(outcome(med, major), med),
                         rule=f"reproduced if C/C0 <= {MET_AT:g} and not decoupled; not "
                         "reproduced if met trivially (decoupled); contradicted if C/C0 >= 1; "
                         "not reproduced otherwise",
@@ -166,11 +166,15 @@ def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> 
     _sweep_figure(doc, result, solvers[0], names, noise_index)
 
 
-def _run_verdict(text: str) -> str:
+def _run_verdict(text: str, error_ratio: float) -> str:
+    """The finding's verdict by its stated rule: reproduced when learned (met and not
+    decoupled), contradicted when the error did not fall (``C/C0 >= 1``)."""
     if text.startswith("learned"):
         return "reproduced"
     if text == "not measured":
         return "not comparable"
+    if error_ratio >= 1.0:
+        return "contradicted"
     return "not reproduced"
 
 

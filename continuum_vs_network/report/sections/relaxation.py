@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...fits import power_law
+from ...fits import against, power_law
 from ..document import (
     Document,
     fmt,
@@ -79,7 +79,7 @@ def section(doc: Document, result) -> None:
         ok = np.isfinite(t) & (t > 0)
         if ok.sum() >= 2:
             fit = power_law(n[ok], t[ok])
-            fits.append(f"{label}: {fit.describe('tau', 'n')}")
+            fits.append(f"{label}: {fit.describe('tau', 'n')}; exponent {against(fit, 2.0)}")
             label = f"{label} (n^{fit.exponent:.2f})"
         series.append(
             Series(
@@ -133,6 +133,10 @@ def section(doc: Document, result) -> None:
     if fits:
         doc.add(
             "Fitted scaling (least squares on logarithms; +- the exponent's standard error, "
-            "a trend only beyond two standard errors): " + "; ".join(fits) + "."
+            "a trend only beyond two standard errors, and the exponent against overdamped "
+            "diffusion's 2 by the same rule; the standard error is the fit's scatter only, "
+            "so a finite-size drift of the exponent shows as a difference): "
+            + " / ".join(fits)
+            + "."
         )
     side_by_side(doc, result, "relaxation/", "relaxation")

@@ -82,12 +82,26 @@ def section(doc: Document, result) -> None:
     if cont:
         headers += ["continuum decay exponent", "correlation network/continuum", "continuum s"]
     doc.table(headers, rows)
+    comparisons = [
+        f"{medium} n = {m['n']}: {_against_two(m, medium)}"
+        for m in (u.meta for u in units.values())
+        for medium in ("network", "continuum")
+        if f"{medium}_exponent" in m and np.isfinite(m[f"{medium}_exponent"])
+    ]
     doc.add(
         "Strains below 1e-9 of the largest (round-off; springs that only rotate) are not "
         "drawn. Decay exponents are fitted to |strain| binned in distance between 2 "
         "spacings and 0.3 n (a force dipole in an infinite 2D body decays as r^-2), with "
-        "the least-squares standard error over the bins; '-' where the lattice is too small "
-        "for a fit.",
+        "the least-squares standard error over the bins (the scatter about the fit only, "
+        "not the choice of bins or of the fitted range); '-' where the lattice is too small "
+        "for a fit."
+        + (
+            " Against the infinite body's 2 (two-standard-error rule): "
+            + "; ".join(comparisons)
+            + "."
+            if comparisons
+            else ""
+        ),
         "",
     )
     doc.figure(
@@ -130,3 +144,11 @@ def _exponent(meta: dict, medium: str) -> str:
     value = fmt(meta[f"{medium}_exponent"])
     error = meta.get(f"{medium}_exponent_error", float("nan"))
     return f"{value} +- {fmt(error)}" if np.isfinite(error) else value
+
+
+def _against_two(meta: dict, medium: str) -> str:
+    """A medium's decay exponent against 2 by the two-standard-error rule."""
+    from ...fits import PowerLaw, against
+
+    error = meta.get(f"{medium}_exponent_error", float("nan"))
+    return against(PowerLaw(meta[f"{medium}_exponent"], error, 1.0, 0, 0.0), 2.0)
