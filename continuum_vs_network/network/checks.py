@@ -16,14 +16,13 @@
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
 from .kkt import factor_spd
 from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
+from .memo import per_array
 from .model import SpringNetwork
 from .rigidity import zero_modes
 from .trust_model import null_basis, rigid_motions
@@ -39,7 +38,6 @@ __all__ = [
 
 RANK_MAX = 20_000  # free coordinates up to which rigidity is checked by rank
 CURVATURE_DENSE_MAX = 1200  # dense eigenvalues of the reduced Hessian up to this size
-_CACHE: dict[int, dict] = {}
 _NONE = np.empty(0, dtype=np.int64)
 _NONE.setflags(write=False)
 
@@ -63,14 +61,10 @@ def floppy_modes(problem: Problem) -> int:
     n_free = int(problem.free_flat.size)
     if n_free == 0 or n_free > RANK_MAX:
         return 0
-    key_array = id(net.springs)
-    if key_array not in _CACHE:
-        _CACHE[key_array] = {}
-        weakref.finalize(net.springs, _CACHE.pop, key_array, None)
     rows = net.stiffness > 0
     rows[problem.clamp_springs] = True
     key = (net.n_nodes, problem.free.tobytes(), rows.tobytes())
-    per = _CACHE[key_array]
+    per = per_array(net.springs, "floppy_modes")
     if key not in per:
         per[key] = zero_modes(
             net, pinned=~problem.free, clamped=problem.clamp_springs, x=_generic(net), rtol=1e-9

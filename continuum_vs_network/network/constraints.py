@@ -11,7 +11,6 @@ same energy, gradient, constraint Jacobian and residual.
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
@@ -23,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._validate import choice, index_array, real
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
+from .memo import per_network
 from .model import SpringNetwork
 from .stopping import StopRule, coordinate_scale
 
@@ -74,16 +74,10 @@ def _far_pins(net: SpringNetwork, avoid: NDArray[np.int64]) -> NDArray[np.bool_]
     return mask
 
 
-# What a network alone determines (its arrays are read-only), kept while it lives: repeated
-# solves of one network (sweeps over clamps or starts, benchmarks) build their problem fast
-_KNOWN: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _known(net: SpringNetwork, key: object, make: Callable[[SpringNetwork], NDArray]) -> NDArray:
-    """``make(net)`` (read-only), computed once per network and ``key``."""
-    per = _KNOWN.get(net)
-    if per is None:
-        per = _KNOWN[net] = {}
+    """``make(net)`` (read-only), computed once per network and ``key`` (:mod:`.memo`):
+    repeated solves of one network (sweeps over clamps or starts) build their problem fast."""
+    per = per_network(net, "problem")
     value = per.get(key)
     if value is None:
         value = make(net)

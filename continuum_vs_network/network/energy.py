@@ -18,13 +18,12 @@ Per spring ``j`` between nodes ``a -> b`` with ``d = x_b - x_a``, ``r = |d|``, `
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from .. import _validate as check
+from .memo import per_array
 from .model import SpringNetwork
 
 __all__ = [
@@ -83,18 +82,11 @@ def _scatter_nodes(t: NDArray, springs: NDArray, n_nodes: int) -> NDArray:
     return g.reshape(n_nodes, 2)
 
 
-_ENDS: dict[int, tuple[NDArray, NDArray]] = {}
-
-
 def _flat_ends(springs: NDArray) -> tuple[NDArray, NDArray] | None:
     """The flat coordinates ``2 a + (0, 1)`` and ``2 b + (0, 1)`` of every spring, (2 s,)
     each, for a network's read-only springs array that owns its data (kept while it lives);
     None for others (rods appended, writeable arrays, views) and above
     :data:`SCATTER_MAX_SPRINGS`."""
-    key = id(springs)  # the entry goes when the array does: an id is not reused before
-    hit = _ENDS.get(key)
-    if hit is not None:
-        return hit
     if (
         springs.flags.writeable
         or not springs.flags.owndata  # a read-only view of an array that may still change
@@ -102,9 +94,10 @@ def _flat_ends(springs: NDArray) -> tuple[NDArray, NDArray] | None:
         or springs.ndim != 2
     ):
         return None
-    hit = _ENDS[key] = tuple((2 * springs[:, e, None] + _XY).ravel() for e in (0, 1))
-    weakref.finalize(springs, _ENDS.pop, key, None)
-    return hit
+    store = per_array(springs, "flat_ends")
+    if "ends" not in store:
+        store["ends"] = tuple((2 * springs[:, e, None] + _XY).ravel() for e in (0, 1))
+    return store["ends"]
 
 
 def spring_hessian_blocks(x: NDArray, springs: NDArray, k: NDArray, L: NDArray) -> NDArray:

@@ -10,7 +10,6 @@ length.
 from __future__ import annotations
 
 import math
-import weakref
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
@@ -22,6 +21,7 @@ from .arguments import lone_nodes, relax_arguments
 from .checks import collapsed_springs, escape_direction, floppy_modes, lowest_curvature
 from .constraints import ClampMode, Pins, Problem, Residual, default_pins
 from .energy import spring_energy, spring_gradient
+from .memo import per_network
 from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
 from .newton import newton
@@ -273,16 +273,13 @@ def relax(
     return _finish(problem, outcome, iterations + extra, method, stop, trace, res)
 
 
-_RIGID: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # net: the passed keys
-
-
 def _check_rigid(problem: Problem) -> None:
     """Refuse a floppy problem (Maxwell's count, lone nodes, the rigidity rank); a pin mask
     and clamp set that passed is remembered while the network lives (read-only arrays)."""
     net = problem.net
-    passed = _RIGID.get(net)
+    passed = per_network(net, "rigid")  # the pin masks and clamp sets that passed
     key = (problem.free.tobytes(), problem.clamp_springs.tobytes())
-    if passed is not None and key in passed:
+    if key in passed:
         return
     floppy = problem.maxwell_zero_modes()
     if floppy:
@@ -293,9 +290,7 @@ def _check_rigid(problem: Problem) -> None:
         )
     lone_nodes(net, problem.free)
     _check_rank(problem)
-    if passed is None:
-        passed = _RIGID[net] = set()
-    passed.add(key)
+    passed[key] = True
 
 
 def _check_rank(problem: Problem) -> None:

@@ -16,8 +16,6 @@ gradients) and source sweeps.
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
@@ -25,12 +23,11 @@ from numpy.typing import NDArray
 from .constraints import Problem
 from .energy import HessianPattern
 from .kkt import DENSE_MAX, banded_pays, factor_spd, sparse_solver
+from .memo import per_array
 from .model import SpringNetwork
 from .ordering import band_order, coordinate_order, nested_dissection
 
 __all__ = ["Frame", "lagrangian_blocks", "lagrangian_hessian", "pattern_for", "trust_region"]
-
-_PATTERNS: dict[int, dict] = {}
 
 
 def pattern_for(
@@ -47,11 +44,7 @@ def pattern_for(
     made with ``with_*`` share their read-only springs array, so a learning loop builds the
     pattern once.
     """
-    key_array = id(springs)
-    if key_array not in _PATTERNS:
-        _PATTERNS[key_array] = {}
-        weakref.finalize(springs, _PATTERNS.pop, key_array, None)
-    per_topology = _PATTERNS[key_array]
+    per_topology = per_array(springs, "hessian_pattern")
     order = sparse_solver() != "pardiso"
     key = (n_nodes, free.tobytes(), order)
     if key not in per_topology:

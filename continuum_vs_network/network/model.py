@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
+from .memo import per_array
 
 __all__ = ["SpringNetwork"]
 
@@ -36,10 +36,6 @@ def _check_shape(name: str, arr: NDArray, shape: tuple[int | None, ...]) -> None
         dims = ["n" if s is None else str(s) for s in shape]
         want = f"({dims[0]},)" if len(dims) == 1 else "(" + ", ".join(dims) + ")"
         raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
-
-
-#: ids of read-only springs arrays already validated, with their node count
-_VALIDATED: dict[int, int] = {}
 
 
 def _validate_topology(springs: NDArray, n_nodes: int) -> None:
@@ -103,11 +99,10 @@ class SpringNetwork:
             )
         _check_shape("springs", springs, (None, 2))
         n_springs = springs.shape[0]
-        if _VALIDATED.get(id(springs)) != n_nodes:
+        checked = per_array(springs, "validated") if not springs.flags.writeable else {}
+        if n_nodes not in checked:  # a shared read-only topology is checked once
             _validate_topology(springs, n_nodes)
-            if not springs.flags.writeable:  # a shared read-only topology is checked once
-                _VALIDATED[id(springs)] = n_nodes
-                weakref.finalize(springs, _VALIDATED.pop, id(springs), None)
+            checked[n_nodes] = True
         stiffness = _as_float_array("stiffness", self.stiffness, (n_springs,))
         rest_length = _as_float_array("rest_length", self.rest_length, (n_springs,))
 

@@ -55,7 +55,6 @@ the model.
 from __future__ import annotations
 
 import math
-import weakref
 
 import numpy as np
 import scipy.sparse as sp
@@ -65,6 +64,7 @@ from scipy.linalg import lapack
 
 from .constraints import Problem, clamp_tensions
 from .lagrangian import Frame
+from .memo import per_network
 from .stopping import Outcome, StopRule, Trace
 from .trust_kernels import kernels
 from .trust_model import Model, RigidBasis, null_basis, rigid_motions, subproblem
@@ -168,9 +168,6 @@ def _node_stiffness(problem: Problem) -> NDArray:
     return np.repeat(kappa, 2)
 
 
-_SETUPS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # net: {key: setup}
-
-
 def _setup(problem: Problem) -> tuple:
     """What a solve needs that the network, pins and clamp set alone decide: the frame,
     the stiff springs, ``D^-1/2`` on the free coordinates (read-only), the mean rest
@@ -181,9 +178,7 @@ def _setup(problem: Problem) -> tuple:
         problem.free.tobytes(), problem.clamp_springs.tobytes(), problem.clamp,
         problem.rod_stiffness,
     )  # fmt: skip
-    per = _SETUPS.get(net)
-    if per is None:
-        per = _SETUPS[net] = {}
+    per = per_network(net, "trust_setup")
     hit = per.get(key)
     if hit is not None:
         return hit

@@ -19,14 +19,13 @@ quantities; results agree to round-off.
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 from numpy.typing import NDArray
 
 from .constraints import Problem
 from .energy import _scatter_nodes, spring_energy_change, spring_gradient
 from .lagrangian import Frame, lagrangian_blocks
+from .memo import per_array
 
 __all__ = ["DENSE_NODES", "DenseKernels", "SparseKernels", "kernels"]
 
@@ -167,19 +166,12 @@ class DenseKernels(SparseKernels):
         return float(self.k_half @ (dr * (r + self.r_rest)))
 
 
-_CACHE: dict[int, dict] = {}
-
-
 def _incidence(springs: NDArray, net) -> tuple[NDArray, NDArray]:
     """The signed incidence ``E`` (s, N) of ``springs`` (``net``'s, rods included) and its
     transpose, cached while ``net``'s springs array lives (``with_*`` copies share it)."""
-    key_array = id(net.springs)
-    if key_array not in _CACHE:
-        _CACHE[key_array] = {}
-        weakref.finalize(net.springs, _CACHE.pop, key_array, None)
     n_nodes = net.n_nodes
     key = (n_nodes, springs.tobytes())
-    per = _CACHE[key_array]
+    per = per_array(net.springs, "dense_incidence")
     if key not in per:
         s = len(springs)
         rows = np.arange(s)
