@@ -33,7 +33,7 @@ def paper_adagrad(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) ->
         raise ValueError("paper_adagrad needs rod clamps (problem.clamp == 'rod')")
     obj = Objective(problem)
     free = obj.free_flat
-    x = np.array(x, dtype=np.float64)
+    x = problem.start(x)  # the rods set to their clamp lengths (a copy)
     springs = torch.tensor(obj.springs, dtype=torch.int64)
     a, b = springs[:, 0], springs[:, 1]
     k = torch.tensor(obj.k, dtype=torch.float64)

@@ -111,6 +111,8 @@ class EquilibriumError(RuntimeError):
         super().__init__(reason + detail)
 
 
+# f(problem, x, stop, trace): x (n_nodes, 2) may have its clamped springs off their lengths;
+# each method sets them (Problem.start, Newton after its linear predictor)
 Method = Callable[[Problem, NDArray, StopRule, Trace], Outcome]
 
 
@@ -233,7 +235,7 @@ def relax(
         lengths = start_lengths + frac * (problem.clamp_lengths - start_lengths)
         stage = solved.with_clamp_lengths(lengths) if problem.n_clamps else solved
         trace.base = iterations
-        outcome = solve(stage, stage.start(outcome.x), stop, trace)
+        outcome = solve(stage, outcome.x, stop, trace)
         iterations += outcome.iterations
         if not outcome.converged:
             break
@@ -358,7 +360,7 @@ def _second_order(
             trials = [problem.start(x + s * 1e-2 * direction) for s in (1.0, -1.0)]
             y = min(trials, key=problem.energy)
         trace.base = done + extra
-        outcome = solve(problem, problem.start(y), stop, trace)
+        outcome = solve(problem, y, stop, trace)
         extra += outcome.iterations
     if outcome.converged:
         reason = "a saddle or a collapsed spring persists after 3 escapes"

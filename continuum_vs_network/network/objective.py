@@ -270,7 +270,7 @@ def minimise(
 ) -> Outcome:
     """Run ``inner`` directly, or inside the augmented-Lagrangian loop for exact clamps."""
     obj = Objective(problem)
-    x = np.array(x, dtype=np.float64)
+    x = problem.start(x)  # the clamped springs set to their lengths (a copy)
     if not obj.augmented:
         res = inner(obj, x, 0.0, stop, trace, stop.max_iter)
         return Outcome(res.x, res.iterations, res.status == "stop", res.message)
