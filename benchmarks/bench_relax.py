@@ -1,17 +1,21 @@
 """Time to equilibrium (residual <= 1e-10 F) of every relax method, side by side.
 
 For each size and source strain: a triangular lattice with 10% position noise (stress-free,
-or with random rest lengths with ``--random-rest``), one clamped spring near the centre
-held at the strain, default pins. Methods: ``newton``, ``fire``, ``lbfgs`` (time to
-``tol = 1e-10``; capped by ``--max-seconds``), ``paper`` (the residual it reaches in 10x
-Newton's time), and the limit "one Hessian assembly + one sparse factorisation" of the same
-problem, measured in the same run; Newton and the limit are each the best of ``--repeat``
-(default 3) runs, the others are timed once. With PARDISO (``--sparse-solvers``) the kept symbolic
-analysis is dropped before the limit and before every timed run, so each pays one.
+or with random rest lengths with ``--random-rest``; stiffness 1, or uniform in ``--stiffness
+LO,HI``), one clamped spring near the centre held at the strain (with ``--clamps 2`` a
+second one, an eighth of the springs away in distance order, at -strain/4), default pins.
+Methods: ``newton``, ``fire``, ``lbfgs`` (time to ``tol = 1e-10``; capped by
+``--max-seconds``), ``paper`` (the residual it reaches in 10x Newton's time), and the
+limit "one Hessian assembly + one sparse factorisation" of the same problem, measured in
+the same run; Newton and the limit are each the best of ``--repeat`` (default 3) runs, the
+others are timed once. With PARDISO (``--sparse-solvers``) the kept symbolic analysis is
+dropped before the limit and before every timed run, so each pays one.
 
     python benchmarks/bench_relax.py                 # N ~ 10, 1e3, 1e4
     python benchmarks/bench_relax.py --sizes 10,1024
     python benchmarks/bench_relax.py --big           # adds N ~ 1e5 (316 x 316)
+    python benchmarks/bench_relax.py --clamps 2 --stiffness 0.5,50 --methods newton \
+        --sizes 1024,10000 --strains 0.05,0.5,1   # the issue's two-clamp case
     python benchmarks/bench_relax.py --random-rest --methods newton \
         --sparse-solvers superlu,pardiso --side /work/side/pardiso   # solvers side by side
 
@@ -51,6 +55,8 @@ def _parse() -> argparse.Namespace:
         help="rest lengths uniform in 0.9-1.1 x the noisy lengths (prestressed)",
     )
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--clamps", type=int, choices=(1, 2), default=1, help="clamped springs")
+    p.add_argument("--stiffness", default="", help="LO,HI: stiffness uniform in [LO, HI]")
     p.add_argument(
         "--repeat",
         type=int,
@@ -102,6 +108,9 @@ def main() -> None:
         else:
             side = round(float(np.sqrt(n_nodes)))
             net = triangular_lattice(side, side, noise=0.1, rng=rng)
+        if args.stiffness:
+            lo, hi = (float(v) for v in args.stiffness.split(","))
+            net = net.with_stiffness(rng.uniform(lo, hi, net.n_springs))
         if args.random_rest:
             net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
         return net
@@ -192,9 +201,12 @@ def main() -> None:
         rng = np.random.default_rng(args.seed)
         net = build(n_nodes, rng)
         mid = net.positions[net.springs].mean(axis=1)
-        centre = int(np.argmin(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1)))
+        order = np.argsort(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1))
+        centre, second = int(order[0]), int(order[len(order) // 8])
         for strain in strains:
             clamp = {centre: float(net.clamp_length(centre, strain))}
+            if args.clamps == 2:
+                clamp[second] = float(net.clamp_length(second, -strain / 4))
             times: dict[str, float] = {}
             for which, (solver, tag) in enumerate(zip(solvers, tags, strict=True)):
                 set_sparse_solver(solver)

@@ -12,7 +12,9 @@ each step solves::
 
     W z = grad E,   W Z = A^T,   (A Z) lam = (r - l) - A z,   dx = -z - Z lam
 
-with one factorisation of ``W`` and ``m + 1`` triangular solves. Adding ``rho A^T A``
+with one factorisation of ``W`` and ``m + 1`` triangular solves. The first step is taken
+from the start as given, clamps unmet (the linear elastic response to the clamp lengths,
+:func:`_clamp_predictor`), and only then are the clamped springs set to their lengths. Adding ``rho A^T A``
 leaves the step unchanged (it is the same KKT system) but makes ``W`` positive definite at a
 stable constrained minimum, so positive definiteness can be checked with a factorisation:
 if ``W`` is indefinite a Levenberg-Marquardt shift ``mu diag(W)`` grows until it is not. The step is
