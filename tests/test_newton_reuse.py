@@ -53,6 +53,31 @@ def test_projected_cg_step_equals_the_exact_kkt_step():
     np.testing.assert_allclose(mult, exact_mult, rtol=1e-7)
 
 
+def test_a_banded_factor_preconditions_in_float32_and_the_step_stays_exact():
+    """The banded Cholesky's preconditioner is the factor rounded to float32: it differs
+    from the float64 solve by 1e-9..1e-5 relative (so it is rounded, and close); projected
+    CG with it still meets A step = -viol to round-off and reaches the exact KKT step."""
+    problem, x0, x1 = _problem_and_two_points()
+    net = problem.net
+    pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
+    assert pattern.nested_rows is not None  # band order: the banded Cholesky is used
+    coords = pattern.coords
+    lam = np.array([0.3, -0.2])
+    old = factor_spd(_w(problem, pattern, x0, lam), ordered=pattern.ordered)
+    b = np.random.default_rng(0).standard_normal(old.n)
+    exact_solve = old.solve(b)
+    gap = np.linalg.norm(old.precondition(b) - exact_solve) / np.linalg.norm(exact_solve)
+    assert 1e-9 < gap < 1e-5
+    W = _w(problem, pattern, x1, lam)
+    grad = problem.gradient(x1).ravel()[coords]
+    A = problem.clamp_jacobian(x1, coords)
+    viol = problem.clamp_violation(x1)
+    step, _ = reuse.projected_pcg(W, old, grad, A, viol, rtol=1e-12, max_iter=200)
+    exact, _ = range_space(factor_spd(W, ordered=pattern.ordered), A).solve(-grad, -viol)
+    np.testing.assert_allclose(A @ step, -viol, atol=1e-13)
+    np.testing.assert_allclose(step, exact, rtol=0, atol=1e-9 * np.abs(exact).max())
+
+
 def test_projected_cg_refuses_negative_curvature_and_a_short_budget():
     problem, x0, x1 = _problem_and_two_points()
     net = problem.net

@@ -143,11 +143,22 @@ class Factor:
     ----------
     solve : callable
     n : int
+    precondition : callable
+        An approximate ``W^-1 b`` for use as a preconditioner: ``solve`` itself, or, for
+        the banded Cholesky, the same factor rounded to float32 (relative error ~1e-7;
+        1.3x / 1.7x / 2x faster than float64 at 2e3 / 8e3 / 2e4 rows, where the solve is
+        limited by reading the band from memory).
     """
 
-    def __init__(self, solve: Callable[[NDArray], NDArray], n: int) -> None:
+    def __init__(
+        self,
+        solve: Callable[[NDArray], NDArray],
+        n: int,
+        precondition: Callable[[NDArray], NDArray] | None = None,
+    ) -> None:
         self.solve = solve
         self.n = n
+        self.precondition = solve if precondition is None else precondition
 
 
 def _dense(M) -> NDArray:
@@ -199,7 +210,16 @@ def _banded_cholesky(W: sp.spmatrix) -> Factor | bool | None:
         c = sla.cholesky_banded(band, overwrite_ab=True, lower=True, check_finite=False)
     except sla.LinAlgError:
         return None
-    return Factor(lambda b: sla.cho_solve_banded((c, True), b, check_finite=False), n)
+    rounded = np.asfortranarray(c, dtype=np.float32)
+
+    def precondition(b: NDArray) -> NDArray:
+        x, info = sla.lapack.spbtrs(rounded, np.asarray(b, dtype=np.float32), lower=1)
+        if info:
+            raise ValueError(f"spbtrs: illegal argument {-info}")
+        return x.astype(np.float64)
+
+    solve = lambda b: sla.cho_solve_banded((c, True), b, check_finite=False)  # noqa: E731
+    return Factor(solve, n, precondition)
 
 
 def factor_spd(

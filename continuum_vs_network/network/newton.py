@@ -14,10 +14,11 @@ each step solves::
 
 with one factorisation of ``W`` and ``m + 1`` triangular solves. The first step is taken
 from the start as given, clamps unmet (the linear elastic response to the clamp lengths,
-:func:`_clamp_predictor`), and only then are the clamped springs set to their lengths. Adding ``rho A^T A``
-leaves the step unchanged (it is the same KKT system) but makes ``W`` positive definite at a
-stable constrained minimum, so positive definiteness can be checked with a factorisation:
-if ``W`` is indefinite a Levenberg-Marquardt shift ``mu diag(W)`` grows until it is not. The step is
+:func:`_clamp_predictor`), and only then are the clamped springs set to their lengths.
+Adding ``rho A^T A`` leaves the step unchanged (it is the same KKT system) but makes ``W``
+positive definite at a stable constrained minimum, so positive definiteness can be checked
+with a factorisation: if ``W`` is indefinite a Levenberg-Marquardt shift ``mu diag(W)``
+grows until it is not. The step is
 accepted by an Armijo line search on the augmented Lagrangian merit function
 ``E + lam.(r - l) + rho |r - l|^2 / 2``, for which ``dx`` is a descent direction, or when it
 halves the residual (the quadratic regime, where the merit is below round-off). Merit
@@ -225,12 +226,10 @@ def _clamp_predictor(
         return problem.start(x), None
     y = x.copy()
     y.ravel()[coords] += step
-    springs = problem.net.springs
-    others = np.ones(len(springs), dtype=bool)
-    others[problem.clamp_springs] = False
-    before = x[springs[others, 1]] - x[springs[others, 0]]
-    after = y[springs[others, 1]] - y[springs[others, 0]]
-    if not np.all(np.isfinite(y)) or np.any(np.einsum("ij,ij->i", before, after) <= 0.0):
+    a, b = problem.net.springs.T
+    turned = np.einsum("ij,ij->i", x[b] - x[a], y[b] - y[a]) <= 0.0
+    turned[problem.clamp_springs] = False
+    if not np.all(np.isfinite(y)) or turned.any():
         return problem.start(x), None
     return problem.start(y), factor
 

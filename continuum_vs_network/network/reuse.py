@@ -48,14 +48,15 @@ def pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int)
     """
 
     budget = [max_iter]
+    apply = preconditioner.precondition  # an approximate solve is enough (CG corrects it)
 
     def solve_one(b: NDArray) -> NDArray:
-        x = preconditioner.solve(b)
+        x = apply(b)
         r = b - W @ x
         b_norm = np.linalg.norm(b)
         if np.linalg.norm(r) <= rtol * b_norm:
             return x
-        z = preconditioner.solve(r)
+        z = apply(r)
         p = z.copy()
         rz = r @ z
         while budget[0] > 0:
@@ -69,7 +70,7 @@ def pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int)
             r -= a * Wp
             if np.linalg.norm(r) <= rtol * b_norm:
                 return x
-            z = preconditioner.solve(r)
+            z = apply(r)
             rz, rz_old = r @ z, rz
             p = z + (rz / rz_old) * p
         raise SolveFailed("no convergence")
@@ -113,7 +114,10 @@ def projected_pcg(
             np.empty(0)
         )
     m = A.shape[0]
-    kkt, (x, _) = range_space_solve(preconditioner, A, -grad, -viol)  # one batched solve
+    # the preconditioner's approximate solve (float32 for a banded factor) serves: with Z
+    # and S = A Z from the same solve, every projected vector still meets A g = c exactly
+    rough = Factor(preconditioner.precondition, preconditioner.n)
+    kkt, (x, _) = range_space_solve(rough, A, -grad, -viol)  # one batched solve
     At = A.T  # formed once: scipy.sparse builds a new matrix at every .T
     gram = A @ At
     gram = gram.toarray() if sp.issparse(gram) else np.asarray(gram)
