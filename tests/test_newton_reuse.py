@@ -56,7 +56,9 @@ def test_projected_cg_step_equals_the_exact_kkt_step():
 def test_a_banded_factor_preconditions_in_float32_and_the_step_stays_exact():
     """The banded Cholesky's preconditioner is the factor rounded to float32: it differs
     from the float64 solve by 1e-9..1e-5 relative (so it is rounded, and close); projected
-    CG with it still meets A step = -viol to round-off and reaches the exact KKT step."""
+    CG with it still meets A step = -viol to round-off and reaches the exact KKT step to
+    1e-10 (it stalled at 2e-9 while the Schur complement was symmetrised: A Z is not
+    symmetric to round-off with a float32 Z)."""
     problem, x0, x1 = _problem_and_two_points()
     net = problem.net
     pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
@@ -75,7 +77,7 @@ def test_a_banded_factor_preconditions_in_float32_and_the_step_stays_exact():
     step, _ = reuse.projected_pcg(W, old, grad, A, viol, rtol=1e-12, max_iter=200)
     exact, _ = range_space(factor_spd(W, ordered=pattern.ordered), A).solve(-grad, -viol)
     np.testing.assert_allclose(A @ step, -viol, atol=1e-13)
-    np.testing.assert_allclose(step, exact, rtol=0, atol=1e-9 * np.abs(exact).max())
+    np.testing.assert_allclose(step, exact, rtol=0, atol=1e-10 * np.abs(exact).max())
 
 
 def test_projected_cg_refuses_negative_curvature_and_a_short_budget():

@@ -412,11 +412,12 @@ def range_space_solve(
     sol = np.asarray(factor.solve(rhs)).reshape(n, rhs.shape[1])
     Z = sol[:, :m]
     S = np.asarray(A @ Z).reshape(m, m)
-    S = 0.5 * (S + S.T)
-    values = np.linalg.eigvalsh(S)
+    values = np.linalg.eigvalsh(0.5 * (S + S.T))
     s_inertia = _inertia_of_values(values, float(np.max(np.abs(values))))
     if s_inertia.zero:
         raise np.linalg.LinAlgError("constraints are rank deficient (singular A W^-1 A^T)")
+    # S = A Z itself, not its symmetric part: then A x = c holds to round-off for any
+    # accuracy of the solve (a float32 preconditioner's S is asymmetric by ~1e-7)
     lu_S = sla.lu_factor(S, check_finite=False)
 
     def solve(b: NDArray, c: NDArray) -> tuple[NDArray, NDArray]:
