@@ -17,12 +17,12 @@ reports give (the repository's test of its README).
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from pathlib import Path
 
 from ..io.atomic import write_text_atomic
+from ..io.strict_json import loads_record
 from .findings import Finding
 
 __all__ = ["BLOCKS", "render_block", "stale_blocks", "update_readme"]
@@ -41,7 +41,7 @@ def _entries(reports: Path) -> list[dict]:
     out = []
     for meta in sorted(Path(reports).glob("*/report.json")):
         if (meta.parent / "report.md").exists():
-            out.append(json.loads(meta.read_text()))
+            out.append(loads_record(meta.read_text()))
     return out
 
 

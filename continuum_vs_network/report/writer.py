@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..io.atomic import write_text_atomic
+from ..io.strict_json import dumps_record, loads_record
 from . import escape
 from .document import Document
 from .findings import Finding
@@ -119,7 +120,7 @@ def write_report(
         "summaries": doc.summaries,
     }
     # not sorted: a finding's measured values keep the order its section gave
-    write_text_atomic(folder / _META, json.dumps(meta, indent=1))
+    write_text_atomic(folder / _META, dumps_record(meta, indent=1))
     return report
 
 
@@ -171,7 +172,7 @@ def write_sweep_report(result, folder: str | os.PathLike[str], *, command: str =
         "figures": sorted(keep),
         "findings": [f.to_dict() for f in doc.findings],
     }
-    write_text_atomic(folder / _META, json.dumps(meta, indent=1, sort_keys=True))
+    write_text_atomic(folder / _META, dumps_record(meta, indent=1, sort_keys=True))
     return report
 
 
@@ -191,7 +192,7 @@ def write_index(root: str | os.PathLike[str], *, note: str | None = None) -> Pat
     for meta_path in sorted(root.glob(f"*/{_META}")):
         if not (meta_path.parent / "report.md").exists():
             continue
-        entries.append(json.loads(meta_path.read_text()))
+        entries.append(loads_record(meta_path.read_text()))
     lines = [
         "# Reports",
         "",

@@ -39,6 +39,7 @@ import numpy as np
 
 from ..io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
 from ..io.lock import folder_lock
+from ..io.strict_json import dumps_record, loads_record
 from .executor import Executor, TaskError, open_executor
 from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
@@ -188,7 +189,8 @@ def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None
         record = {"history": False, "meta": meta}
     record.update(key=unit.key, fingerprint=unit.fingerprint, seconds=float(seconds))
     write_text_atomic(
-        _record_path(directory, unit.key), json.dumps(record, sort_keys=True, default=_json_default)
+        _record_path(directory, unit.key),
+        dumps_record(record, sort_keys=True, default=_json_default),
     )
 
 
@@ -201,7 +203,7 @@ def _json_default(obj: Any) -> Any:
 
 
 def _read_record(directory: Path, key: str) -> dict:
-    return json.loads(_record_path(directory, key).read_text())
+    return loads_record(_record_path(directory, key).read_text())
 
 
 def _read_unit(directory: Path, key: str) -> UnitResult:
@@ -360,7 +362,7 @@ def _run_scene(
     env = environment()  # before this run writes anything (cached for the process)
     _units_dir(directory).mkdir(parents=True, exist_ok=True)
     write_text_atomic(
-        directory / "scene.json", json.dumps(scene.to_dict(), indent=1, sort_keys=True)
+        directory / "scene.json", dumps_record(scene.to_dict(), indent=1, sort_keys=True)
     )
     units = plan(scene)
     keys = [u.key for u in units]
@@ -417,7 +419,7 @@ def _run_scene(
         threads=blas_threads(),
     )
     write_text_atomic(
-        directory / "run.json", json.dumps(dataclasses.asdict(prov), indent=1, sort_keys=True)
+        directory / "run.json", dumps_record(dataclasses.asdict(prov), indent=1, sort_keys=True)
     )
     return load_result(scene, directory, units=units)
 
@@ -513,7 +515,7 @@ def load_result(
         if u.key.startswith("train/"):
             groups.setdefault(u.key[len("train/") :].rsplit("/trial", 1)[0], []).append(u.key)
     histories = {g: _merged_history(directory, g, ks) for g, ks in groups.items()}
-    prov = json.loads((directory / "run.json").read_text())
+    prov = loads_record((directory / "run.json").read_text())
     prov["seeds"] = tuple(prov["seeds"])
     return SceneResult(scene, directory, results, histories, Provenance(**prov))
 

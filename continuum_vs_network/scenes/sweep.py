@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from ..io.atomic import atomic_path, write_text_atomic
+from ..io.strict_json import dumps_record, loads_record
 from .executor import TaskError, machine_workers, open_executor
 from .grid import GridPoint, expand, grid_shape
 from .provenance import environment
@@ -195,7 +196,7 @@ def run_point(scene: Scene, fingerprint: str, directory: str, threshold: float) 
     seconds = time.perf_counter() - t0
     record = {"fingerprint": fingerprint, "rows": rows, "seconds": seconds}
     write_text_atomic(
-        root / "points" / f"{fingerprint}.json", json.dumps(record, sort_keys=True, indent=0)
+        root / "points" / f"{fingerprint}.json", dumps_record(record, sort_keys=True, indent=0)
     )
     shutil.rmtree(work, ignore_errors=True)
     return seconds
@@ -371,7 +372,7 @@ def _run_sweep(
     }
     result = _collect(scene, directory, points, info)
     _write_table(result)
-    write_text_atomic(directory / "sweep.json", json.dumps(info, indent=1, sort_keys=True))
+    write_text_atomic(directory / "sweep.json", dumps_record(info, indent=1, sort_keys=True))
     return result
 
 
@@ -430,7 +431,7 @@ def _collect(scene: Scene, directory: Path, points, info: Mapping[str, Any]) -> 
     swept = tuple(column_name(k) for k, _ in scene.sweep.axes)
     rows = []
     for p in points:
-        record = json.loads(_record_path(directory, p).read_text())
+        record = loads_record(_record_path(directory, p).read_text())
         params = {column_name(k): _table_value(v) for k, v in p.values.items()}
         for row in record["rows"]:
             rows.append({**params, "point": p.index, **row})
@@ -459,5 +460,5 @@ def load_sweep(scene: Scene, directory: str | os.PathLike[str]) -> SweepResult:
             f"{directory}: {len(missing)} point(s) of sweep {scene.name!r} missing (first: "
             f"point {missing[0]}); run the sweep"
         )
-    info = json.loads((directory / "sweep.json").read_text())
+    info = loads_record((directory / "sweep.json").read_text())
     return _collect(scene, directory, points, info)
