@@ -57,6 +57,15 @@ def test_round_trip_through_json_keeps_nan_as_missing():
     assert g.measured_text() == "a = 1.5, b = -"
 
 
+def test_round_trip_through_strict_json_keeps_an_infinity():
+    f = _finding(measured={"a": math.inf, "b": -math.inf, "c": math.nan})
+    text = json.dumps(f.to_dict(), allow_nan=False)
+    d = json.loads(text)
+    assert d["measured"] == {"a": None, "b": None, "c": None}
+    g = Finding.from_dict(d).measured
+    assert g["a"] == math.inf and g["b"] == -math.inf and math.isnan(g["c"])
+
+
 def test_document_files_findings_under_the_current_heading(tmp_path):
     doc = Document(tmp_path, 50)
     doc.heading("Claims")

@@ -100,8 +100,13 @@ class Finding:
         object.__setattr__(self, "measured", dict(values))
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict (non-finite measured values become ``None``)."""
-        return {
+        """A strict-JSON-ready dict.
+
+        Non-finite measured values become ``None`` (NaN: not available); an infinite one is
+        also named in ``"infinite"`` (name -> ``"inf"`` or ``"-inf"``), so it is not read
+        back as missing.
+        """
+        d = {
             "claim": self.claim,
             "metric": self.metric,
             "measured": {k: (v if math.isfinite(v) else None) for k, v in self._values},
@@ -109,11 +114,19 @@ class Finding:
             "rule": self.rule,
             "section": self.section,
         }
+        infinite = {k: ("inf" if v > 0 else "-inf") for k, v in self._values if math.isinf(v)}
+        if infinite:
+            d["infinite"] = infinite
+        return d
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> Finding:
-        """Inverse of :meth:`to_dict` (``None`` measured values become NaN)."""
-        measured = {k: (math.nan if v is None else v) for k, v in d["measured"].items()}
+        """Inverse of :meth:`to_dict` (``None`` measured values become NaN, or the infinity
+        named in ``"infinite"``)."""
+        infinite = d.get("infinite", {})
+        measured = {
+            k: (float(infinite.get(k, "nan")) if v is None else v) for k, v in d["measured"].items()
+        }
         return cls(
             claim=d["claim"],
             metric=d["metric"],
