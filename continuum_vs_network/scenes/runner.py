@@ -9,6 +9,13 @@ Learning trials also checkpoint inside the trial (``train(..., checkpoint=...)``
 killed trial resumes at its last checkpoint; a resumed run returns the same numbers as an
 uninterrupted one (wall-clock columns aside).
 
+Records are strict JSON (:mod:`continuum_vs_network.io.strict_json`): a non-finite value
+(NaN: not available, e.g. the error of an explicit step refused above its stability limit;
+inf: an open end such as no instability below the largest value tried) is written as
+``null`` and named in the record's ``"non_finite"`` map (JSON pointer -> ``"nan"``,
+``"inf"`` or ``"-inf"``), and read back as it was; records written with bare ``NaN`` tokens
+by earlier versions still load.
+
 Units of a phase run in parallel with ``workers > 1`` or a Dask ``scheduler`` (learning
 trials, transmission and relaxation sizes), through the executor of :mod:`.executor`;
 timing scenes (stability, solvers) always run serially so their wall-clock times are not
