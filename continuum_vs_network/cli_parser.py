@@ -1,0 +1,154 @@
+"""The command line of ``cvn`` (:mod:`.cli`): :func:`build_parser` and the options every
+scene-running subcommand shares.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from .cli_commands import _demo, _export, _report, _run, _scenes, _sweep
+from .cli_messages import _DEBUG_ENV, _EPILOG
+
+
+def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
+    p.add_argument(
+        "--out",
+        default=".",
+        metavar="DIR",
+        help="root of results/, reports/ and meshes/ (default: current folder)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        metavar="N",
+        help="processes for learning trials and lattice sizes (default 1; results "
+        "agree with 1 to solver round-off)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bars or messages")
+    p.add_argument(
+        "--fresh",
+        action="store_true",
+        help="discard earlier results of the scene instead of resuming",
+    )
+    if report:
+        p.add_argument("--no-render", action="store_true", help="skip pyvista renders")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .network.equilibrium import METHODS
+
+    parser = argparse.ArgumentParser(
+        prog="cvn",
+        description="Mass-spring networks that learn, against an elastic continuum.",
+        epilog=_EPILOG,
+    )
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help=f"print the traceback of every error (also: {_DEBUG_ENV}=1)",
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    demo = sub.add_parser(
+        "demo",
+        help="relax the paper's network with every method and print a table",
+        epilog="exit codes: 0 every method converged; 1 a method did not (the paper's Adagrad "
+        "stalls by design: leave it out with --methods to check the others); 2 bad arguments.",
+    )
+    demo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    demo.add_argument("--strain", type=float, default=None, help="source strain (default ~N(5,1))")
+    demo.add_argument(
+        "--paper-seconds", type=float, default=5.0, help="time budget of the paper's Adagrad"
+    )
+    demo.add_argument(
+        "--methods",
+        nargs="+",
+        choices=list(METHODS),
+        default=list(METHODS),
+        metavar="METHOD",
+        help=f"methods to run (default: all of {', '.join(METHODS)})",
+    )
+    demo.set_defaults(func=_demo)
+
+    run = sub.add_parser("run", help="run one scene and write its report", epilog=_EPILOG)
+    run.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    _common(run)
+    run.add_argument("--no-report", action="store_true", help="compute (and export) only")
+    run.set_defaults(func=_run)
+
+    report = sub.add_parser(
+        "report",
+        help="run scenes (default: the default set) and write their reports and the index",
+        epilog=_EPILOG,
+    )
+    report.add_argument(
+        "scenes",
+        nargs="*",
+        metavar="SCENE",
+        help="scene files or built-in names (none: the default set)",
+    )
+    _common(report)
+    report.set_defaults(func=_report)
+
+    export = sub.add_parser(
+        "export", help="write a scene's meshes (VTU, PVD) for ParaView", epilog=_EPILOG
+    )
+    export.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    _common(export, report=False)
+    export.set_defaults(func=_export)
+
+    sweep = sub.add_parser(
+        "sweep",
+        help="run a grid of scene variants (a [sweep] table and/or --set) on Dask",
+        description="Expand a scene into a grid of variants (cartesian product of the swept "
+        "keys), print its size and estimated cost, run every point not already stored "
+        "(on a local Dask cluster, or on a running scheduler), and write the tidy table "
+        "results/<scene>/table.parquet (and .csv) and reports/<scene>/report.md (<scene>_sweep "
+        "for a scene without a [sweep] table of its own).",
+        epilog=_EPILOG,
+    )
+    sweep.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    sweep.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=V1,V2",
+        help="sweep KEY (table.key, or seed) over the values (a..b: the integers a to b); "
+        "replaces the scene's own axis of that key; repeat for more keys",
+    )
+    sweep.add_argument(
+        "--zip",
+        action="append",
+        metavar="KEY,KEY",
+        help="vary these swept keys together (equal numbers of values) instead of crossing them",
+    )
+    sweep.add_argument(
+        "--threshold",
+        type=float,
+        default=None,
+        metavar="X",
+        help="steps_to_threshold counts steps until error <= X x initial error (default 0.1)",
+    )
+    sweep.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="run on an existing Dask cluster (tcp://host:8786); its workers must import "
+        "this package and see --out",
+    )
+    sweep.add_argument(
+        "--dry-run", action="store_true", help="print the grid and the estimated cost only"
+    )
+    sweep.add_argument("--no-report", action="store_true", help="compute the table only")
+    _common(sweep, report=False)
+    sweep.set_defaults(func=_sweep, workers=None)
+    for action in sweep._actions:
+        if action.dest == "workers":
+            action.default = None
+            action.help = (
+                "local Dask worker processes (default: this machine's cores; 1: serial, no Dask)"
+            )
+
+    scenes = sub.add_parser("scenes", help="list the built-in scenes")
+    scenes.add_argument("--keys", action="store_true", help="list every key a scene may set")
+    scenes.set_defaults(func=_scenes)
+    return parser

@@ -1,0 +1,88 @@
+"""One network, more than one input/output pair, in the ``beyond_paper`` section
+(:mod:`.beyond_paper`): symmetric training (a task and its exchange at once) and a
+regression task (training and held-out error: generalisation).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...learning.coupling import MET_AT
+from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
+from .beyond_paper_format import _g
+
+
+def _symmetric(doc, units) -> None:
+    u = units.get("beyond/symmetric")
+    if u is None:
+        return
+    m = u.meta
+    doc.heading("Symmetric training", 3)
+    before, after = m["error_initial"], m["error_final"]
+    total = float(sum(before))
+    both = all(np.isfinite(a) and a <= MET_AT * total for a in after)
+    doc.add(
+        "One source and one target spring trained in both directions at once with GCL (the "
+        "task and its exchange, the target clamped at the strain it should reach and the "
+        "source asked for its own strain, as two examples): errors forward / backward "
+        f"{_g(before[0])} / {_g(before[1])} before, {_g(after[0])} / {_g(after[1])} after; "
+        f"coupling {_g(m['source_share'], 2)} ({m['coupling']}).",
+        "",
+    )
+    doc.finding(
+        Finding(
+            claim="one network learns a task and its exchange (source and target swapped) at once",
+            metric="each direction's final error over the summed initial error",
+            measured={
+                "forward": after[0] / total,
+                "backward": after[1] / total,
+                "source share": m["source_share"],
+            },
+            verdict=REPRODUCED if both and m["outcome"].startswith("learned") else NOT_REPRODUCED,
+            rule=f"reproduced when both are <= {MET_AT:g} and the network is not decoupled",
+        )
+    )
+
+
+#: a regression *generalises* when the held-out C/C0 is below 1 and within this factor of
+#: the training C/C0
+GENERALISES_WITHIN = 2.0
+
+
+def _regression(doc, units) -> None:
+    u = units.get("beyond/regression")
+    if u is None:
+        return
+    m = u.meta
+    doc.heading("A regression task: generalisation", 3)
+    train_ratio = m["train_final"] / m["train_initial"] if m["train_initial"] > 0 else np.nan
+    test_ratio = m["test_final"] / m["test_initial"] if m["test_initial"] > 0 else np.nan
+    doc.add(
+        "The seed paper's proposed next step: desired target strain a fixed linear map of two "
+        f"source strains, S_T = M S_S (random M, gain {_g(m['gain'])}); GCL of the "
+        f"stiffnesses on {m['n_train']} training examples, {m['completed']} steps; the summed "
+        f"error of {m['n_test']} held-out examples is measured before and after. Training "
+        f"C/C0 {_g(train_ratio)}, held-out C/C0 {_g(test_ratio)}; coupling of the trained "
+        f"network (smallest source share over the training examples) "
+        f"{_g(m['source_share'], 2)} ({m['coupling']}); {_g(m['seconds'], 2)} s.",
+        "",
+    )
+    finite = bool(np.isfinite(train_ratio) and np.isfinite(test_ratio))
+    if not finite or train_ratio > MET_AT:
+        verdict = NOT_COMPARABLE  # nothing learned, nothing to generalise
+    elif test_ratio < 1.0 and test_ratio <= GENERALISES_WITHIN * train_ratio:
+        verdict = REPRODUCED
+    else:
+        verdict = NOT_REPRODUCED
+    doc.finding(
+        Finding(
+            claim="a network trained on a few examples of a linear map predicts held-out "
+            "examples better than before training (generalises)",
+            metric="summed error of the training and of the held-out examples, final over initial",
+            measured={"train C/C0": float(train_ratio), "held-out C/C0": float(test_ratio)},
+            verdict=verdict,
+            rule=f"reproduced when held-out C/C0 < 1 and <= {GENERALISES_WITHIN:g} x the "
+            f"training C/C0; not comparable when training stopped or did not reach C/C0 <= "
+            f"{MET_AT:g}",
+        )
+    )
