@@ -9,6 +9,7 @@ iterations, overall and for the strongly prestressed half (rest lengths 0.3-3x).
 
     python benchmarks/bench_family.py            # 500 networks
     python benchmarks/bench_family.py --count 100 --seed 1
+    python benchmarks/bench_family.py --large --count 60   # 500-1100 nodes: the sparse Newton
 
 Targets: 0 failures, median <= 30, p95 <= 120 iterations. Clamp sets that no network can
 meet (three clamped springs forming a triangle that violates the triangle inequality) are
@@ -28,23 +29,30 @@ def _parse() -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--method", default="newton")
     p.add_argument("--verbose", action="store_true", help="print every failure's reason")
+    p.add_argument(
+        "--large",
+        action="store_true",
+        help="lattices of 24-33 per side and Delaunay meshes of 500-1100 nodes (no paper "
+        "patches): above the dense trust-region size, so the sparse Newton solves them",
+    )
     return p.parse_args()
 
 
-def family_member(rng):
-    """One random network and its clamps: ``(kind, prestressed, net, clamped)``."""
+def family_member(rng, *, large: bool = False):
+    """One random network and its clamps: ``(kind, prestressed, net, clamped)``; ``large``:
+    the same distributions on networks of 500-1100 nodes (lattices and Delaunay meshes)."""
     import numpy as np
     from scipy.spatial import Delaunay
 
     import continuum_vs_network as cvn
     from continuum_vs_network.network.builders import paper_network, triangular_lattice
 
-    kind = ("lattice", "delaunay", "paper")[rng.integers(3)]
+    kind = ("lattice", "delaunay", "paper")[rng.integers(2 if large else 3)]
     if kind == "lattice":
-        side = int(rng.integers(5, 13))
+        side = int(rng.integers(24, 34) if large else rng.integers(5, 13))
         net = triangular_lattice(side, side, noise=0.15, rng=rng)
     elif kind == "delaunay":
-        n = int(rng.integers(20, 120))
+        n = int(rng.integers(500, 1100) if large else rng.integers(20, 120))
         pts = rng.random((n, 2)) * np.sqrt(n)
         tri = Delaunay(pts).simplices
         edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
@@ -96,7 +104,7 @@ def main() -> None:
     rows = []
     t0 = time.perf_counter()
     for i in range(args.count):
-        kind, prestressed, net, clamped = family_member(rng)
+        kind, prestressed, net, clamped = family_member(rng, large=args.large)
         if incompatible(net, clamped):
             kind = "incompatible"
         try:
