@@ -147,8 +147,12 @@ def section(doc: Document, result) -> None:
 
 
 def _common_steps(hist) -> int:
-    """Last measurement index every trial reached (curves over trials stop there)."""
-    return int(np.min(hist.completed)) if len(hist.completed) else 0
+    """Last measurement index every trial reached (curves over trials stop there): the
+    smallest :func:`~continuum_vs_network.learning.claims.last_measured` (a trial that lost
+    its equilibrium at step ``completed`` has no measurement there)."""
+    from ...learning.claims import last_measured
+
+    return int(np.min(last_measured(hist))) if hist.trials else 0
 
 
 def _ends_note(hist) -> str:
@@ -157,8 +161,8 @@ def _ends_note(hist) -> str:
     if last >= hist.steps:
         return ""
     return (
-        f" The curves end at step {last}, where the first trial stopped: a mean over the "
-        "trials still running would jump."
+        f" The curves end at step {last}, the last step all {hist.trials} trials measured "
+        "(a mean over the trials still running would jump)."
     )
 
 
