@@ -337,6 +337,28 @@ def noise_floor(doc: Document, result, h, solver: str, names) -> None:
         f"Fit over {fit['n']} GCL points: floor = {fmt(fit['c'])} (sigma/eta)^"
         f"{fmt(fit['p'])}; the prefactor varies by a factor {fmt(fit['spread'])} over them."
     )
+    verdicts = [
+        v
+        for name in gcl
+        for i, sigma in enumerate(sigmas)
+        if sigma > 0
+        for v in coupling_verdicts(result, f"{solver}/{name}/noise{i}")
+    ]
+    decoupled = verdicts.count("decoupled")
+    trivially = (
+        f" The {len(verdicts)} noisy GCL trials' trained networks: {decoupled} decoupled "
+        "(learning.coupling). The exponent is a property of the rule's gradient estimate (a "
+        "length noise sigma read through a nudge eta, balanced by the descent's pull near "
+        "the minimum it settles in), whichever minimum that is; it is judged on every run, "
+        + (
+            "but where the runs are decoupled it describes noise on a task met trivially "
+            "(by prestress), not on learned allostery."
+            if decoupled
+            else "and none here is decoupled."
+        )
+        if verdicts
+        else ""
+    )
     verdict = (
         "not comparable"
         if not np.isfinite(fit["p"])
@@ -349,12 +371,20 @@ def noise_floor(doc: Document, result, h, solver: str, names) -> None:
             claim="GCL's noise floor scales like (sigma / eta)^2",
             metric="exponent p of floor = c (sigma/eta)^p fitted over the noise-limited GCL "
             "runs (median floor over trials)",
-            measured={"p": fit["p"], "c": fit["c"], "points": fit["n"]},
+            measured={
+                "p": fit["p"],
+                "c": fit["c"],
+                "points": fit["n"],
+                **({"trials": len(verdicts), "decoupled trials": decoupled} if verdicts else {}),
+            },
             verdict=verdict,
             rule="reproduced if |p - 2| <= 0.3; not reproduced otherwise; not comparable "
-            "with fewer than 3 points over a decade",
+            "with fewer than 3 points over a decade"
+            + ("." + trivially.rstrip(".") if trivially else ""),
         )
     )
+    if trivially:
+        doc.add(trivially.strip())
     # figure: GCL floors against sigma/eta with the fitted line; every rule against sigma
     positive = sigmas > 0
     left = []
