@@ -222,6 +222,80 @@ def _sweep_figure(doc: Document, result, solver: str, names, noise_index: int) -
         )
 
 
+# -- equilibria ----------------------------------------------------------------------------------
+#: a stored free state is an equilibrium when its largest net force on a free coordinate
+#: (``History.residual``, force units of the run: k times length) is at most this; a
+#: converged Newton solve stops at 1e-10 of the force scale, far below it
+EQUILIBRIUM_RESIDUAL = 1e-3
+
+
+def residual_range(hist) -> tuple[float, float]:
+    """Smallest and largest stored free-state residual over every completed step of every
+    trial of a :class:`~continuum_vs_network.learning.history.History` (NaN, NaN when none
+    is stored)."""
+    res = np.asarray(hist.data.get("residual", np.empty((0, 0))), dtype=float)
+    done = [res[i, : min(int(c), hist.steps) + 1] for i, c in enumerate(hist.completed)]
+    vals = np.concatenate(done) if done else np.empty(0)
+    vals = vals[np.isfinite(vals)]
+    if not vals.size:
+        return float("nan"), float("nan")
+    return float(vals.min()), float(vals.max())
+
+
+def not_equilibria(hist) -> bool:
+    """True when some stored free state of ``hist`` is not an equilibrium
+    (:data:`EQUILIBRIUM_RESIDUAL`)."""
+    hi = residual_range(hist)[1]
+    return bool(np.isfinite(hi) and hi > EQUILIBRIUM_RESIDUAL)
+
+
+def _equilibria(doc: Document, h, solvers, rules) -> dict[str, str]:
+    """A sentence on every solver whose stored states are not equilibria; returns, per such
+    solver, the note its claims' findings carry."""
+    from ..document import SOLVER_NAMES
+
+    notes = {}
+    for solver in solvers:
+        ranges = [residual_range(h(solver, r)) for r in rules]
+        lo = min((a for a, _ in ranges), default=float("nan"))
+        hi = max((b for _, b in ranges), default=float("nan"))
+        if not (np.isfinite(hi) and hi > EQUILIBRIUM_RESIDUAL):
+            continue
+        rest = [s for s in solvers if s != solver]
+        others = []
+        for s in rest:
+            rr = [residual_range(h(s, r)) for r in rules]
+            others.append(f"{SOLVER_NAMES.get(s, s)}: {fmt(min(a for a, _ in rr))} to "
+                          f"{fmt(max(b for _, b in rr))}")  # fmt: skip
+        first = [
+            f"{SOLVER_NAMES.get(s, s)} {fmt(float(np.ravel(h(s, rules[0]).target_strain)[0]))}"
+            for s in solvers
+            if "target_strain" in h(s, rules[0]).data
+        ]
+        doc.add(
+            "",
+            f"**The states of {SOLVER_NAMES.get(solver, solver)} are not equilibria.** The "
+            "largest net force on a free coordinate of its stored free states ranges from "
+            f"{fmt(lo)} to {fmt(hi)} over every step of every trial (an equilibrium: at most "
+            f"{EQUILIBRIUM_RESIDUAL:g})"
+            + (f"; {'; '.join(others)}" if others else "")
+            + ". "
+            + (
+                "The first target's free-state strain of trial 0 at step 0 (the same "
+                f"network): {', '.join(first)}. "
+                if len(first) > 1
+                else ""
+            )
+            + "Its verdicts below are about the paper's procedure on non-equilibrium "
+            "states, not about the physics of equilibrium networks.",
+        )
+        notes[solver] = (
+            f"states not equilibria: residual {fmt(lo)} to {fmt(hi)} > "
+            f"{EQUILIBRIUM_RESIDUAL:g}; a verdict on the procedure, not on equilibrium physics"
+        )
+    return notes
+
+
 # -- the paper's claims ------------------------------------------------------------------------
 def claims(doc: Document, result, h, solvers) -> None:
     """The paper's claims table with computed verdicts; one finding per statement."""
@@ -243,6 +317,7 @@ def claims(doc: Document, result, h, solvers) -> None:
         f"magnitude, C = 0, ~50 %, 33 %) is judged on runs of at least {MIN_STEPS} steps, "
         "a direction (rises, descends) on any."
     )
+    notes = _equilibria(doc, h, solvers, L.rules)
     for solver in solvers:
         hs = {r: h(solver, r) for r in L.rules}
         coupling_of = {r: coupling_verdicts(result, f"{solver}/{r}/noise0") for r in L.rules}
@@ -265,12 +340,15 @@ def claims(doc: Document, result, h, solvers) -> None:
             if solver == solvers[0]:
                 doc.finding(
                     Finding(
-                        claim=f"paper, {c.figures} ({c.experiment}, {result.scene.name}): "
-                        f"{c.claim}",
+                        claim=f"paper, {c.figures} ({c.experiment}, {result.scene.name}"
+                        + (", non-equilibrium states" if solver in notes else "")
+                        + f"): {c.claim}",
                         metric=c.metric,
                         measured={"value": c.measured},
                         verdict=c.verdict,
-                        rule=c.rule + (f" [{c.reason}]" if c.reason else ""),
+                        rule=c.rule
+                        + (f" [{c.reason}]" if c.reason else "")
+                        + (f" [{notes[solver]}]" if solver in notes else ""),
                     ),
                     shown=True,  # the claims table below
                 )

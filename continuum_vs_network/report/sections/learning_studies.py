@@ -160,9 +160,15 @@ def noise(doc: Document, result, h, solver: str) -> None:
 
 def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
     from ...scenes.units_learning import run_names
+    from .learning_checks import EQUILIBRIUM_RESIDUAL, residual_range
 
     doc.heading("Exact equilibria against the paper's relaxation")
-    doc.add("The same networks and tasks (same seeds), trained with each equilibrium solver.")
+    doc.add(
+        "The same networks and tasks (same seeds), trained with each equilibrium solver. "
+        "Free-state residual: the smallest and largest net force on a free coordinate of "
+        "the stored free states over every step of every trial; states with a residual "
+        f"above {EQUILIBRIUM_RESIDUAL:g} are not equilibria."
+    )
     rows, panels = [], []
     for rule in run_names(result.scene):
         cells = []
@@ -174,7 +180,13 @@ def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
                 [hist.seconds[i, min(hist.completed[i], hist.steps)] for i in range(hist.trials)]
             )
             err = hist.task_error(hist.strain_reference)
-            cells += [summary_text(err, hist.completed), fmt(float(np.median(last / done)))]
+            lo, hi = residual_range(hist)
+            cells += [
+                summary_text(err, hist.completed),
+                fmt(float(np.median(last / done))),
+                f"{fmt(lo)} to {fmt(hi)}"
+                + (" (not equilibria)" if np.isfinite(hi) and hi > EQUILIBRIUM_RESIDUAL else ""),
+            ]
             st = stats(normalised(err))
             style = "-" if j == 0 else "--"
             step_s.append(
@@ -204,7 +216,7 @@ def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
         ]
     headers = ["rule"]
     for s in solvers:
-        headers += [f"{s}: final C/C0", f"{s}: s/step"]
+        headers += [f"{s}: final C/C0", f"{s}: s/step", f"{s}: free-state residual"]
     doc.table(headers, rows)
     doc.figure(
         "solvers",
