@@ -71,20 +71,34 @@ def test_floor_rise_is_decided_only_when_transients_cannot_reverse_it():
 
 
 # -- equilibria by the stored residual -----------------------------------------------------------
-def _hist(residual, completed):
+def _hist(residual, completed, tension, dof="rest_length"):
     res = np.asarray(residual, dtype=float)
     return SimpleNamespace(
-        data={"residual": res}, completed=np.asarray(completed), steps=res.shape[1] - 1
+        data={"residual": res, "energy_gradient_free": np.asarray(tension, dtype=float)},
+        completed=np.asarray(completed),
+        steps=res.shape[1] - 1,
+        settings={"dof": dof},
     )
 
 
 def test_residual_range_covers_completed_steps_only():
-    h = _hist([[1e-9, 2e-8, 3e-9], [5e-9, 1e3, 7e2]], [2, 0])
-    assert residual_range(h) == (1e-9, 2e-8)  # trial 1 stopped at step 0: its 1e3 is not read
+    # trial 1 stopped at step 0: its later entries are not read
+    h = _hist([[1e-9, 2e-8, 3e-9], [5e-9, 1e3, 7e2]], [2, 0], [[1.0, 2.0, 2.0], [1.0] * 3])
+    assert residual_range(h) == (1e-9, 2e-8)
+    assert residual_range(h, relative=True) == pytest.approx((5e-10, 1e-8))
     assert not not_equilibria(h)
-    h = _hist([[172.0, 1.25e4, 300.0], [180.0, 200.0, 190.0]], [2, 2])
-    assert residual_range(h) == (172.0, 1.25e4)
-    assert not_equilibria(h) and 172.0 > EQUILIBRIUM_RESIDUAL
+
+
+def test_equilibrium_is_judged_against_the_force_scale():
+    # a large absolute residual in a very stiff (highly tensed) state is still an equilibrium
+    stiff = _hist([[7.8, 1.0]], [1], [[1e10, 1e10]])
+    assert residual_range(stiff)[1] == 7.8 and not not_equilibria(stiff)
+    # Adagrad-like states: residuals of order the tensions themselves
+    loose = _hist([[172.0, 1.25e4]], [1], [[1e3, 3.5e4]])
+    assert residual_range(loose, relative=True)[1] == pytest.approx(1.25e4 / 3.5e4)
+    assert not_equilibria(loose) and 1.25e4 / 3.5e4 > EQUILIBRIUM_RESIDUAL
+    # no force scale defined (stiffness learning): not judged
+    assert not not_equilibria(_hist([[172.0, 1.25e4]], [1], [[1.0, 1.0]], dof="stiffness"))
 
 
 # -- eta sweep: judged on trials not decoupled ---------------------------------------------------
