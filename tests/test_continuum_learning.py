@@ -281,7 +281,12 @@ def test_continuum_learning_scene_reports_both_media_with_findings(tmp_path):
     claims = {f["claim"]: f for f in findings}
     same = claims["coupled learning and the exact gradient learn the same continuum field"]
     assert same["measured"]["relative difference"] < 1e-2
-    assert same["verdict"] == "reproduced"
+    # a decoupled run's field is prestress: then the agreement is not evidence (not comparable)
+    from continuum_vs_network.learning.coupling import DECOUPLED_BELOW
+
+    shares = [same["measured"]["share gcl"], same["measured"]["share exact"]]
+    decoupled = min(shares) < DECOUPLED_BELOW
+    assert same["verdict"] == ("not comparable" if decoupled else "reproduced")
     assert any("1 -> 1" in c for c in claims)
 
 

@@ -14,6 +14,65 @@ from .beyond_paper_format import _g
 
 #: the least rise of a floor that counts as a rise (runs differ by ~1 % at equal settings)
 RISE = 1.1
+#: a floor is a plateau when the error's fitted relative change over the window it is read
+#: from (the last quarter of the steps) is at most this; else it is still falling (the
+#: floor is an upper bound of where the run settles) or still rising (a lower bound)
+PLATEAU = 0.1
+
+
+def tail_change(error, *, fraction: float = 0.25) -> float:
+    """Fitted relative change of the error over its last ``fraction`` of entries: a least
+    squares line through log(error) against the step, ``exp(slope * (n - 1)) - 1`` over
+    the ``n = max(1, size * fraction)`` last entries (the window the floor is the median
+    of); NaN when fewer than 2 entries or any is not finite and positive.
+
+    ``error`` : (steps + 1,) float array (any scale).
+    """
+    e = np.asarray(error, dtype=np.float64).ravel()
+    tail = e[-max(1, int(e.size * fraction)) :]
+    if tail.size < 2 or not np.all(np.isfinite(tail) & (tail > 0)):
+        return float("nan")
+    slope = np.polyfit(np.arange(tail.size, dtype=float), np.log(tail), 1)[0]
+    return float(np.expm1(slope * (tail.size - 1)))
+
+
+def bound(change: float) -> str:
+    """What a floor is, from :func:`tail_change`: "plateau", "upper bound" (still falling),
+    "lower bound" (still rising) or "unknown" (NaN)."""
+    if not np.isfinite(change):
+        return "unknown"
+    if abs(change) <= PLATEAU:
+        return "plateau"
+    return "upper bound" if change < 0 else "lower bound"
+
+
+def _at_least(kind: str) -> bool:  # the settled value is >= the floor read
+    return kind in ("plateau", "lower bound")
+
+
+def _at_most(kind: str) -> bool:  # the settled value is <= the floor read
+    return kind in ("plateau", "upper bound")
+
+
+def rises(floors, kinds, *, factor: float = RISE) -> str:
+    """Verdict of "the floor rises by ``factor`` at every step up" over one sequence of
+    floors (lowest T first) with their :func:`bound` kinds: reproduced when every rise is
+    shown whatever the unsettled runs still do (the higher floor cannot fall, the lower
+    cannot rise), not reproduced when some step's missing rise is shown the same way, not
+    comparable otherwise (a floor not finite, or a transient that could go either way)."""
+    verdicts = []
+    for (a, ka), (b, kb) in itertools.pairwise(zip(floors, kinds)):
+        if not (np.isfinite(a) and np.isfinite(b)):
+            verdicts.append(NOT_COMPARABLE)
+        elif b >= factor * a and _at_least(kb) and _at_most(ka):
+            verdicts.append(REPRODUCED)
+        elif b < factor * a and _at_most(kb) and _at_least(ka):
+            verdicts.append(NOT_REPRODUCED)
+        else:
+            verdicts.append(NOT_COMPARABLE)
+    if NOT_REPRODUCED in verdicts:
+        return NOT_REPRODUCED
+    return REPRODUCED if all(v == REPRODUCED for v in verdicts) else NOT_COMPARABLE
 
 
 def _thermal(doc, scene, units) -> None:
@@ -43,9 +102,35 @@ def _thermal(doc, scene, units) -> None:
         run: [float(units[f"beyond/thermal/T{i}/{run}"].meta["floor"]) for i in range(len(temps))]
         for run in runs
     }
+    changes = {
+        run: [
+            tail_change(units[f"beyond/thermal/T{i}/{run}"].arrays["error"])
+            for i in range(len(temps))
+        ]
+        for run in runs
+    }
+    kinds = {run: [bound(c) for c in changes[run]] for run in runs}
+    doc.add(
+        "Plateau test: the fitted relative change of C over the same last quarter (a least "
+        f"squares line through log C against the step); a floor is a *plateau* when it is at "
+        f"most {PLATEAU:.0%}, an *upper bound* when C is still falling faster, a *lower "
+        "bound* when it is still rising. A comparison of floors is decided only when the "
+        "unsettled runs cannot reverse it; otherwise it is not comparable. In brackets: the "
+        "change and what the floor is.",
+        "",
+    )
     doc.table(
         ["T", *(f"GCL eta={eta:g}" for eta in etas), "exact gradient"],
-        [[f"{T:g}", *(_g(floors[run][i]) for run in runs)] for i, T in enumerate(temps)],
+        [
+            [
+                f"{T:g}",
+                *(
+                    f"{_g(floors[run][i])} ({_g(100 * changes[run][i], 2)} %, {kinds[run][i]})"
+                    for run in runs
+                ),
+            ]
+            for i, T in enumerate(temps)
+        ],
     )
     series = [
         Series(np.array(temps), np.array(floors[run]), run, marker="o",
@@ -59,39 +144,81 @@ def _thermal(doc, scene, units) -> None:
         "Error floor against temperature for GCL at every nudge and the exact gradient "
         "(T = 0 is off the log axis; its floors are in the table).",
     )  # fmt: skip
+    unsettled = (
+        f"a floor counts as settled when C changes by at most {PLATEAU:.0%} over the last "
+        "quarter (fitted); a still-falling run's floor is an upper bound, a still-rising "
+        "run's a lower bound"
+    )
     if len(temps) >= 2:
-        grows = all(
-            all(np.isfinite(f)) and all(b >= RISE * a for a, b in itertools.pairwise(f))
-            for f in (floors[run] for run in runs[:-1])
-        )
+        per_eta = {run: rises(floors[run], kinds[run]) for run in runs[:-1]}
+        if NOT_REPRODUCED in per_eta.values():
+            verdict = NOT_REPRODUCED
+        elif all(v == REPRODUCED for v in per_eta.values()):
+            verdict = REPRODUCED
+        else:
+            verdict = NOT_COMPARABLE
         doc.finding(
             Finding(
                 claim="GCL's error floor grows with the temperature at every nudge",
-                metric="median C/C0 over the last quarter of the steps, per T and eta",
-                measured={f"{run} T={T:g}": floors[run][i] for run in runs[:-1]
-                          for i, T in enumerate(temps)},
-                verdict=REPRODUCED if grows else NOT_REPRODUCED,
+                metric="median C/C0 over the last quarter of the steps, per T and eta, and "
+                "the fitted relative change of C over that quarter",
+                measured={
+                    **{f"{run} T={T:g}": floors[run][i] for run in runs[:-1]
+                       for i, T in enumerate(temps)},
+                    **{f"{run} T={T:g} change": changes[run][i] for run in runs[:-1]
+                       for i, T in enumerate(temps)},
+                },
+                verdict=verdict,
                 rule=f"reproduced when, at every eta, the floor rises by a factor >= {RISE:g} "
-                "at every step up in T (a smaller rise is within the runs' own spread; every "
-                "run completed)",
+                "at every step up in T (a smaller rise is within the runs' own spread) and no "
+                "unsettled run can undo a rise; not reproduced when some step's missing rise "
+                "is shown the same way; not comparable otherwise (a run stopped, or a "
+                f"transient decides it): {unsettled}",
             )
         )  # fmt: skip
+        doc.add(
+            "Does the floor grow with T? "
+            + "; ".join(f"{run}: {v}" for run, v in per_eta.items())
+            + f" (rule in the findings); overall **{verdict}**."
+            + (
+                " Still descending at T = 0 (the baseline): "
+                + ", ".join(
+                    f"{run} ({_g(100 * changes[run][0], 2)} % over the last quarter)"
+                    for run in runs[:-1]
+                    if kinds[run][0] != "plateau"
+                )
+                + "."
+                if any(kinds[run][0] != "plateau" for run in runs[:-1])
+                else ""
+            ),
+            "",
+        )
     if len(etas) >= 2 and temps[-1] > 0:
         small, large = floors[runs[0]][-1], floors[runs[len(etas) - 1]][-1]
+        ks, kl = kinds[runs[0]][-1], kinds[runs[len(etas) - 1]][-1]
         if not (np.isfinite(small) and np.isfinite(large)):
             verdict = NOT_COMPARABLE
-        elif small > large:
+        elif small > large and _at_least(ks) and _at_most(kl):
             verdict = REPRODUCED
-        else:
+        elif small <= large and _at_most(ks) and _at_least(kl):
             verdict = CONTRADICTED
+        else:
+            verdict = NOT_COMPARABLE
         doc.finding(
             Finding(
                 claim="at a given temperature a larger nudge lowers GCL's floor "
                 "(update noise ~ sqrt(T)/eta)",
-                metric=f"floor at T = {temps[-1]:g}, smallest and largest eta",
-                measured={f"eta={etas[0]:g}": small, f"eta={etas[-1]:g}": large},
+                metric=f"floor at T = {temps[-1]:g}, smallest and largest eta, and the fitted "
+                "relative change of C over the last quarter",
+                measured={
+                    f"eta={etas[0]:g}": small,
+                    f"eta={etas[-1]:g}": large,
+                    f"eta={etas[0]:g} change": changes[runs[0]][-1],
+                    f"eta={etas[-1]:g} change": changes[runs[len(etas) - 1]][-1],
+                },
                 verdict=verdict,
                 rule="reproduced when the smallest nudge's floor exceeds the largest's, "
-                "contradicted when not; not comparable when a run stopped",
+                "contradicted when not, in both cases only when the unsettled runs cannot "
+                f"reverse the order; not comparable otherwise or when a run stopped: {unsettled}",
             )
         )

@@ -21,7 +21,7 @@ from ..document import Document
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
-__all__ = ["field_summary", "section", "steps_to"]
+__all__ = ["agreed_coupling", "field_summary", "fields_agree_verdict", "section", "steps_to"]
 
 TOLERANCE = 1e-3  # C / C0 a run must reach to count as having learned the task
 SHRINK = 1.5  # a field converges when successive refinements change it less by this factor
@@ -305,15 +305,15 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
             "prestressing its targets",
         )
     )
-    same = len({m["coupling"] for m in metas.values()}) == 1
     doc.finding(
         Finding(
             claim=f"the continuum gets the network's coupling verdict ({rule})",
             metric="source share of the trained media (learning.coupling; 'coupled' >= "
             f"0.5, 'decoupled' < {DECOUPLED_BELOW:g})",
             measured={f"share {k}": m["source_share"] for k, m in metas.items()},
-            verdict=REPRODUCED if same else NOT_REPRODUCED,
-            rule="reproduced when both media get the same coupling verdict",
+            verdict=REPRODUCED if _same_coupling(metas) else NOT_REPRODUCED,
+            rule="reproduced when both media get the same coupling verdict; "
+            + agreed_coupling(metas),
         )
     )
     corr = summary["correlation"][0]
@@ -384,13 +384,35 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
         f"{metas['continuum h']['outcome']} (source shares "
         f"{_g(metas['network']['source_share'], 2)} and "
         f"{_g(metas['continuum h']['source_share'], 2)}). A decoupled solution meets the "
-        "task by prestressing the targets, not by transmitting the sources' strain."
+        "task by prestressing the targets, not by transmitting the sources' strain. "
+        f"Coupling verdicts: {agreed_coupling(metas)}."
     )
     lines.append(
         f"- **Same triangles.** Correlation of the network's and the continuum's learned "
         f"rest strains on the lattice triangles at h: {_g(corr, 2)}."
     )
     return [*lines, ""]
+
+
+def _same_coupling(metas: dict[str, dict]) -> bool:
+    return len({m["coupling"] for m in metas.values()}) == 1
+
+
+def agreed_coupling(metas: dict[str, dict]) -> str:
+    """What two or more media's coupling verdicts say, in words (``metas``: name -> unit
+    meta with ``coupling``): the agreement, or the disagreement, stated plainly."""
+    verdicts = {k: m["coupling"] for k, m in metas.items()}
+    if _same_coupling(metas):
+        (v,) = set(verdicts.values())
+        many = len(verdicts) > 2
+        what = f"here {'all' if many else 'both'} {v}"
+        if v == "decoupled":
+            what += (
+                f": what is agreed is that {'every medium' if many else 'both media'} met "
+                "the task (if at all) by prestressing the targets, not that any learned it"
+            )
+        return what
+    return "here " + ", ".join(f"{k} {v}" for k, v in verdicts.items())
 
 
 def _rules_agree(doc, units, rules, R: int) -> None:
@@ -404,22 +426,45 @@ def _rules_agree(doc, units, rules, R: int) -> None:
         for r in ("gcl", "exact")
     ]
     diff = float(np.linalg.norm(fields[0] - fields[1]) / np.linalg.norm(fields[1]))
+    metas = {r: units[f"continuum_learning/refine{R}/{r}"].meta for r in ("gcl", "exact")}
+    verdict = fields_agree_verdict(diff, [m["source_share"] for m in metas.values()])
     doc.finding(
         Finding(
             claim="coupled learning and the exact gradient learn the same continuum field",
             metric=f"relative difference of the learned eigenstrain at {_h(R)}",
-            measured={"relative difference": diff},
-            verdict=REPRODUCED if diff <= 1e-2 else NOT_REPRODUCED,
-            rule="reproduced when the fields differ by <= 1 % (both runs converged)",
+            measured={
+                "relative difference": diff,
+                **{f"share {r}": m["source_share"] for r, m in metas.items()},
+            },
+            verdict=verdict,
+            rule="reproduced when the fields differ by <= 1 % (both runs converged); not "
+            f"comparable when either run is decoupled (source share < {DECOUPLED_BELOW:g}: its "
+            "field is prestress of the targets, and two descents of one linear least-squares "
+            "problem from zero reach its minimum-norm solution whatever they learn)",
         )
     )
     doc.add(
         f"GCL and the exact gradient learn fields that differ by {_g(diff, 2)} (relative) at "
         f"{_h(R)}: from zero eigenstrain both descend a linear least-squares problem within the "
         "range of one Jacobian, so both converge to its minimum-norm solution; the targets' "
-        "weighting (effective stiffness for GCL) changes the path, not the end.",
+        "weighting (effective stiffness for GCL) changes the path, not the end. Source shares "
+        + ", ".join(f"{r} {_g(m['source_share'], 2)} ({m['coupling']})" for r, m in metas.items())
+        + (
+            f": **{verdict}** as evidence that the two rules learn alike, since a decoupled "
+            "field is prestress, the same minimum-norm solution for any descent."
+            if verdict == NOT_COMPARABLE
+            else "."
+        ),
         "",
     )
+
+
+def fields_agree_verdict(diff: float, shares) -> str:
+    """Verdict of "two rules learn the same field": relative difference ``diff`` of the
+    fields, source shares of the runs. Not comparable when any run is decoupled."""
+    if any(s < DECOUPLED_BELOW for s in shares):
+        return NOT_COMPARABLE
+    return REPRODUCED if diff <= 1e-2 else NOT_REPRODUCED
 
 
 def _relaxation(doc, units) -> None:

@@ -46,7 +46,7 @@ def section(doc: Document, result) -> None:
     first = solvers[0]
     doc.add(
         f"{L.trials} trials x {L.steps} learning steps for each of "
-        f"{', '.join(f'`{r}`' for r in names)}; equilibria by "
+        f"{', '.join(f'`{r}`' for r in names)}; states by "
         f"{' and '.join(SOLVER_NAMES[s] for s in solvers)}; strain convention "
         f"{CONVENTION_TEXT[ref]}; C below is Eq. 26 in that convention unless a column "
         "says otherwise."

@@ -160,9 +160,16 @@ def noise(doc: Document, result, h, solver: str) -> None:
 
 def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
     from ...scenes.units_learning import run_names
+    from .learning_checks import EQUILIBRIUM_RESIDUAL, not_equilibria, residual_range
 
     doc.heading("Exact equilibria against the paper's relaxation")
-    doc.add("The same networks and tasks (same seeds), trained with each equilibrium solver.")
+    doc.add(
+        "The same networks and tasks (same seeds), trained with each equilibrium solver. "
+        "Free-state residual: the smallest and largest net force on a free coordinate of "
+        "the stored free states over every step of every trial, and the largest as a "
+        "fraction of the trial's force scale (the largest norm of the learning springs' "
+        f"tensions |dE/dL|); states above {EQUILIBRIUM_RESIDUAL:g} of it are not equilibria."
+    )
     rows, panels = [], []
     for rule in run_names(result.scene):
         cells = []
@@ -174,7 +181,15 @@ def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
                 [hist.seconds[i, min(hist.completed[i], hist.steps)] for i in range(hist.trials)]
             )
             err = hist.task_error(hist.strain_reference)
-            cells += [summary_text(err, hist.completed), fmt(float(np.median(last / done)))]
+            lo, hi = residual_range(hist)
+            rhi = residual_range(hist, relative=True)[1]
+            cells += [
+                summary_text(err, hist.completed),
+                fmt(float(np.median(last / done))),
+                f"{fmt(lo)} to {fmt(hi)}"
+                + (f" (up to {fmt(rhi)} of the force scale)" if np.isfinite(rhi) else "")
+                + (" (not equilibria)" if not_equilibria(hist) else ""),
+            ]
             st = stats(normalised(err))
             style = "-" if j == 0 else "--"
             step_s.append(
@@ -204,7 +219,7 @@ def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
         ]
     headers = ["rule"]
     for s in solvers:
-        headers += [f"{s}: final C/C0", f"{s}: s/step"]
+        headers += [f"{s}: final C/C0", f"{s}: s/step", f"{s}: free-state residual"]
     doc.table(headers, rows)
     doc.figure(
         "solvers",

@@ -30,13 +30,19 @@ import numpy as np
 
 from ..document import Document, fmt, quiet
 from ..figures import Panel, Series, heatmap
-from ..findings import NOT_REPRODUCED, REPRODUCED, Finding
+from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
 __all__ = ["ETA_FACTOR", "section"]
 
 #: ``learning.eta`` "matters" when, at some other setting, the medians over its values
 #: differ by more than this factor
 ETA_FACTOR = 2.0
+
+_ETA_RULE = (
+    f"reproduced when the ratio <= {ETA_FACTOR:g}, not reproduced otherwise, over the trials "
+    "whose trained network is not decoupled (learning.coupling); not comparable when every "
+    "trial is decoupled: such a network met the task, if at all, by prestressing its targets"
+)
 
 _METRIC = "relative_error"
 _YLABEL = "final / initial error"
@@ -270,6 +276,31 @@ def _eta_finding(doc: Document, result, params: list[str]) -> None:
         if not doc.findings or doc.findings[-1].section != "Does the nudge amplitude matter?":
             doc.heading("Does the nudge amplitude matter?")
         etas = _axis_values(rows, key)
+        everyone = len(rows)
+        # a decoupled network met the task (if at all) by prestress: its error says
+        # nothing about how coupled learning depends on eta
+        rows = [r for r in rows if r.get("coupling", "coupled") != "decoupled"]
+        if not rows:
+            doc.finding(
+                Finding(
+                    claim=f"{rule}: without read-out noise the final error does not depend on "
+                    f"the nudge amplitude eta over {_label(etas[0])}-{_label(etas[-1])} (the "
+                    "small-eta limit of coupled learning)",
+                    metric="largest ratio, over the other swept settings, of the highest to "
+                    "the lowest median final / initial error across the eta values (noise 0, "
+                    "trials not decoupled)",
+                    measured={"trials": everyone, "decoupled trials": everyone},
+                    verdict=NOT_COMPARABLE,
+                    rule=_ETA_RULE,
+                )
+            )
+            doc.add(
+                f"- {rule} ({solver}), noise 0: every one of the {everyone} trials ended "
+                "decoupled (source share below the coupling threshold; outcomes in the cell "
+                "table): none learned the task by coupling, so how the error of coupled "
+                f"learning depends on eta is **{NOT_COMPARABLE}** here (rule: {_ETA_RULE})."
+            )
+            continue
         spread, at = 1.0, ""
         combos = list(dict.fromkeys(tuple(r[p] for p in others) for r in rows))
         for combo in combos:
@@ -288,14 +319,20 @@ def _eta_finding(doc: Document, result, params: list[str]) -> None:
                 f"nudge amplitude eta over {_label(etas[0])}-{_label(etas[-1])} (the small-eta "
                 "limit of coupled learning)",
                 metric="largest ratio, over the other swept settings, of the highest to the "
-                "lowest median final / initial error across the eta values (noise 0)",
-                measured={"ratio": spread},
+                "lowest median final / initial error across the eta values (noise 0, trials "
+                "not decoupled)",
+                measured={
+                    "ratio": spread,
+                    "trials": everyone,
+                    "decoupled trials": everyone - len(rows),
+                },
                 verdict=verdict,
-                rule=f"reproduced when the ratio <= {ETA_FACTOR:g}, not reproduced otherwise",
+                rule=_ETA_RULE,
             )
         )
         doc.add(
-            f"- {rule} ({solver}), noise 0: across eta = {', '.join(map(_label, etas))} the "
+            f"- {rule} ({solver}), noise 0, over the {len(rows)} of {everyone} trials not "
+            f"decoupled: across eta = {', '.join(map(_label, etas))} the "
             f"median final / initial error changes by at most a factor {fmt(spread)}"
             + (f" (largest at {at})" if at else "")
             + f": **{verdict}** (rule: at most a factor {ETA_FACTOR:g})."
