@@ -384,8 +384,8 @@ def _judge(st, h, judged, keep, m, family, verdicts) -> tuple[str, str]:
     if st.size and keep.sum() < enough_trials(h.trials):
         done = ", ".join(str(int(c)) for c in last_measured(h))
         return "not comparable", (
-            f"a size after 300 steps: {int(keep.sum())} of {h.trials} trials completed "
-            f">= {MIN_STEPS} steps (steps measured per trial: {done})"
+            f"a size the paper reports after its 300 steps: {int(keep.sum())} of {h.trials} "
+            f"trials completed >= {MIN_STEPS} steps (steps measured per trial: {done})"
         )
     if not np.isfinite(m):
         return "not comparable", "no trial measured"
