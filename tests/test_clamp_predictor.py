@@ -27,7 +27,8 @@ def _predict(net, clamped):
     pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
     stop = problem.stop_rule(1e-10, max_iter=100, max_seconds=60.0)
     rho = float(np.max(net.stiffness))
-    return problem, stop, nw._clamp_predictor(problem, pattern, net.positions, rho, stop)
+    y, factor = nw._clamp_predictor(problem, pattern, net.positions, rho, stop, True)
+    return problem, stop, (problem.start(y), factor)  # the start newton() takes
 
 
 def test_the_predictor_is_the_first_order_response():

@@ -88,14 +88,15 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     rho = float(np.max(k)) if m else 0.0
     shift = 0.0
     exact_ok = True
-    x = np.array(x, dtype=np.float64)
-    x, reusable = (
-        _clamp_predictor(problem, pattern, x, rho, stop) if m else (problem.start(x), None)
-    )
-    first = 0 if reusable is None else 1  # the predictor is a Newton step: counted
-    stiff = StiffSprings.find(problem, coords)
     # a few clamps: a dense Jacobian, whose products cost less than scipy.sparse's overhead
     dense_jacobian = pattern.size <= DENSE_MAX or problem.n_clamps * pattern.size <= DENSE_JACOBIAN
+    x = np.array(x, dtype=np.float64)
+    reusable = None
+    if m:
+        x, reusable = _clamp_predictor(problem, pattern, x, rho, stop, dense_jacobian)
+    x = problem.start(x)  # the clamped springs set to their lengths
+    first = 0 if reusable is None else 1  # the predictor is a Newton step: counted
+    stiff = StiffSprings.find(problem, coords)
 
     for it in range(first, stop.max_iter + 1):
         grad = spring_gradient(x, *all_springs).ravel()[coords]
@@ -190,48 +191,53 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
 
 
 def _clamp_predictor(
-    problem: Problem, pattern: HessianPattern, x: NDArray, rho: float, stop: StopRule
+    problem: Problem,
+    pattern: HessianPattern,
+    x: NDArray,
+    rho: float,
+    stop: StopRule,
+    dense_jacobian: bool,
 ) -> tuple[NDArray, Factor | None]:
-    """The start: the linear response to the clamps where it is trustworthy.
+    """Newton's first step: the linear response to the clamps where it is trustworthy.
 
     :meth:`~.constraints.Problem.start` alone moves only the clamped springs' end nodes,
     which at a strain of order 1 leaves their neighbours far off and the Hessian
     indefinite. When the clamps are not met at ``x`` (n_nodes, 2) and the Lagrangian
     Hessian there is positive definite, one Newton step of the KKT system (no line
     search: the linear elastic response to the clamp lengths, prestress relaxed with it)
-    is taken first and the clamped springs are then set to their lengths. The step is
+    is taken first; the caller then sets the clamped springs to their lengths. The step is
     refused when it turns any other spring by more than 90 degrees (the linearisation of
     the rotations has failed: at strain 5 it crossed springs over and cost 6 -> 10
-    iterations at N = 1e4). Returns the start and the factorisation, which the next
-    iterations reuse (None when the step was not taken).
+    iterations at N = 1e4). Returns the positions after the step and the factorisation,
+    which the next iterations reuse, or ``(x, None)`` when the step was not taken.
 
     ``benchmarks/bench_relax.py`` (N = 1024 / 1e4, one clamp at strains 0.05-2, stress-free
     and random rest lengths, and two clamps of k in U(0.5, 50)): iterations 3-18 -> 2-12.
     """
     viol = problem.clamp_violation(x)
     if stop.clamp_error(viol) <= stop.tol:
-        return problem.start(x), None
+        return x, None
     coords = pattern.coords
     grad = spring_gradient(x, *problem.all_springs()).ravel()[coords]
-    A = problem.clamp_jacobian(x, coords, dense=True)
+    A = problem.clamp_jacobian(x, coords, dense=dense_jacobian)
     lam = clamp_tensions(A, grad, problem.scale[coords])
     factor = factor_pd(
         _assemble(pattern, lagrangian_blocks(problem, x, lam, rho)), ordered=pattern.ordered
     )
     if factor is None:
-        return problem.start(x), None
+        return x, None
     try:
         step, _ = _kkt_step(factor, grad, A, viol, problem.n_clamps)
     except np.linalg.LinAlgError:
-        return problem.start(x), None
+        return x, None
     y = x.copy()
     y.ravel()[coords] += step
     a, b = problem.net.springs.T
     turned = np.einsum("ij,ij->i", x[b] - x[a], y[b] - y[a]) <= 0.0
     turned[problem.clamp_springs] = False
     if not np.all(np.isfinite(y)) or turned.any():
-        return problem.start(x), None
-    return problem.start(y), factor
+        return x, None
+    return y, factor
 
 
 def _kkt_step(
