@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 import continuum_vs_network as cvn
-from continuum_vs_network.network.builders import triangular_lattice
 from continuum_vs_network.learning import stern_task
 from continuum_vs_network.learning.physical_time import network_relaxation_time, settling_time
+from continuum_vs_network.network.builders import triangular_lattice
 from continuum_vs_network.network.viscous import Viscosity, simulate_viscous
 
 DRAG = Viscosity(drag=1.0)
