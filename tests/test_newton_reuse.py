@@ -130,7 +130,7 @@ def test_band_order_and_banded_cholesky_follow_superlus_path(monkeypatch):
     Cholesky in band order as with SuperLU in nested-dissection order: same iterations,
     same equilibrium to round-off."""
     import continuum_vs_network as cvn
-    from continuum_vs_network.network import kkt, lagrangian
+    from continuum_vs_network.network import lagrangian, spd
 
     def build():  # a new springs array each time: a pattern of its own
         rng = np.random.default_rng(0)
@@ -142,7 +142,7 @@ def test_band_order_and_banded_cholesky_follow_superlus_path(monkeypatch):
     assert pattern.nested_rows is not None  # the band order is in use at this size
     clamp = {1457: float(net.clamp_length(1457, 2.0))}  # the spring nearest the centre
     banded = cvn.relax(net, clamped=clamp)
-    monkeypatch.setattr(kkt, "banded_pays", lambda n, width: False)
+    monkeypatch.setattr(spd, "banded_pays", lambda n, width: False)
     monkeypatch.setattr(lagrangian, "banded_pays", lambda n, width: False)
     net = build()
     superlu = cvn.relax(net, clamped=clamp)

@@ -1,0 +1,260 @@
+"""Factorisations of a symmetric positive-definite ``W`` (n, n), and the sparse solver choice.
+
+:func:`factor_spd` returns a :class:`Factor` (a solver for ``W s = b``), or None when ``W``
+is not positive definite; :func:`factor_spd_or_curvature` also returns directions of
+negative curvature read off a failed factorisation. The KKT systems of :mod:`.kkt` are
+built on these factors.
+
+Sparse positive-definite factorisations (:func:`factor_spd`) use MKL PARDISO's Cholesky
+(``pypardiso``, the optional extra ``continuum_vs_network[pardiso]``) when it is importable:
+on spring-network Hessians it factorises 1.9x / 2.4x faster than SuperLU at 2e4 / 2e5 rows
+with half the memory (``benchmarks/bench_solvers_sparse.py``); it certifies ``W > 0`` by
+completing. Otherwise, or with :func:`set_sparse_solver` ``("superlu")`` or the
+environment variable ``CVN_SPARSE_SOLVER=superlu``, SuperLU; or, for a matrix whose rows
+are in a narrow-band order (:func:`banded_pays`, e.g. reverse Cuthill-McKee on a network of
+up to ~5e3 nodes), LAPACK's banded Cholesky, which is 2-3x faster there.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numpy.typing import NDArray
+
+__all__ = [
+    "BAND_MAX_WORK",
+    "DENSE_MAX",
+    "SPARSE_SOLVERS",
+    "Factor",
+    "banded_pays",
+    "factor_spd",
+    "factor_spd_or_curvature",
+    "set_sparse_solver",
+    "sparse_lu",
+    "sparse_solver",
+]
+
+DENSE_MAX = 400  # below this many unknowns dense LAPACK beats scipy.sparse's overhead
+# Banded Cholesky (LAPACK pbtrf, about n u^2 flops for lower bandwidth u) against SuperLU
+# with nested dissection, one core, on noisy triangular lattices in reverse Cuthill-McKee
+# order (u ~ 2.1 sqrt(n)): 0.19 / 0.67 / 1.7 / 4.9 / 22 ms against 0.77 / 2.1 / 4.4 / 10 /
+# 45 (28 with minimum degree) ms at n = 505 / 1145 / 2041 / 4043 / 8185 unknowns
+# (n (u + 1)^2 = 1.2e6 .. 3.0e8), even (87 / 82 ms) at n = 2e4 (1.8e9)
+BAND_MAX_WORK = 1e9
+SPARSE_SOLVERS = ("auto", "pardiso", "superlu")
+_SOLVER = {"name": os.environ.get("CVN_SPARSE_SOLVER", "auto"), "pardiso": None}
+
+
+def set_sparse_solver(name: str) -> str:
+    """Choose the sparse positive-definite factorisation; returns the previous choice.
+
+    ``"auto"``: PARDISO when ``pypardiso`` imports, else SuperLU; ``"pardiso"``: PARDISO
+    (ImportError at the next factorisation when missing); ``"superlu"``: SuperLU.
+    """
+    if name not in SPARSE_SOLVERS:
+        raise ValueError(f"name must be one of {SPARSE_SOLVERS}, got {name!r}")
+    previous, _SOLVER["name"] = _SOLVER["name"], name
+    return previous
+
+
+def _pardiso():
+    """The ``pypardiso`` module, or None (imported once, lazily)."""
+    if _SOLVER["pardiso"] is None:
+        try:
+            import pypardiso  # optional and heavy (MKL): imported on first use
+
+            _SOLVER["pardiso"] = pypardiso
+        except (ImportError, OSError):
+            _SOLVER["pardiso"] = False
+    return _SOLVER["pardiso"] or None
+
+
+def sparse_solver() -> str:
+    """The sparse factorisation :func:`factor_spd` uses now: "pardiso" or "superlu"."""
+    name = _SOLVER["name"]
+    if name not in SPARSE_SOLVERS:
+        raise ValueError(f"CVN_SPARSE_SOLVER must be one of {SPARSE_SOLVERS}, got {name!r}")
+    if name == "pardiso" and _pardiso() is None:
+        raise ImportError("sparse solver 'pardiso' needs pypardiso (pip install pypardiso)")
+    if name == "auto":
+        return "pardiso" if _pardiso() is not None else "superlu"
+    return name
+
+
+def _pardiso_spd(W: sp.spmatrix) -> Factor | None:
+    """PARDISO Cholesky of symmetric ``W`` (:mod:`.pardiso`: the analysis of each
+    structure is kept); None when ``W`` is not positive definite."""
+    from . import pardiso  # needs pypardiso: imported only when it is present
+
+    solve = pardiso.factorise(W)
+    return None if solve is None else Factor(solve, W.shape[0])
+
+
+class Factor:
+    """A solver for ``W s = b`` (``b`` of shape (n,) or (n, p)).
+
+    Attributes
+    ----------
+    solve : callable
+    n : int
+    precondition : callable
+        An approximate ``W^-1 b`` for use as a preconditioner: ``solve`` itself, or, for
+        the banded Cholesky, the same factor rounded to float32 (relative error ~1e-7;
+        1.3x / 1.7x / 2x faster than float64 at 2e3 / 8e3 / 2e4 rows, where the solve is
+        limited by reading the band from memory).
+    """
+
+    def __init__(
+        self,
+        solve: Callable[[NDArray], NDArray],
+        n: int,
+        precondition: Callable[[NDArray], NDArray] | None = None,
+    ) -> None:
+        self.solve = solve
+        self.n = n
+        self.precondition = solve if precondition is None else precondition
+
+
+def _dense(M) -> NDArray:
+    return M.toarray() if sp.issparse(M) else np.asarray(M, dtype=np.float64)
+
+
+def sparse_lu(W: sp.spmatrix, *, ordering: str = "MMD_AT_PLUS_A", symmetric: bool = True):
+    """SuperLU factorisation of a square sparse ``W`` (raises RuntimeError when singular).
+
+    ``ordering``: SuperLU ``permc_spec``. Minimum degree on ``W + W^T`` suits symmetric
+    stiffness matrices (``benchmarks/bench_continuum.py``: 35-55 % less fill and 1.6-2.4x
+    faster factorisations than ``COLAMD`` at 1e5 DOFs). ``symmetric``: diagonal pivots in
+    SuperLU's symmetric mode, which keep that ordering (for symmetric positive-definite
+    ``W``; partial pivoting broke it and was 5-50x slower); False: partial pivoting.
+    """
+    pivots: dict = (
+        {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}} if symmetric else {}
+    )
+    return spla.splu(sp.csc_matrix(W), permc_spec=ordering, **pivots)
+
+
+def banded_pays(n: int, bandwidth: int) -> bool:
+    """True when a banded Cholesky of an (n, n) matrix of lower ``bandwidth`` is expected to
+    beat SuperLU: ``n (u + 1)^2 <= BAND_MAX_WORK`` and ``u + 1 <= 3 sqrt(n)`` (a 2D
+    network's band order; wider bands, e.g. of an unordered matrix, go to SuperLU)."""
+    width = bandwidth + 1
+    return n * width**2 <= BAND_MAX_WORK and width <= 3.0 * np.sqrt(n)
+
+
+def _banded_cholesky(W: sp.spmatrix) -> Factor | bool | None:
+    """LAPACK banded Cholesky of sparse symmetric ``W`` when :func:`banded_pays` for its
+    lower bandwidth: a Factor, or None when ``W`` is not positive definite (pbtrf met a
+    non-positive pivot, or ``W`` is not finite); False when the band is too wide."""
+    W = sp.csr_matrix(W)
+    if not W.has_canonical_format:  # duplicates summed on a copy, the caller's W kept
+        W = W.copy()
+        W.sum_duplicates()
+    n = W.shape[0]
+    offset = np.repeat(np.arange(n), np.diff(W.indptr)) - W.indices
+    width = int(offset.max(initial=0))
+    if not banded_pays(n, width):
+        return False
+    if not np.all(np.isfinite(W.data)):
+        return None  # LAPACK's pivot test lets NaN through
+    lower = offset >= 0
+    band = np.zeros((width + 1, n), order="F")  # LAPACK's layout: factorised in place
+    band[offset[lower], W.indices[lower]] = W.data[lower]
+    try:
+        c = sla.cholesky_banded(band, overwrite_ab=True, lower=True, check_finite=False)
+    except sla.LinAlgError:
+        return None
+    rounded = np.asfortranarray(c, dtype=np.float32)
+
+    def precondition(b: NDArray) -> NDArray:
+        x, info = sla.lapack.spbtrs(rounded, np.asarray(b, dtype=np.float32), lower=1)
+        if info:
+            raise ValueError(f"spbtrs: illegal argument {-info}")
+        return x.astype(np.float64)
+
+    solve = lambda b: sla.cho_solve_banded((c, True), b, check_finite=False)  # noqa: E731
+    return Factor(solve, n, precondition)
+
+
+def factor_spd(
+    W: sp.spmatrix | NDArray, *, ordered: bool = False, certify: bool = True
+) -> Factor | None:
+    """Factorise symmetric ``W`` (n, n); None when it is not positive definite.
+
+    Dense Cholesky up to ``DENSE_MAX`` rows; above, a banded Cholesky when the rows are in
+    a narrow-band order (:func:`banded_pays`; it completes only for ``W > 0``; certifying
+    calls only), else SuperLU
+    with diagonal pivots in symmetric mode, whose ``U`` diagonal carries the inertia (a
+    positive diagonal with symmetric pivots proves ``W > 0``), or PARDISO's Cholesky
+    (:func:`sparse_solver`; it orders by METIS and ignores ``ordered``). ``ordered``: the
+    rows are already in a fill-reducing order (natural order is kept); otherwise minimum
+    degree on ``W``. ``certify=False`` skips reading SuperLU's ``U`` diagonal (a copy of
+    ``U``: 3-4 % of the factorisation at 1e4-1e5 unknowns) for a ``W`` positive definite by
+    construction (a stiffness with rigid motion removed); only exact singularity then
+    returns None.
+    """
+    n = W.shape[0]
+    if n <= DENSE_MAX:
+        try:
+            c = sla.cho_factor(_dense(W), lower=True, check_finite=False)
+        except (sla.LinAlgError, ValueError):
+            return None
+        return Factor(lambda b: sla.cho_solve(c, b, check_finite=False), n)
+    if sparse_solver() == "pardiso":
+        return _pardiso_spd(W)
+    if certify:
+        banded = _banded_cholesky(W)  # a failed one needs no SuperLU: W is not > 0
+        return factor_spd_or_curvature(W, ordered=ordered)[0] if banded is False else banded
+    try:
+        lu = sparse_lu(W, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
+    except RuntimeError:  # exactly singular
+        return None
+    return Factor(lu.solve, n) if np.array_equal(lu.perm_r, lu.perm_c) else None
+
+
+def factor_spd_or_curvature(
+    W: sp.spmatrix, *, ordered: bool = False, count: int = 2
+) -> tuple[Factor | None, NDArray | None]:
+    """:func:`factor_spd` of sparse symmetric ``W`` (n, n), and when ``W`` is indefinite
+    up to ``count`` directions of negative curvature read off the same factorisation.
+
+    Returns ``(factor, None)`` when ``W > 0``; ``(None, V)`` with ``V`` (n, k), each column
+    ``v`` with ``v^T W v < 0`` (checked), when SuperLU's symmetric factorisation
+    ``P^T W P = L D L^T`` shows negative pivots: ``v = P L^-T e_i`` for the most negative
+    ``d_i`` gives ``v^T W v = d_i`` (one triangular solve each); ``(None, None)`` when no
+    direction is known (singular, pivots left the diagonal, PARDISO, or dense sizes). A
+    narrow-band ``W`` (:func:`banded_pays`) is first given to the banded Cholesky; SuperLU
+    runs only when that fails.
+    """
+    n = W.shape[0]
+    if n <= DENSE_MAX or sparse_solver() == "pardiso":
+        return factor_spd(W, ordered=ordered), None
+    banded = _banded_cholesky(W)
+    if isinstance(banded, Factor):
+        return banded, None
+    try:
+        lu = sparse_lu(W, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
+    except RuntimeError:  # exactly singular
+        return None, None
+    if not np.array_equal(lu.perm_r, lu.perm_c):
+        return None, None
+    U = lu.U
+    d = U.diagonal()
+    if np.all(d > 0):
+        return Factor(lu.solve, n), None
+    # W^-1 P^T L e_i = P U^-1 e_i = P L^-T e_i / d_i (U = D L^T): a solve with lu itself
+    L = lu.L
+    directions = []
+    for i in np.argsort(d)[:count]:
+        if d[i] >= 0:
+            break
+        column = L[:, [i]].toarray().ravel()
+        v = lu.solve(column[lu.perm_r])
+        if np.all(np.isfinite(v)) and float(v @ (W @ v)) < 0:
+            directions.append(v)
+    return None, (np.column_stack(directions) if directions else None)
