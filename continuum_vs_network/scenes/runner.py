@@ -9,47 +9,49 @@ Learning trials also checkpoint inside the trial (``train(..., checkpoint=...)``
 killed trial resumes at its last checkpoint; a resumed run returns the same numbers as an
 uninterrupted one (wall-clock columns aside).
 
-Records are strict JSON (:mod:`continuum_vs_network.io.strict_json`): a non-finite value
-(NaN: not available, e.g. the error of an explicit step refused above its stability limit;
-inf: an open end such as no instability below the largest value tried) is written as
-``null`` and named in the record's ``"non_finite"`` map (JSON pointer -> ``"nan"``,
-``"inf"`` or ``"-inf"``), and read back as it was; records written with bare ``NaN`` tokens
-by earlier versions still load.
-
 Units of a phase run in parallel with ``workers > 1`` or a Dask ``scheduler`` (learning
 trials, transmission and relaxation sizes), through the executor of :mod:`.executor`;
 timing scenes (stability, solvers) always run serially so their wall-clock times are not
 measured under load. Results agree with a serial run: every unit draws its randomness from
 its own seed, and its solver makes the same decisions wherever it runs.
 
-Testing hook: the environment variable ``CVN_TEST_KILL_AFTER`` (``"units:N"`` or
-``"steps:N"``) makes the process kill itself with SIGKILL after ``N`` completed units or
-learning steps, to test resuming.
+Parts: :mod:`.store` (unit files: write, check, read back, merge trial histories) and
+:mod:`.compute` (compute units serially or on an executor; the ``CVN_TEST_KILL_AFTER``
+testing hook that kills the process to test resuming). Their names are re-exported here.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
-import json
 import os
 import shutil
-import signal
 import sys
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from ..io.atomic import atomic_path, remove_stale_temporaries, write_text_atomic
+from ..io.atomic import remove_stale_temporaries, write_text_atomic
 from ..io.lock import folder_lock
 from ..io.strict_json import dumps_record, loads_record
-from .executor import Executor, TaskError, open_executor
+
+# .compute and .store hold what was defined here before: all those names stay importable
+# from here (``x as x``: re-exported, unused here)
+from .compute import KILL_ENV as KILL_ENV
+from .compute import SceneRunError, _Killer, _run_parallel, _run_serial
+from .compute import _compute as _compute
+from .compute import _worker as _worker
+from .executor import open_executor
 from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
+from .store import _clean, _is_done, _merged_history, _read_record, _read_unit, _units_dir
+from .store import _json_default as _json_default
+from .store import _payload_loads as _payload_loads
+from .store import _payload_path as _payload_path
+from .store import _record_path as _record_path
+from .store import _save_unit as _save_unit
+from .store import _trial_keys as _trial_keys
 from .units import Unit, UnitContext, UnitResult
 
 __all__ = [
@@ -63,16 +65,6 @@ __all__ = [
     "plan",
     "run_scene",
 ]
-
-KILL_ENV = "CVN_TEST_KILL_AFTER"
-
-
-class SceneRunError(RuntimeError):
-    """A unit of a scene failed; carries the scene name, the unit key and the cause."""
-
-    def __init__(self, scene: str, unit: str, cause: BaseException) -> None:
-        self.scene, self.unit, self.cause = scene, unit, cause
-        super().__init__(f"scene {scene!r}, unit {unit!r}: {type(cause).__name__}: {cause}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,168 +129,7 @@ def plan(scene: Scene) -> list[Unit]:
     return plan_solvers(scene)
 
 
-# -- storage ---------------------------------------------------------------------------------
-def _units_dir(directory: Path) -> Path:
-    return directory / "units"
-
-
-def _record_path(directory: Path, key: str) -> Path:
-    return _units_dir(directory) / (key.replace("/", "__") + ".json")
-
-
-def _payload_path(directory: Path, key: str) -> Path:
-    return _units_dir(directory) / (key.replace("/", "__") + ".npz")
-
-
-def _is_done(directory: Path, unit: Unit, *, verify: bool = False) -> bool:
-    """The unit's record matches its fingerprint (and, with ``verify``, its payload loads)."""
-    rec = _record_path(directory, unit.key)
-    if not (rec.exists() and _payload_path(directory, unit.key).exists()):
-        return False
-    try:
-        record = json.loads(rec.read_text())
-        if record["fingerprint"] != unit.fingerprint:
-            return False
-    except (OSError, ValueError, KeyError, TypeError):
-        return False
-    return not verify or _payload_loads(directory, unit.key, bool(record.get("history")))
-
-
-def _payload_loads(directory: Path, key: str, history: bool) -> bool:
-    """True when the unit's payload reads back completely (every array, every CRC)."""
-    path = _payload_path(directory, key)
-    try:
-        if history:
-            from ..learning.history import History
-
-            History.load(path)
-        else:
-            with np.load(path, allow_pickle=False) as z:
-                for name in z.files:
-                    z[name]
-    except Exception:  # any failure to read back means: compute the unit again
-        return False
-    return True
-
-
-def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None:
-    from ..learning.history import History
-
-    payload = _payload_path(directory, unit.key)
-    if isinstance(output, History):
-        with atomic_path(payload) as tmp:
-            output.save(tmp)
-        record = {"history": True, "meta": {}}
-    else:
-        arrays, meta = output
-        with atomic_path(payload) as tmp, open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **{k: np.asarray(v) for k, v in arrays.items()})
-        record = {"history": False, "meta": meta}
-    record.update(key=unit.key, fingerprint=unit.fingerprint, seconds=float(seconds))
-    write_text_atomic(
-        _record_path(directory, unit.key),
-        dumps_record(record, sort_keys=True, default=_json_default),
-    )
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
-def _read_record(directory: Path, key: str) -> dict:
-    return loads_record(_record_path(directory, key).read_text())
-
-
-def _read_unit(directory: Path, key: str) -> UnitResult:
-    rec = _read_record(directory, key)
-    if rec["history"]:
-        return UnitResult(key, {}, {}, rec["seconds"])
-    with np.load(_payload_path(directory, key), allow_pickle=False) as z:
-        arrays = {k: z[k] for k in z.files}
-    return UnitResult(key, arrays, rec["meta"], rec["seconds"])
-
-
-def _trial_keys(directory: Path, group: str) -> list[str]:
-    prefix = "train/" + group + "/trial"
-    keys = []
-    for rec in _units_dir(directory).glob("train__*.json"):
-        key = json.loads(rec.read_text())["key"]
-        if key.startswith(prefix):
-            keys.append(key)
-    return sorted(keys, key=lambda k: int(k.rsplit("trial", 1)[1]))
-
-
-def _merged_history(directory: Path, group: str, keys: Iterable[str] | None = None):
-    """Concatenate the one-trial histories of a learning group along the trial axis."""
-    from ..learning.history import History
-
-    keys = list(keys) if keys is not None else _trial_keys(directory, group)
-    if not keys:
-        raise KeyError(f"no trials of {group!r} in {directory}")
-    parts = [History.load(_payload_path(directory, k)) for k in keys]
-    first = parts[0]
-    return dataclasses.replace(
-        first,
-        seeds=np.concatenate([h.seeds for h in parts]),
-        completed=np.concatenate([h.completed for h in parts]),
-        stop_reason=tuple(r for h in parts for r in h.stop_reason),
-        data={name: np.concatenate([h.data[name] for h in parts]) for name in first.data},
-        initial=tuple(n for h in parts for n in h.initial),
-        final=tuple(n for h in parts for n in h.final),
-        tasks=tuple(t for h in parts for t in h.tasks),
-    )
-
-
 # -- running ---------------------------------------------------------------------------------
-class _Killer:
-    """The ``CVN_TEST_KILL_AFTER`` hook: SIGKILL this process after N units or steps."""
-
-    def __init__(self) -> None:
-        spec = os.environ.get(KILL_ENV, "")
-        self.what, _, n = spec.partition(":")
-        self.limit = int(n) if n.isdigit() else -1
-        self.count = 0
-
-    def tick(self, what: str) -> None:
-        if self.limit < 0 or what != self.what:
-            return
-        self.count += 1
-        if self.count >= self.limit:
-            os.kill(os.getpid(), signal.SIGKILL)
-
-
-def _compute(scene: Scene, unit: Unit, directory: Path, on_step: Callable | None) -> float:
-    """Run one unit and store its result; returns its wall-clock seconds."""
-    ckpt = directory / "checkpoints" / f"{unit.stem}-{unit.fingerprint[:12]}.npz"
-    ckpt.parent.mkdir(parents=True, exist_ok=True)
-    ctx = UnitContext(
-        key=unit.key,
-        directory=directory,
-        checkpoint=ckpt,
-        on_step=on_step,
-        read_unit=functools.partial(_read_unit, directory),
-        read_history=functools.partial(_merged_history, directory),
-    )
-    t0 = time.perf_counter()
-    output = unit.func(scene, dict(unit.params), ctx)
-    seconds = time.perf_counter() - t0
-    _save_unit(directory, unit, output, seconds)
-    for stale in ckpt.parent.glob(f"{unit.stem}-*"):
-        stale.unlink(missing_ok=True)
-    return seconds
-
-
-def _worker(scene: Scene, unit: Unit, directory: str) -> tuple[str, float]:
-    killer = _Killer()
-    seconds = _compute(scene, unit, Path(directory), lambda: killer.tick("steps"))
-    killer.tick("units")
-    return unit.key, seconds
-
-
 def _log_unreadable(directory: Path, units: list[Unit], done: set[str], log) -> None:
     """Say which units are recomputed because their payload does not read back."""
     bad = [u.key for u in units if u.key not in done and _is_done(directory, u)]
@@ -431,45 +262,6 @@ def _run_scene(
     return load_result(scene, directory, units=units)
 
 
-def _run_serial(scene: Scene, unit: Unit, directory: Path, bar, killer: _Killer) -> None:
-    ticks = 0
-
-    def on_step() -> None:
-        nonlocal ticks
-        ticks += 1
-        if bar is not None:
-            bar.update(1)
-        killer.tick("steps")
-
-    try:
-        _compute(scene, unit, directory, on_step)
-    except Exception as err:
-        raise SceneRunError(scene.name, unit.key, err) from err
-    if bar is not None:
-        bar.update(max(unit.weight - ticks, 0))
-    killer.tick("units")
-
-
-def _run_parallel(
-    executor: Executor, scene: Scene, units: list[Unit], directory: Path, bar
-) -> None:
-    """Units on ``executor`` (each stores its own result); the first failure stops the rest."""
-
-    def done(i: int, _value: Any) -> None:
-        if bar is not None:
-            bar.update(units[i].weight)
-
-    try:
-        executor.run(
-            _worker,
-            [(scene, u, str(directory)) for u in units],
-            on_result=done,
-            label=f"{scene.name}-unit",
-        )
-    except TaskError as err:
-        raise SceneRunError(scene.name, units[err.index].key, err.cause) from err.cause
-
-
 def _bar(progress: bool, name: str, units: list[Unit], done: set[str]):
     if not progress:
         return None
@@ -482,22 +274,6 @@ def _bar(progress: bool, name: str, units: list[Unit], done: set[str]):
     return tqdm(
         total=total, initial=initial, desc=name, unit="step", leave=True, dynamic_ncols=True
     )
-
-
-def _clean(directory: Path, units: list[Unit]) -> None:
-    """Remove unit files and checkpoints that belong to no unit of the plan."""
-    stems = {u.stem for u in units}
-    for path in _units_dir(directory).iterdir():
-        if path.name.startswith("."):
-            continue
-        stem = path.name.rsplit(".", 1)[0]
-        if stem not in stems:
-            path.unlink(missing_ok=True)
-    ckpts = directory / "checkpoints"
-    if ckpts.exists():
-        for path in ckpts.iterdir():
-            path.unlink(missing_ok=True)
-        ckpts.rmdir()
 
 
 def load_result(
