@@ -4,6 +4,7 @@
   (:func:`load_scene`, :class:`Scene`, :class:`SceneError`);
 * :mod:`.runner`: :func:`run_scene` computes only what a scene names, in units
   (:mod:`.units`) that are checkpointed and resumed, optionally in parallel; :class:`SceneResult`;
+  unit files are kept by :mod:`.store`, units computed by :mod:`.compute`;
 * :mod:`.executor`: where parallel work runs (serial, a local Dask cluster, a running Dask
   scheduler);
 * :mod:`.grid` and :mod:`.sweep`: a scene's ``[sweep]`` expanded into a grid of variants and
