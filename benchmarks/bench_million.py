@@ -10,6 +10,8 @@ end, C/C0 per step from the history.
     python benchmarks/bench_million.py                    # 1e6 nodes (target: C/C0 <=
                                                           # 1e-3 in <= 15 min, <= 12 GB)
     python benchmarks/bench_million.py --side /work/side/pardiso   # pypardiso from a folder
+                            # (MKL's library from PYPARDISO_MKL_RT=<path>/libmkl_rt.so.3
+                            # when MKL is not pip-installed in the environment)
 
 ``--sparse-solver``: the factorisation (:func:`~continuum_vs_network.network.kkt.
 set_sparse_solver`); ``auto`` is PARDISO when ``pypardiso`` imports.
