@@ -16,6 +16,7 @@ from continuum_vs_network.learning import (
 )
 from continuum_vs_network.learning.history import MEASUREMENTS, UPDATES
 from continuum_vs_network.learning.metrics import (
+    final_values,
     length_error,
     normalised,
     rest_length_error,
@@ -219,3 +220,14 @@ def test_metrics_normalise_and_summarise():
     np.testing.assert_allclose(normalised(values)[0], [1.0, 0.5, 0.25])
     s = summary(values, completed=[2, 1])
     assert s["n"] == 2 and s["median"] == pytest.approx(0.625)
+
+
+def test_a_trial_whose_equilibrium_was_lost_keeps_its_last_measured_value():
+    """A trial that stopped because its equilibrium was lost has no measurement at its
+    ``completed`` step: its final value is the last one measured, so it stays in medians and
+    means instead of dropping out of them silently."""
+    values = np.array([[2.0, 1.0, 0.5, 0.25], [4.0, 2.0, np.nan, np.nan]])
+    np.testing.assert_allclose(final_values(values, completed=[3, 2]), [0.25, 2.0])
+    s = summary(values, completed=[3, 2])
+    assert s["n"] == 2 and s["missing"] == 0
+    assert s["median"] == pytest.approx((0.125 + 0.5) / 2)

@@ -53,13 +53,20 @@ def rest_length_error(history: History) -> NDArray:
 def final_values(values: ArrayLike, completed: ArrayLike | None = None) -> NDArray:
     """The last measured value of every trial, (trials,).
 
-    ``completed`` (from a history) picks entry ``completed[i]`` of trial ``i``; without it
-    the last finite entry is used.
+    ``completed`` (from a history) picks entry ``completed[i]`` of trial ``i``, or the last
+    finite entry before it when there is none there (a trial that stopped because its
+    equilibrium was lost has no measurement at ``completed``: it would otherwise drop out
+    of every median and mean silently); without it the last finite entry is used.
     """
     v = np.asarray(values, dtype=np.float64)
     if completed is not None:
         idx = np.minimum(np.asarray(completed, dtype=np.int64), v.shape[1] - 1)
-        return v[np.arange(v.shape[0]), idx]
+        out = v[np.arange(v.shape[0]), idx]
+        for i in np.flatnonzero(~np.isfinite(out)):
+            finite = np.flatnonzero(np.isfinite(v[i, : idx[i] + 1]))
+            if finite.size:
+                out[i] = v[i, finite[-1]]
+        return out
     out = np.full(v.shape[0], np.nan)
     for i, row in enumerate(v):
         finite = np.flatnonzero(np.isfinite(row))
