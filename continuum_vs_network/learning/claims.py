@@ -54,6 +54,7 @@ from .metrics import final_values, length_error, normalised, rest_length_error
 
 __all__ = [
     "MIN_STEPS",
+    "REFERENCE_RULE",
     "VERDICTS",
     "ClaimCheck",
     "check_claims",
@@ -73,6 +74,9 @@ _CONVENTION_REASON = {
     "gpc": "the paper's GPC keeps its rods at a fixed length while L learns (Sec. 7.2), "
     "the `initial` convention",
 }
+#: the rule a statement that must be specific to the claimed rule is compared with (the
+#: exact gradient of the same task, in the same run)
+REFERENCE_RULE = "exact"
 _C_METRIC = "C/C0 with strains against the learning L (Eq. 26 as printed; error_current)"
 
 
@@ -96,6 +100,9 @@ class ClaimCheck:
         One of :data:`VERDICTS`.
     reason : str
         Why, in a few words (the coupling, the convention, ...).
+    references : tuple of (str, float)
+        The same metric measured on the reference rules of the same run (the exact
+        gradient first), for a statement that must be specific to the claimed rule.
     """
 
     experiment: str
@@ -106,6 +113,7 @@ class ClaimCheck:
     rule: str
     verdict: str
     reason: str = ""
+    references: tuple[tuple[str, float], ...] = ()
 
 
 def majority(verdicts: Sequence[str]) -> str | None:
@@ -177,6 +185,9 @@ class _Statement:
     # and how many trials must succeed while not decoupled; None: no coupling needed
     per_trial: Callable[[History], NDArray] | None = None
     needed: Callable[[int], int] = _majority_of
+    # a rise that must be specific to the claimed rule: reproduced only when the measured
+    # value exceeds that of the reference rule (:data:`REFERENCE_RULE`) in the same run
+    specific: bool = False
 
 
 def _c_ratio(h: History) -> NDArray:
@@ -247,6 +258,7 @@ def _gpc_statements() -> list[_Statement]:
             "reproduced if > 1; contradicted if < 1",
             lambda m, n: "reproduced" if m > 1 else "contradicted" if m < 1 else "not reproduced",
             size=False,
+            specific=True,
         ),
         _fall(
             "the clamped energy E^C descends",
@@ -356,6 +368,9 @@ def check_claims(
             judged = _subset(h, keep) if keep.sum() < h.trials else h
             m = float(st.measure(judged)) if keep.any() else float("nan")
             verdict, reason = _judge(st, h, judged, keep, m, family, verdicts)
+            refs = _references(st, histories, exp.name)
+            if refs:
+                verdict, reason = _specific(verdict, reason, m, refs)
             out.append(
                 ClaimCheck(
                     experiment=exp.name,
@@ -369,12 +384,58 @@ def check_claims(
                         f"comparable with fewer than {enough_trials(h.trials)} of {h.trials}"
                         if st.size
                         else ""
-                    ),
+                    )
+                    + (_specific_rule(refs) if st.specific else ""),
                     verdict=verdict,
                     reason=reason,
+                    references=refs,
                 )
             )
     return out
+
+
+def _references(st, histories, name) -> tuple[tuple[str, float], ...]:
+    """The statement's metric on the reference rule (then every other rule) of the same
+    run; empty when the statement needs none or the reference rule did not run."""
+    if not st.specific or REFERENCE_RULE not in histories:
+        return ()
+    order = [REFERENCE_RULE, *sorted(r for r in histories if r not in (REFERENCE_RULE, name))]
+    return tuple((r, float(st.measure(histories[r]))) for r in order)
+
+
+def _specific_rule(refs) -> str:
+    if not refs:
+        return f"; no `{REFERENCE_RULE}` run in this scene to tell a rise specific to the rule"
+    return (
+        f"; reproduced only if it also exceeds the `{REFERENCE_RULE}` run's value of the same "
+        "metric in the same run (the rise is specific to the rule), not comparable if it "
+        "does not (the exact gradient rises as much)"
+    )
+
+
+def _specific(verdict, reason, m, refs) -> tuple[str, str]:
+    """Reproduced only when ``m`` exceeds the reference rule's value (``refs[0]``)."""
+    ref_name, ref = refs[0]
+    values = ", ".join(f"{r}: {v:.3g}" for r, v in refs)
+    if verdict != "reproduced":
+        return verdict, reason
+    if np.isfinite(ref) and m > ref:
+        return verdict, "; ".join(x for x in (reason, f"above {ref_name} ({values})") if x)
+    return "not comparable", "; ".join(
+        x
+        for x in (
+            reason,
+            (
+                "every rule rises on this metric, the exact gradient included"
+                if all(v > 1 for _, v in refs)
+                else f"the {ref_name} run rises as much on this metric"
+            )
+            + f" ({values})"
+            if np.isfinite(ref)
+            else f"the {ref_name} run's value is not measured",
+        )
+        if x
+    )
 
 
 def _judge(st, h, judged, keep, m, family, verdicts) -> tuple[str, str]:

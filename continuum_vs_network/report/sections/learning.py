@@ -63,12 +63,14 @@ def section(doc: Document, result) -> None:
             "Trials that stopped early (a rest length would reach 0 without a floor, or "
             "an equilibrium was lost): "
             + ", ".join(f"{k}: {n}" for k, n in stopped if n)
-            + ". Their curves end there.",
+            + ". The error-vs-step figure holds them at their last measured value; the "
+            "paper's mean figures end at the last step every trial measured.",
         )
 
     if scene.task.kind == "paper":
-        claims(doc, result, h, solvers)
+        notes = claims(doc, result, h, solvers)
     else:
+        notes = {}
         from ...learning.stern import stern_table
 
         doc.heading("Stern-scale allostery")
@@ -87,15 +89,16 @@ def section(doc: Document, result) -> None:
             f"the final over the initial {what}, {error_label(ref)} (median "
             "[quartiles]). Whether a low C/C0 is learned or trivial: next section."
         )
-    coupling(doc, result, h, solvers, names)
+    coupling(doc, result, h, solvers, names, notes=notes)
 
     doc.heading("Error against iterations and against wall-clock time")
-    panels = []
+    panels, held = [], []
     for solver in solvers:
         step_series, time_series = [], []
         for j, rule in enumerate(names):
             hist = h(solver, rule)
-            st = stats(normalised(hist.task_error(ref)))
+            st = stats(held_at_last(hist, normalised(hist.task_error(ref))))
+            held.append((f"{solver}/{rule}" if len(solvers) > 1 else rule, hist))
             steps = np.arange(hist.steps + 1)
             secs = quiet(np.nanmedian, hist.seconds, axis=0)
             color = COLORS[j % len(COLORS)]
@@ -126,7 +129,7 @@ def section(doc: Document, result) -> None:
         panels,
         f"Task error {error_label(ref)}, normalised by its initial value, against "
         "learning steps and against wall-clock seconds; line: median over trials, band: "
-        "quartiles.",
+        "quartiles. " + _held_note(held),
     )
 
     if scene.task.kind == "paper":
@@ -144,6 +147,42 @@ def section(doc: Document, result) -> None:
     _trials_appendix(doc, scene, h, first)
     if scene.report.images or scene.export is not None:
         learning_renders(doc, result)
+
+
+def held_at_last(hist, values: NDArray) -> NDArray:
+    """``values`` (trials, steps + 1) with each trial that stopped held at its last
+    measured value (:func:`~continuum_vs_network.learning.metrics.final_values`, the
+    tables' final value) from its last measurement
+    (:func:`~continuum_vs_network.learning.claims.last_measured`) on, so that a median
+    over trials at every step is over all of them."""
+    from ...learning.claims import last_measured
+    from ...learning.metrics import final_values
+
+    out = np.array(values, dtype=np.float64)
+    last = np.minimum(last_measured(hist), out.shape[1] - 1)
+    final = final_values(out, hist.completed)
+    for i in range(out.shape[0]):
+        if np.isfinite(final[i]):
+            out[i, last[i] :] = final[i]
+    return out
+
+
+def _held_note(runs) -> str:
+    """Caption sentence: how many trials of each run stopped early (held at their last
+    measured value in the median)."""
+    from ...learning.claims import last_measured
+
+    parts = [
+        f"{name} {int(np.sum(last_measured(hist) < hist.steps))} of {hist.trials}"
+        for name, hist in runs
+        if np.any(last_measured(hist) < hist.steps)
+    ]
+    if not parts:
+        return f"Every trial ran all {runs[0][1].steps if runs else 0} steps."
+    return (
+        "A trial that stopped is held at its last measured value (its final value in the "
+        "tables); trials that stopped before the last step: " + ", ".join(parts) + "."
+    )
 
 
 def _common_steps(hist) -> int:

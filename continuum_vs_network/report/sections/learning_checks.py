@@ -36,8 +36,9 @@ __all__ = [
 ]
 
 
-def claims(doc: Document, result, h, solvers) -> None:
-    """The paper's claims table with computed verdicts; one finding per statement."""
+def claims(doc: Document, result, h, solvers) -> dict[str, str]:
+    """The paper's claims table with computed verdicts; one finding per statement. Returns,
+    per solver whose stored states are not equilibria, the note its findings carry."""
     from ...learning.claims import MIN_STEPS, check_claims
     from ...scenes.units_learning import experiments
 
@@ -88,7 +89,8 @@ def claims(doc: Document, result, h, solvers) -> None:
                         + (", non-equilibrium states" if solver in notes else "")
                         + f"): {c.claim}",
                         metric=c.metric,
-                        measured={"value": c.measured},
+                        measured={"value": c.measured}
+                        | {f"{r} (same metric)": v for r, v in c.references},
                         verdict=c.verdict,
                         rule=c.rule
                         + (f" [{c.reason}]" if c.reason else "")
@@ -106,3 +108,4 @@ def claims(doc: Document, result, h, solvers) -> None:
                 + ", ".join(f"`{r}`" for r in others)
                 + "; their results are in the coupling table and the figures."
             )
+    return notes

@@ -25,9 +25,21 @@ def coupling_verdicts(result, group: str) -> list[str]:
     return list(u.meta["verdicts"]) if u is not None else []
 
 
-def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> None:
+def coupling(
+    doc: Document,
+    result,
+    h,
+    solvers,
+    names,
+    noise_index: int = 0,
+    *,
+    notes: dict[str, str] | None = None,
+) -> None:
     """A table: for every run, final C/C0, the coupling (source share, verdicts) and what
-    was achieved; the sweep figure; one finding per run of the scene's default task."""
+    was achieved; the sweep figure; one finding per run of the scene's default task.
+    ``notes``: per solver whose stored states are not equilibria, the note its findings
+    carry (from :func:`.learning_checks.claims`; they are tagged as the claims are)."""
+    from ...learning.claims import MIN_STEPS, enough_trials, last_measured
     from ...learning.coupling import COUPLED_AT, DECOUPLED_BELOW, MET_AT
     from ...learning.metrics import final_values, normalised
 
@@ -47,8 +59,11 @@ def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> 
         f"A trial *learned* the task when its own final C/C0 <= {MET_AT:g} and its own "
         "coupling verdict is not decoupled; a trial that met the task while decoupled met it "
         "*trivially*, which is not a learning success. A run learned the task when a "
-        "majority of its trials did (counted per trial, not from two medians).",
+        "majority of its trials did (counted per trial, not from two medians); it is "
+        f"contradicted when enough trials (half, at least 3) ran >= {MIN_STEPS} steps and "
+        "their median C/C0 is >= 1 (fewer: a run cut short, not reproduced).",
     )
+    notes = notes or {}
     from ...learning.coupling import coupling_verdict
 
     rows = []
@@ -68,7 +83,8 @@ def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> 
             verdicts = list(u.meta["verdicts"])
             median_share = quiet(np.nanmedian, share)
             major = coupling_verdict(median_share) if np.isfinite(median_share) else None
-            tally = trial_outcomes(final, verdicts)
+            ran = last_measured(hist) >= MIN_STEPS
+            tally = trial_outcomes(final, verdicts, ran=ran)
             counts = ", ".join(
                 f"{v} {verdicts.count(v)}"
                 for v in ("coupled", "partially coupled", "decoupled", "not measured")
@@ -90,10 +106,14 @@ def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> 
                 ]
             )
             if solver == solvers[0] and major is not None:
+                short = int(hist.trials - ran.sum())
+                long = final[ran & np.isfinite(final)]
+                long_med = float(np.median(long)) if long.size else None
                 doc.finding(
                     Finding(
-                        claim=f"package check (no claim of the paper; {result.scene.name}): "
-                        f"{name} learns the task through the sources (not trivially)",
+                        claim=f"package check (no claim of the paper; {result.scene.name}"
+                        + (", non-equilibrium states" if solver in notes else "")
+                        + f"): {name} learns the task through the sources (not trivially)",
                         metric=f"trials whose own final C/C0 ({hist.strain_reference} L) is <= "
                         f"{MET_AT:g} and whose own coupling verdict is not decoupled",
                         measured={
@@ -102,13 +122,26 @@ def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> 
                             "trials": hist.trials,
                             "C/C0 (median)": med,
                             "source share (median)": median_share,
-                        },
+                            f"trials with < {MIN_STEPS} steps measured": short,
+                        }
+                        | (
+                            {f"C/C0 (median, trials with >= {MIN_STEPS} steps)": long_med}
+                            if long.size
+                            else {}
+                        ),
                         verdict=tally["verdict"],
                         rule=f"per trial: learned if C/C0 <= {MET_AT:g} and not decoupled, met "
                         f"trivially if C/C0 <= {MET_AT:g} and decoupled; reproduced if a majority "
-                        "of the trials learned; contradicted if the median C/C0 >= 1; not "
-                        "comparable if most trials' coupling was not measured; not reproduced "
-                        "otherwise",
+                        "of the trials learned; not comparable if most trials' coupling was not "
+                        f"measured; contradicted if at least {enough_trials(hist.trials)} of the "
+                        f"{hist.trials} trials ran >= {MIN_STEPS} steps and the median C/C0 over "
+                        "those trials is >= 1; not reproduced otherwise"
+                        + (
+                            f" [{short} of {hist.trials} trials: < {MIN_STEPS} steps measured]"
+                            if short
+                            else ""
+                        )
+                        + (f" [{notes[solver]}]" if solver in notes else ""),
                     ),
                     shown=True,  # the outcome column of the coupling table
                 )
@@ -134,13 +167,17 @@ def coupling(doc: Document, result, h, solvers, names, noise_index: int = 0) -> 
     _sweep_figure(doc, result, solvers[0], names, noise_index)
 
 
-def trial_outcomes(final: NDArray, verdicts: list[str]) -> dict:
+def trial_outcomes(final: NDArray, verdicts: list[str], *, ran: NDArray | None = None) -> dict:
     """Per-trial joint rule of a run's task outcome, (trials,) final C/C0 and coupling
     verdicts: ``learned`` (C/C0 <= MET_AT and not decoupled), ``trivial`` (met while
     decoupled), ``unmeasured`` (no coupling verdict or no final C/C0), the run's ``outcome``
     text and the finding's ``verdict``: reproduced when a majority of the trials learned,
-    not comparable when most are unmeasured, contradicted when the median C/C0 >= 1, not
-    reproduced otherwise."""
+    not comparable when most are unmeasured, contradicted when at least
+    :func:`~continuum_vs_network.learning.claims.enough_trials` trials ran
+    :data:`~continuum_vs_network.learning.claims.MIN_STEPS` steps (``ran``, (trials,) bool;
+    None: all of them did) and the median C/C0 over those trials is >= 1, not reproduced
+    otherwise."""
+    from ...learning.claims import enough_trials
     from ...learning.coupling import MET_AT
 
     final = np.asarray(final, dtype=np.float64)
@@ -153,15 +190,16 @@ def trial_outcomes(final: NDArray, verdicts: list[str]) -> dict:
     met = [i for i in measured if final[i] <= MET_AT]
     learned = sum(1 for i in met if verdicts[i] != "decoupled")
     trivial = len(met) - learned
-    ok = final[np.isfinite(final)]
-    med = float(np.median(ok)) if ok.size else float("nan")
     if 2 * learned > n:
         outcome, verdict = "learned", "reproduced"
     elif 2 * (n - len(measured)) > n:
         outcome, verdict = "not measured", "not comparable"
     else:
         outcome = "not learned"
-        verdict = "contradicted" if med >= 1.0 else "not reproduced"
+        ran = np.ones(n, dtype=bool) if ran is None else np.asarray(ran, dtype=bool)
+        long = final[ran & np.isfinite(final)]
+        rises = long.size >= enough_trials(n) and float(np.median(long)) >= 1.0
+        verdict = "contradicted" if rises else "not reproduced"
     return {
         "learned": learned,
         "trivial": trivial,
