@@ -11,6 +11,7 @@ import numpy as np
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 from .beyond_paper_format import _g
+from .learning_checks_noise import decoupled_caveat
 
 #: the least rise of a floor that counts as a rise (runs differ by ~1 % at equal settings)
 RISE = 1.1
@@ -75,6 +76,41 @@ def rises(floors, kinds, *, factor: float = RISE) -> str:
     return REPRODUCED if all(v == REPRODUCED for v in verdicts) else NOT_COMPARABLE
 
 
+def coupling_cell(metas) -> str:
+    """The coupling of the runs at one temperature (``metas``: run label -> unit meta with
+    ``coupling`` and ``source_share``), in words: one verdict with its share range when all
+    agree, else each run's."""
+    verdicts = {k: m.get("coupling", "not measured") for k, m in metas.items()}
+    shares = [m.get("source_share", float("nan")) for m in metas.values()]
+    if len(set(verdicts.values())) == 1:
+        (v,) = set(verdicts.values())
+        lo, hi = float(np.nanmin(shares)), float(np.nanmax(shares))
+        share = _g(lo, 2) if lo == hi else f"{_g(lo, 2)} to {_g(hi, 2)}"
+        return f"all {v} (source share {share})"
+    return "; ".join(f"{k} {v} ({_g(x, 2)})" for (k, v), x in zip(verdicts.items(), shares))
+
+
+def bounds_caption(points) -> str:
+    """Which floors have plateaued by the plateau test and what the others are, computed
+    from ``points``: (label, :func:`bound` kind) pairs."""
+    plateau = [p for p, k in points if k == "plateau"]
+    parts = [
+        "plateaued by the plateau test (fitted change of C over the last quarter at most "
+        f"{PLATEAU:.0%}): " + (", ".join(plateau) if plateau else "none")
+    ]
+    rest = len(points) - len(plateau)
+    for kind, what in (
+        ("upper bound", "upper bounds (C still falling: the run settles lower)"),
+        ("lower bound", "lower bounds (C still rising: the run settles higher)"),
+        ("unknown", "not known (no finite change)"),
+    ):
+        these = [p for p, k in points if k == kind]
+        if these:
+            every = "every other point" if plateau else "every point"
+            parts.append(f"{what}: {every if len(these) == rest else ', '.join(these)}")
+    return "; ".join(parts)
+
+
 def _thermal(doc, scene, units) -> None:
     L = scene.learning
     temps = L.temperatures
@@ -110,6 +146,10 @@ def _thermal(doc, scene, units) -> None:
         for run in runs
     }
     kinds = {run: [bound(c) for c in changes[run]] for run in runs}
+    metas = {
+        run: [units[f"beyond/thermal/T{i}/{run}"].meta for i in range(len(temps))] for run in runs
+    }
+    labels = {run: f"GCL eta={eta:g}" for run, eta in zip(runs, etas)} | {"exact": "exact"}
     doc.add(
         "Plateau test: the fitted relative change of C over the same last quarter (a least "
         f"squares line through log C against the step); a floor is a *plateau* when it is at "
@@ -120,7 +160,7 @@ def _thermal(doc, scene, units) -> None:
         "",
     )
     doc.table(
-        ["T", *(f"GCL eta={eta:g}" for eta in etas), "exact gradient"],
+        ["T", *(f"GCL eta={eta:g}" for eta in etas), "exact gradient", "coupling"],
         [
             [
                 f"{T:g}",
@@ -128,6 +168,7 @@ def _thermal(doc, scene, units) -> None:
                     f"{_g(floors[run][i])} ({_g(100 * changes[run][i], 2)} %, {kinds[run][i]})"
                     for run in runs
                 ),
+                coupling_cell({labels[run]: metas[run][i] for run in runs}),
             ]
             for i, T in enumerate(temps)
         ],
@@ -141,15 +182,40 @@ def _thermal(doc, scene, units) -> None:
         "beyond_thermal",
         [Panel(series, "thermal floor", "k_B T", "floor of C / C0", xscale="log",
                yscale="log")],
-        "Error floor against temperature for GCL at every nudge and the exact gradient "
-        "(T = 0 is off the log axis; its floors are in the table).",
+        "The 'floor' (median C/C0 over the last quarter of the steps) against temperature "
+        "for GCL at every nudge and the exact gradient (T = 0 is off the log axis; its "
+        "floors are in the table). Of these floors, T = 0 included: "
+        + bounds_caption(
+            [
+                (f"{labels[run]} at T = {T:g}", kinds[run][i])
+                for run in runs
+                for i, T in enumerate(temps)
+            ]
+        )
+        + ".",
     )  # fmt: skip
     unsettled = (
         f"a floor counts as settled when C changes by at most {PLATEAU:.0%} over the last "
         "quarter (fitted); a still-falling run's floor is an upper bound, a still-rising "
         "run's a lower bound"
     )
+
+    def caveat(judged: list[str], which: str) -> tuple[str, dict]:
+        """The noise scene's caveat (:func:`.decoupled_caveat`) over the judged GCL runs
+        (unit keys under beyond/thermal/) whose coupling was measured."""
+        metas = [units[f"beyond/thermal/{k}"].meta for k in judged]
+        return decoupled_caveat(
+            [m["coupling"] for m in metas if "coupling" in m],
+            runs=f"GCL runs judged here ({which}) with a coupling measurement",
+            what="The floor is the rule's error under its thermal update noise over the "
+            "steps run, whichever minimum the run descends to",
+            noun="GCL runs",
+        )
+
     if len(temps) >= 2:
+        trivially, counts = caveat(
+            [f"T{i}/{run}" for run in runs[:-1] for i in range(len(temps))], "every eta and T"
+        )
         per_eta = {run: rises(floors[run], kinds[run]) for run in runs[:-1]}
         if NOT_REPRODUCED in per_eta.values():
             verdict = NOT_REPRODUCED
@@ -167,13 +233,15 @@ def _thermal(doc, scene, units) -> None:
                        for i, T in enumerate(temps)},
                     **{f"{run} T={T:g} change": changes[run][i] for run in runs[:-1]
                        for i, T in enumerate(temps)},
+                    **counts,
                 },
                 verdict=verdict,
                 rule=f"reproduced when, at every eta, the floor rises by a factor >= {RISE:g} "
                 "at every step up in T (a smaller rise is within the runs' own spread) and no "
                 "unsettled run can undo a rise; not reproduced when some step's missing rise "
                 "is shown the same way; not comparable otherwise (a run stopped, or a "
-                f"transient decides it): {unsettled}",
+                f"transient decides it): {unsettled}"
+                + (". " + trivially.rstrip(".") if trivially else ""),
             )
         )  # fmt: skip
         doc.add(
@@ -190,7 +258,8 @@ def _thermal(doc, scene, units) -> None:
                 + "."
                 if any(kinds[run][0] != "plateau" for run in runs[:-1])
                 else ""
-            ),
+            )
+            + (f" {trivially}" if trivially else ""),
             "",
         )
     if len(etas) >= 2 and temps[-1] > 0:
@@ -204,6 +273,10 @@ def _thermal(doc, scene, units) -> None:
             verdict = CONTRADICTED
         else:
             verdict = NOT_COMPARABLE
+        trivially, counts = caveat(
+            [f"T{len(temps) - 1}/{runs[0]}", f"T{len(temps) - 1}/{runs[len(etas) - 1]}"],
+            f"T = {temps[-1]:g}, eta = {etas[0]:g} and {etas[-1]:g}",
+        )
         doc.finding(
             Finding(
                 claim="at a given temperature a larger nudge lowers GCL's floor "
@@ -215,10 +288,12 @@ def _thermal(doc, scene, units) -> None:
                     f"eta={etas[-1]:g}": large,
                     f"eta={etas[0]:g} change": changes[runs[0]][-1],
                     f"eta={etas[-1]:g} change": changes[runs[len(etas) - 1]][-1],
+                    **counts,
                 },
                 verdict=verdict,
                 rule="reproduced when the smallest nudge's floor exceeds the largest's, "
                 "contradicted when not, in both cases only when the unsettled runs cannot "
-                f"reverse the order; not comparable otherwise or when a run stopped: {unsettled}",
+                f"reverse the order; not comparable otherwise or when a run stopped: {unsettled}"
+                + (". " + trivially.rstrip(".") if trivially else ""),
             )
         )

@@ -15,7 +15,7 @@ from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED,
 from .continuum_learning_format import _g, _h
 from .continuum_learning_measures import LOCALISED, SETTLED, SHRINK, TOLERANCE
 
-__all__ = ["agreed_coupling", "fields_agree_verdict"]
+__all__ = ["agreed_coupling", "fields_agree_verdict", "refinement_verdict"]
 
 
 def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
@@ -82,10 +82,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     )
     change = [c for c in summary["change"][1:] if np.isfinite(c)]
     if len(change) >= 2:
-        shrinks = all(b * SHRINK <= a for a, b in itertools.pairwise(change))
-        grows = all(b > a for a, b in itertools.pairwise(change))
-        settled = shrinks and change[-1] <= SETTLED
-        verdict = REPRODUCED if settled else (CONTRADICTED if grows else NOT_REPRODUCED)
+        verdict = refinement_verdict(change, decoupled=decoupled)
         doc.finding(
             Finding(
                 claim=f"the learned field converges under refinement ({rule})",
@@ -94,7 +91,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
                 verdict=verdict,
                 rule=f"reproduced when every halving changes it at least {SHRINK:g} times less "
                 f"than the one before and the last change is <= {SETTLED:g}; contradicted "
-                "when the changes grow",
+                "when the changes grow" + unless,
             )
         )
         lines.append(
@@ -205,6 +202,21 @@ def _rules_agree(doc, units, rules, R: int) -> None:
         ),
         "",
     )
+
+
+def refinement_verdict(change, *, decoupled: bool) -> str:
+    """Verdict of "the learned field converges under refinement": ``change``, the relative
+    L2 changes of the field per halving of h (at least 2, coarsest first); ``decoupled``,
+    whether either medium is decoupled. Not comparable when decoupled (the field is
+    prestress of the targets); reproduced when every change is at least ``SHRINK`` times
+    smaller than the one before and the last is <= ``SETTLED``; contradicted when they grow."""
+    if decoupled:
+        return NOT_COMPARABLE
+    shrinks = all(b * SHRINK <= a for a, b in itertools.pairwise(change))
+    grows = all(b > a for a, b in itertools.pairwise(change))
+    if shrinks and change[-1] <= SETTLED:
+        return REPRODUCED
+    return CONTRADICTED if grows else NOT_REPRODUCED
 
 
 def fields_agree_verdict(diff: float, shares) -> str:

@@ -12,7 +12,33 @@ from ..findings import Finding
 from .learning_checks_coupling import coupling_verdicts
 from .learning_checks_text import CONVENTION_TEXT
 
-__all__ = ["noise_floor"]
+__all__ = ["decoupled_caveat", "noise_floor"]
+
+
+def decoupled_caveat(verdicts, *, runs: str, what: str, noun: str) -> tuple[str, dict]:
+    """The caveat of a noise floor judged on every run, decoupled or not, and its counts.
+
+    ``verdicts``: per-run coupling verdicts (:mod:`...learning.coupling`; empty when not
+    measured); ``runs``: what they are, in words; ``what``: what the judged quantity is a
+    property of (a sentence without its full stop); ``noun``: the counted thing ("trials").
+    Returns the sentences ("" when nothing is measured) and ``{noun: n, "decoupled "
+    + noun: d}`` for a finding's ``measured`` (empty when nothing is measured). Where runs
+    are decoupled the floor describes the rule's noise on a task met trivially (by
+    prestress), not on learned allostery."""
+    if not verdicts:
+        return "", {}
+    decoupled = list(verdicts).count("decoupled")
+    text = (
+        f"The {len(verdicts)} {runs}: {decoupled} decoupled (learning.coupling). {what}; it "
+        "is judged on every run, "
+        + (
+            "but where the runs are decoupled it describes noise on a task met trivially "
+            "(by prestress), not on learned allostery."
+            if decoupled
+            else "and none here is decoupled."
+        )
+    )
+    return text, {noun: len(verdicts), f"decoupled {noun}": decoupled}
 
 
 def noise_floor(doc: Document, result, h, solver: str, names) -> None:
@@ -72,21 +98,15 @@ def noise_floor(doc: Document, result, h, solver: str, names) -> None:
         if sigma > 0
         for v in coupling_verdicts(result, f"{solver}/{name}/noise{i}")
     ]
-    decoupled = verdicts.count("decoupled")
-    trivially = (
-        f" The {len(verdicts)} noisy GCL trials' trained networks: {decoupled} decoupled "
-        "(learning.coupling). The exponent is a property of the rule's gradient estimate (a "
-        "length noise sigma read through a nudge eta, balanced by the descent's pull near "
-        "the minimum it settles in), whichever minimum that is; it is judged on every run, "
-        + (
-            "but where the runs are decoupled it describes noise on a task met trivially "
-            "(by prestress), not on learned allostery."
-            if decoupled
-            else "and none here is decoupled."
-        )
-        if verdicts
-        else ""
+    trivially, counts = decoupled_caveat(
+        verdicts,
+        runs="noisy GCL trials' trained networks",
+        what="The exponent is a property of the rule's gradient estimate (a length noise "
+        "sigma read through a nudge eta, balanced by the descent's pull near the minimum it "
+        "settles in), whichever minimum that is",
+        noun="trials",
     )
+    trivially = f" {trivially}" if trivially else ""
     verdict = (
         "not comparable"
         if not np.isfinite(fit["p"])
@@ -103,7 +123,7 @@ def noise_floor(doc: Document, result, h, solver: str, names) -> None:
                 "p": fit["p"],
                 "c": fit["c"],
                 "points": fit["n"],
-                **({"trials": len(verdicts), "decoupled trials": decoupled} if verdicts else {}),
+                **counts,
             },
             verdict=verdict,
             rule="reproduced if |p - 2| <= 0.3; not reproduced otherwise; not comparable "

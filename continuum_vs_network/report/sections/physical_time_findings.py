@@ -1,6 +1,8 @@
 """The findings of the physical_time section (:mod:`.physical_time`), each by its stated
 rule: whether the learning rate speeds learning up, converges to the quasi-static result,
-and where learning stops working.
+and where learning stops working. The claims about learning (speed-up, Stern's critical
+ratio) need a coupling measurement (:func:`coupling_reason`); the comparison with the
+quasi-static result compares two computations of one dynamics and does not.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import math
 import numpy as np
 
 from ..document import Document
-from ..findings import CONTRADICTED, NOT_REPRODUCED, REPRODUCED, Finding
+from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 from .physical_time_figures import bracket_closed
 from .physical_time_units import _NAMES
 
@@ -50,6 +52,28 @@ def _lo_force(units) -> dict[str, float]:
     return {"smallest lo x tau_force/tau": min(v), "largest lo x tau_force/tau": max(v)}
 
 
+def coupling_reason(units) -> str:
+    """Why a claim about learning over ``units`` (physical_time units, one per size and
+    draw) is not comparable, or "" when it can be judged: a claim about learning counts only
+    runs that are not decoupled (as in :mod:`...learning.claims`), so every unit needs a
+    coupling verdict (meta ``"coupling"``, :mod:`...learning.coupling`) and none may be
+    decoupled. The physical_time runs keep only error curves, so this is the reason there."""
+    verdicts = [u.meta.get("coupling") for u in units]
+    if not verdicts or None in verdicts:
+        return "coupling not measured: the task may be met trivially by prestress"
+    n = verdicts.count("decoupled")
+    if n:
+        return f"{n} of {len(verdicts)} sizes x draws decoupled: the task was met by prestress"
+    return ""
+
+
+#: The clause every claim about learning adds to its rule (:func:`coupling_reason`).
+UNLESS_DECOUPLED = (
+    "; not comparable when any size or draw has no coupling measurement or is decoupled "
+    "(a claim about learning counts only runs that are not decoupled)"
+)
+
+
 def _median(values: list) -> float:
     """Median, nan for none."""
     return float(np.median(values)) if values else math.nan
@@ -60,6 +84,8 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
 
     findings = []
     for name, units in rules.items():
+        why = coupling_reason(units)
+        here = f" (here: {why})" if why else ""
         sp = _speedups(units, below_critical=True)
         worst = min(sp) if sp and all(np.isfinite(sp)) else math.nan
         best = max(sp) if sp else math.nan
@@ -93,11 +119,11 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                     "relaxation time"
                 ),
                 measured={**measured, **_lo_force(units)},
-                verdict=verdict,
+                verdict=NOT_COMPARABLE if why else verdict,
                 rule=(
                     f"contradicted when the speed-up is >= {SPEEDUP_YES:g} at every size and "
                     f"draw, reproduced when it is < {SPEEDUP_NO:g} at every size and draw, "
-                    "otherwise not reproduced"
+                    f"otherwise not reproduced{UNLESS_DECOUPLED}{here}"
                 ),
             )
         )
@@ -134,14 +160,14 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                     "sizes x draws": len(units),
                     "smallest speed-up below rho*": worst_below,
                 },
-                verdict=REPRODUCED if ok else NOT_REPRODUCED,
+                verdict=NOT_COMPARABLE if why else (REPRODUCED if ok else NOT_REPRODUCED),
                 rule=(
                     "reproduced when at every size and draw the bracket is closed on both "
                     "sides inside the tested range, its upper end met by oscillation (error "
                     f"rebound >= {OSCILLATION:g} above the quasi-static run's error; alone or "
                     "with the slowdown), and the speed-up up to its lower end is >= "
                     f"{SPEEDUP_YES:g}; "
-                    "otherwise not reproduced"
+                    f"otherwise not reproduced{UNLESS_DECOUPLED}{here}"
                 ),
             )
         )

@@ -1,0 +1,159 @@
+"""Rules of the report's findings on learning that need a coupling measurement: the
+physical_time learning-speed claims, the beyond_paper thermal floors, the continuum_learning
+refinement; each judged from minimal stored-unit stand-ins (no computation)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from continuum_vs_network.report.document import Document
+from continuum_vs_network.report.findings import (
+    CONTRADICTED,
+    NOT_COMPARABLE,
+    REPRODUCED,
+)
+from continuum_vs_network.report.sections.beyond_paper_thermal import _thermal
+from continuum_vs_network.report.sections.continuum_learning_findings import _verdicts
+from continuum_vs_network.report.sections.physical_time_findings import _findings
+
+
+# -- physical_time: learning speed needs coupling; the quasi-static limit does not ----------
+def _time_unit(n, coupling=None):
+    """A unit whose learning time falls 100-fold from ratio 1 to 100 and is past at 1000
+    (oscillation), closed bracket (100, 1000], error at ratio 1 equal to the quasi-static."""
+    runs = [
+        {"ratio": r, "T": T, "diverged": False, "error_at_qs_end": 0.01, "error_qs_end": 0.01}
+        for r, T in ((1.0, 100.0), (10.0, 10.0), (100.0, 1.0), (1000.0, 50.0))
+    ]
+    meta = {
+        "runs": runs,
+        "n_nodes": n,
+        "critical_low": 100.0,
+        "critical_high": 1000.0,
+        "critical_ratio": 316.0,
+        "critical_by": "oscillation",
+        "tau": 1.0,
+        "tau_force": 0.1,
+    }
+    if coupling is not None:
+        meta["coupling"] = coupling
+    return SimpleNamespace(meta=meta)
+
+
+def _time_verdicts(tmp_path, couplings):
+    doc = Document(tmp_path, 50)
+    units = [_time_unit(n, c) for n, c in zip((64, 256), couplings, strict=True)]
+    _findings(doc, {"gcl": units}, np.array([1.0, 10.0, 100.0, 1000.0]))
+    return {f.claim.split(":")[0]: f for f in doc.findings}
+
+
+def test_learning_speed_claims_need_a_coupling_measurement(tmp_path):
+    # speed-up 100 at every size (contradicts "cannot be addressed"), a closed bracket met by
+    # oscillation (Stern reproduced) -- the verdicts the old rule gave without any coupling
+    coupled = _time_verdicts(tmp_path, ["coupled", "coupled"])
+    assert coupled["paper, discussion"].verdict == CONTRADICTED
+    assert coupled["Stern et al. 2022"].verdict == REPRODUCED
+    for couplings, why in (
+        ([None, None], "coupling not measured"),
+        (["coupled", None], "coupling not measured"),
+        (["coupled", "decoupled"], "1 of 2 sizes x draws decoupled"),
+    ):
+        f = _time_verdicts(tmp_path, couplings)
+        for claim in ("paper, discussion", "Stern et al. 2022"):
+            assert f[claim].verdict == NOT_COMPARABLE
+            assert why in f[claim].rule and "not decoupled" in f[claim].rule
+        # the measured numbers are still reported
+        assert f["paper, discussion"].measured["smallest speed-up N=64"] == 100.0
+        # two computations of one dynamics: judged without coupling
+        assert f["package"].verdict == REPRODUCED
+
+
+# -- beyond_paper thermal: decoupled runs disclosed, unsettled floors called bounds --------
+def test_decoupled_caveat_counts_and_words():
+    from continuum_vs_network.report.sections.learning_checks_noise import decoupled_caveat
+
+    text, counts = decoupled_caveat(
+        ["decoupled", "coupled", "decoupled"], runs="runs", what="X", noun="trials"
+    )
+    assert counts == {"trials": 3, "decoupled trials": 2}
+    assert text.startswith("The 3 runs: 2 decoupled") and "met trivially" in text
+    text, counts = decoupled_caveat(["coupled"], runs="runs", what="X", noun="trials")
+    assert counts["decoupled trials"] == 0 and text.endswith("none here is decoupled.")
+    assert decoupled_caveat([], runs="runs", what="X", noun="trials") == ("", {})
+
+
+def _thermal_doc(tmp_path, coupling):
+    temps, etas = (0.0, 1e-6), (0.01, 1.0)
+    steps = np.arange(61)
+    falling = 0.04 * 0.93**steps  # -64 % over the last quarter: an upper bound
+    level = np.full(61, 0.8)  # a plateau
+    units = {}
+    for i in range(len(temps)):
+        for run in [f"gcl_eta{eta:g}" for eta in etas] + ["exact"]:
+            err = level if (i, run) == (1, "gcl_eta0.01") else falling
+            meta = {"floor": float(np.median(err[-15:]))}
+            if coupling is not None:
+                meta |= {"coupling": coupling, "source_share": 0.0}
+            units[f"beyond/thermal/T{i}/{run}"] = SimpleNamespace(meta=meta, arrays={"error": err})
+    scene = SimpleNamespace(
+        learning=SimpleNamespace(temperatures=temps, etas=etas, eta=0.1, steps=60),
+        network=SimpleNamespace(sizes=(5,)),
+    )
+    doc = Document(tmp_path, 50)
+    _thermal(doc, scene, units)
+    return doc
+
+
+def test_thermal_floors_disclose_decoupled_runs_and_unsettled_points(tmp_path):
+    doc = _thermal_doc(tmp_path, "decoupled")
+    (nudge,) = [f for f in doc.findings if "larger nudge" in f.claim]
+    assert nudge.verdict == REPRODUCED  # judged on every run, as the noise floor is
+    assert nudge.measured["decoupled GCL runs"] == 2 and nudge.measured["GCL runs"] == 2
+    assert "met trivially (by prestress)" in nudge.rule
+    (grows,) = [f for f in doc.findings if "grows with the temperature" in f.claim]
+    assert grows.measured["decoupled GCL runs"] == 4
+    body = "\n".join(doc.lines)
+    assert "plateaued by the plateau test" in body
+    assert "GCL eta=0.01 at T = 1e-06" in body
+    assert "upper bounds (C still falling: the run settles lower): every other point" in body
+    assert "all decoupled (source share 0)" in body
+    coupled = _thermal_doc(tmp_path, "coupled")
+    (nudge,) = [f for f in coupled.findings if "larger nudge" in f.claim]
+    assert nudge.measured["decoupled GCL runs"] == 0 and "met trivially" not in nudge.rule
+
+
+# -- continuum_learning: the refinement of a prestress field is not comparable -------------
+def _refinement(share):
+    units = {}
+    for key in ("network", "refine0"):
+        meta = {
+            "source_share": share,
+            "coupling": "decoupled" if share < 0.1 else "coupled",
+            "outcome": "met",
+        }
+        units[f"continuum_learning/{key}/gcl"] = SimpleNamespace(
+            meta=meta, arrays={"error": np.array([1.0, 1e-3])}
+        )
+    summary = {
+        "correlation": [0.95],
+        "change": [np.nan, 0.2, 0.05],  # shrinks 4-fold, last <= 0.1: converges
+        "localised": [np.nan],
+    }
+    doc = SimpleNamespace(findings=[])
+    doc.finding = doc.findings.append
+    _verdicts(doc, "gcl", units, summary, [np.nan], 2)
+    (f,) = [f for f in doc.findings if "converges under refinement" in f.claim]
+    return f
+
+
+def test_refinement_of_a_decoupled_field_is_not_comparable():
+    assert _refinement(0.8).verdict == REPRODUCED
+    f = _refinement(0.0)
+    assert f.verdict == NOT_COMPARABLE
+    assert f.rule.endswith(
+        "not comparable when either medium is decoupled (its field is prestress)"
+    )
+    # the old rule judged the prestress field's refinement: changes 0.2 -> 0.05 converge
+    assert f.measured == {"change h/2": 0.2, "change h/4": 0.05}
