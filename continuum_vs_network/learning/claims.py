@@ -30,6 +30,13 @@ that meets it while decoupled met it trivially, :mod:`.coupling`); the verdict i
 "lowers C" and "orders of magnitude"). Medians taken separately over the error and over
 the coupling are not combined.
 
+A claim that C *rises* under GPC is a property of GPC only if it is specific to it: C is
+measured against a rest length that moves, so it can rise under any rule. Such a statement
+is "reproduced" only when its value also exceeds the same metric of the reference rule
+(:data:`REFERENCE_RULE`, the exact gradient) in the same run, and "not comparable"
+otherwise; the reference's and the other rules' values are kept in
+:attr:`ClaimCheck.references`.
+
 The metric: the paper's task error (Figs. 4, 6, 10) is Eq. 26 with strains against the
 learning rest length (Eq. 24 as printed), i.e. ``error_current``; claims about ``C`` are
 judged on it in every scene. The paper's coupled learning clamps in that convention
