@@ -181,7 +181,7 @@ def _held_note(runs) -> str:
         return f"Every trial ran all {runs[0][1].steps if runs else 0} steps."
     return (
         "A trial that stopped is held at its last measured value (its final value in the "
-        "tables); trials that stopped before the last step: " + ", ".join(parts) + "."
+        f"tables); trials that stopped before step {runs[0][1].steps}: " + ", ".join(parts) + "."
     )
 
 
