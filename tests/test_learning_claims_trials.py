@@ -5,6 +5,7 @@ mean curves only over steps every trial measured."""
 from __future__ import annotations
 
 import numpy as np
+from learning_histories import history, stopped
 
 from continuum_vs_network.learning.claims import (
     MIN_STEPS,
@@ -14,45 +15,15 @@ from continuum_vs_network.learning.claims import (
 )
 from continuum_vs_network.learning.history import History
 from continuum_vs_network.learning.replication import paper_experiments
-from continuum_vs_network.learning.stern import stern_network
-from continuum_vs_network.learning.tasks import stern_task
 from continuum_vs_network.report.sections.learning import _common_steps, _ends_note
 from continuum_vs_network.report.sections.learning_checks import trial_outcomes
 
 STEPS = MIN_STEPS
 
 
-def _task():
-    rng = np.random.default_rng(0)
-    net = stern_network(64, rng)
-    every = np.ones(net.n_springs, dtype=bool)
-    return net, stern_task(net, 4, 1, rng, candidates=every, source_std=0.1, target_std=0.1)
-
-
 def _history(err, *, completed=None, reference="current", strain=None) -> History:
-    net, task = _task()
-    n = err.shape[0]
-    data = {"error_current": err, "error_initial": np.full_like(err, np.nan)}
-    if strain is not None:
-        data["target_strain"] = strain
-    return History(
-        steps=err.shape[1] - 1,
-        seeds=np.arange(n),
-        completed=np.full(n, err.shape[1] - 1) if completed is None else np.asarray(completed),
-        stop_reason=("",) * n,
-        settings={"strain_reference": reference},
-        data=data,
-        initial=(net,) * n,
-        final=(net,) * n,
-        tasks=(task,) * n,
-    )
-
-
-def _stopped(err: np.ndarray, completed) -> np.ndarray:
-    err = err.copy()
-    for i, c in enumerate(completed):
-        err[i, c + 1 :] = np.nan
-    return err
+    data = {} if strain is None else {"target_strain": strain}
+    return history(err, completed=completed, reference=reference, data=data)
 
 
 def _gcl(reference="current"):
@@ -63,7 +34,7 @@ def test_size_claims_are_judged_only_on_trials_that_completed_min_steps():
     converge = np.geomspace(1.0, 1e-7, STEPS + 1)
     # 10 trials; the 7 that stop at step 60 end at C/C0 = 1e-7 ** 0.6 ~ 6e-5 (not 1e-6)
     completed = [STEPS] * 3 + [60] * 7
-    err = _stopped(np.array([converge] * 10), completed)
+    err = stopped(np.array([converge] * 10), completed)
     h = _history(err, completed=completed)
     checks = check_claims({"gcl": h}, _gcl(), coupling={"gcl": ["coupled"] * 10})
     assert enough_trials(10) == 5
@@ -72,7 +43,7 @@ def test_size_claims_are_judged_only_on_trials_that_completed_min_steps():
     # 6 of 10 ran the full run: judged on those 6 only (all 6 converge: reproduced,
     # although the 4 short ones never reached C/C0 <= 1e-6)
     completed = [STEPS] * 6 + [60] * 4
-    h = _history(_stopped(np.array([converge] * 10), completed), completed=completed)
+    h = _history(stopped(np.array([converge] * 10), completed), completed=completed)
     checks = check_claims({"gcl": h}, _gcl(), coupling={"gcl": ["coupled"] * 10})
     assert [c.verdict for c in checks] == ["reproduced", "reproduced"]
     assert checks[1].measured == 6.0

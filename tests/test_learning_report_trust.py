@@ -8,13 +8,12 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+from learning_histories import history, stopped
 
 from continuum_vs_network.learning.claims import MIN_STEPS, check_claims
 from continuum_vs_network.learning.history import History
 from continuum_vs_network.learning.metrics import final_values, normalised
 from continuum_vs_network.learning.replication import paper_experiments
-from continuum_vs_network.learning.stern import stern_network
-from continuum_vs_network.learning.tasks import stern_task
 from continuum_vs_network.report.document import Document
 from continuum_vs_network.report.sections.learning import _held_note, held_at_last
 from continuum_vs_network.report.sections.learning_checks import coupling, trial_outcomes
@@ -23,35 +22,14 @@ STEPS = MIN_STEPS
 
 
 def _history(err, *, completed=None, reference="current", gpc=False) -> History:
-    rng = np.random.default_rng(0)
-    net = stern_network(64, rng)
-    every = np.ones(net.n_springs, dtype=bool)
-    task = stern_task(net, 4, 1, rng, candidates=every, source_std=0.1, target_std=0.1)
     n, m = err.shape
-    data = {"error_current": err, "error_initial": err.copy()}
+    data = {"error_initial": err.copy()}
     if gpc:  # what the other GPC statements measure (level: not this test's subject)
         for k in ("energy_clamped", "energy_gradient_clamped"):
             data[k] = np.ones((n, m - 1))
         for k in ("target_length", "desired_length", "target_rest_length"):
             data[k] = np.ones((n, m, 1)) * (2.0 if k == "desired_length" else 1.0)
-    return History(
-        steps=err.shape[1] - 1,
-        seeds=np.arange(n),
-        completed=np.full(n, err.shape[1] - 1) if completed is None else np.asarray(completed),
-        stop_reason=("",) * n,
-        settings={"strain_reference": reference},
-        data=data,
-        initial=(net,) * n,
-        final=(net,) * n,
-        tasks=(task,) * n,
-    )
-
-
-def _stopped(err: np.ndarray, completed) -> np.ndarray:
-    err = err.copy()
-    for i, c in enumerate(completed):
-        err[i, c + 1 :] = np.nan
-    return err
+    return history(err, completed=completed, reference=reference, data=data)
 
 
 def test_a_rise_of_c_is_contradicted_only_on_enough_trials_that_ran_min_steps():
@@ -75,7 +53,7 @@ def test_error_figure_median_holds_stopped_trials_at_their_last_measured_value()
     rise = 1.0 + 0.01 * t  # reaches 2 at step 100
     fall = np.exp(-0.05 * t)
     completed = [STEPS, STEPS, 20, 30, 40]  # three trials stopped while C/C0 was rising
-    err = _stopped(np.array([fall, fall, rise, rise, rise]), completed)
+    err = stopped(np.array([fall, fall, rise, rise, rise]), completed)
     err[3, 30] = np.nan  # lost its equilibrium at step 30: last measurement at 29
     h = _history(err, completed=completed)
     held = held_at_last(h, normalised(h.error_current))
