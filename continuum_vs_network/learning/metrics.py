@@ -59,19 +59,14 @@ def final_values(values: ArrayLike, completed: ArrayLike | None = None) -> NDArr
     of every median and mean silently); without it the last finite entry is used.
     """
     v = np.asarray(values, dtype=np.float64)
-    if completed is not None:
-        idx = np.minimum(np.asarray(completed, dtype=np.int64), v.shape[1] - 1)
-        out = v[np.arange(v.shape[0]), idx]
-        for i in np.flatnonzero(~np.isfinite(out)):
-            finite = np.flatnonzero(np.isfinite(v[i, : idx[i] + 1]))
-            if finite.size:
-                out[i] = v[i, finite[-1]]
-        return out
-    out = np.full(v.shape[0], np.nan)
-    for i, row in enumerate(v):
-        finite = np.flatnonzero(np.isfinite(row))
+    last = v.shape[1] - 1
+    idx = np.full(v.shape[0], last) if completed is None else np.asarray(completed, np.int64)
+    idx = np.minimum(idx, last)
+    out = v[np.arange(v.shape[0]), idx]
+    for i in np.flatnonzero(~np.isfinite(out)):
+        finite = np.flatnonzero(np.isfinite(v[i, : idx[i] + 1]))
         if finite.size:
-            out[i] = row[finite[-1]]
+            out[i] = v[i, finite[-1]]
     return out
 
 
