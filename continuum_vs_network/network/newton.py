@@ -69,7 +69,10 @@ from .trust import TR_DENSE_MAX, StiffSprings, trust_region_newton
 __all__ = ["DENSE_MAX", "factor_pd", "newton", "pattern_for"]
 
 factor_pd = factor_spd  # the name dynamics and benchmarks use
-DAMP_UP = 10.0
+DAMP_UP = 10.0  # shift growth after a step cut below a quarter
+DAMP_UP_MILD = 2.0  # after a step cut to a quarter or more (Nielsen's gentler growth)
+DAMP_RETRY = 1e-4  # least shift after a line search that found no decrease
+DAMP_GIVE_UP = 1e6  # no decrease even at this shift: the solve fails
 DENSE_JACOBIAN = 100_000  # entries: a clamp Jacobian this small is kept dense (0.8 MB)
 DAMP_MIN = 1e-6
 
@@ -186,11 +189,11 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             stiff=stiff,
         )
         if alpha == 0.0:
-            # no decrease along the step: damp harder and refactorise (Levenberg-Marquardt
-            # as a trust region); only a shift past the ladder's top gives up
-            if shift >= 1e6:
+            # no decrease along the step: damp 100x harder and refactorise (Levenberg-
+            # Marquardt as a trust region); only no decrease at DAMP_GIVE_UP gives up
+            if shift >= DAMP_GIVE_UP:
                 return Outcome(x, it + 1, False, "line search found no decrease")
-            shift, reusable = max(100.0 * shift, 1e-4), None
+            shift, reusable = max(100.0 * shift, DAMP_RETRY), None
             continue
         # Levenberg-Marquardt: a cut step asks for more damping next time, a full one less.
         # A step cut to a quarter or more only doubles it (Nielsen's gentler growth): 10x
@@ -198,7 +201,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
         # median 239 -> 217 iterations, strongly prestressed 699 -> 516)
         if alpha < 1.0:
             reusable = None
-            shift = max((DAMP_UP if alpha < 0.25 else 2.0) * shift, DAMP_MIN)
+            shift = max((DAMP_UP if alpha < 0.25 else DAMP_UP_MILD) * shift, DAMP_MIN)
         else:
             shift = shift / 10 if shift > 10 * DAMP_MIN else 0.0
             # the augmentation decays back too: grown without bound over hundreds of
