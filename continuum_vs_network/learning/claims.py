@@ -422,27 +422,23 @@ def _specific_rule(refs) -> str:
 
 def _specific(verdict, reason, m, refs) -> tuple[str, str]:
     """Reproduced only when ``m`` exceeds the reference rule's value (``refs[0]``)."""
-    ref_name, ref = refs[0]
-    values = ", ".join(f"{r}: {v:.3g}" for r, v in refs)
     if verdict != "reproduced":
         return verdict, reason
-    if np.isfinite(ref) and m > ref:
-        return verdict, "; ".join(x for x in (reason, f"above {ref_name} ({values})") if x)
-    return "not comparable", "; ".join(
-        x
-        for x in (
-            reason,
-            (
-                "every rule rises on this metric, the exact gradient included"
-                if all(v > 1 for _, v in refs)
-                else f"the {ref_name} run rises as much on this metric"
-            )
-            + f" ({values})"
-            if np.isfinite(ref)
-            else f"the {ref_name} run's value is not measured",
+    ref_name, ref = refs[0]
+    values = ", ".join(f"{r}: {v:.3g}" for r, v in refs)
+    if not np.isfinite(ref):
+        verdict, why = "not comparable", f"the {ref_name} run's value is not measured"
+    elif m > ref:
+        why = f"above {ref_name} ({values})"
+    elif all(v > 1 for _, v in refs):
+        verdict = "not comparable"
+        why = f"every rule rises on this metric, the exact gradient included ({values})"
+    else:
+        verdict, why = (
+            "not comparable",
+            f"the {ref_name} run rises as much on this metric ({values})",
         )
-        if x
-    )
+    return verdict, "; ".join(x for x in (reason, why) if x)
 
 
 def _judge(st, h, judged, keep, m, family, verdicts) -> tuple[str, str]:

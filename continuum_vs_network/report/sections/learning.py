@@ -172,11 +172,8 @@ def _held_note(runs) -> str:
     measured value in the median)."""
     from ...learning.claims import last_measured
 
-    parts = [
-        f"{name} {int(np.sum(last_measured(hist) < hist.steps))} of {hist.trials}"
-        for name, hist in runs
-        if np.any(last_measured(hist) < hist.steps)
-    ]
+    stopped = [(name, int(np.sum(last_measured(h) < h.steps)), h.trials) for name, h in runs]
+    parts = [f"{name} {n} of {trials}" for name, n, trials in stopped if n]
     if not parts:
         return f"Every trial ran all {runs[0][1].steps if runs else 0} steps."
     return (

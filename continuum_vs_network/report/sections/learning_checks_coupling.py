@@ -106,9 +106,7 @@ def coupling(
                 ]
             )
             if solver == solvers[0] and major is not None:
-                short = int(hist.trials - ran.sum())
-                long = final[ran & np.isfinite(final)]
-                long_med = float(np.median(long)) if long.size else None
+                short, long_med = tally["short"], tally["long_median"]
                 doc.finding(
                     Finding(
                         claim=f"package check (no claim of the paper; {result.scene.name}"
@@ -126,7 +124,7 @@ def coupling(
                         }
                         | (
                             {f"C/C0 (median, trials with >= {MIN_STEPS} steps)": long_med}
-                            if long.size
+                            if np.isfinite(long_med)
                             else {}
                         ),
                         verdict=tally["verdict"],
@@ -171,8 +169,9 @@ def trial_outcomes(final: NDArray, verdicts: list[str], *, ran: NDArray | None =
     """Per-trial joint rule of a run's task outcome, (trials,) final C/C0 and coupling
     verdicts: ``learned`` (C/C0 <= MET_AT and not decoupled), ``trivial`` (met while
     decoupled), ``unmeasured`` (no coupling verdict or no final C/C0), the run's ``outcome``
-    text and the finding's ``verdict``: reproduced when a majority of the trials learned,
-    not comparable when most are unmeasured, contradicted when at least
+    text, ``short`` (trials that did not run the steps), ``long_median`` (median C/C0 over
+    those that did, nan for none) and the finding's ``verdict``: reproduced when a majority
+    of the trials learned, not comparable when most are unmeasured, contradicted when at least
     :func:`~continuum_vs_network.learning.claims.enough_trials` trials ran
     :data:`~continuum_vs_network.learning.claims.MIN_STEPS` steps (``ran``, (trials,) bool;
     None: all of them did) and the median C/C0 over those trials is >= 1, not reproduced
@@ -190,20 +189,23 @@ def trial_outcomes(final: NDArray, verdicts: list[str], *, ran: NDArray | None =
     met = [i for i in measured if final[i] <= MET_AT]
     learned = sum(1 for i in met if verdicts[i] != "decoupled")
     trivial = len(met) - learned
+    ran = np.ones(n, dtype=bool) if ran is None else np.asarray(ran, dtype=bool)
+    long = final[ran & np.isfinite(final)]
+    long_median = float(np.median(long)) if long.size else float("nan")
     if 2 * learned > n:
         outcome, verdict = "learned", "reproduced"
     elif 2 * (n - len(measured)) > n:
         outcome, verdict = "not measured", "not comparable"
     else:
         outcome = "not learned"
-        ran = np.ones(n, dtype=bool) if ran is None else np.asarray(ran, dtype=bool)
-        long = final[ran & np.isfinite(final)]
-        rises = long.size >= enough_trials(n) and float(np.median(long)) >= 1.0
+        rises = long.size >= enough_trials(n) and long_median >= 1.0
         verdict = "contradicted" if rises else "not reproduced"
     return {
         "learned": learned,
         "trivial": trivial,
         "unmeasured": n - len(measured),
+        "short": int(n - ran.sum()),
+        "long_median": long_median,
         "outcome": outcome,
         "verdict": verdict,
     }
