@@ -9,6 +9,7 @@ iterations, overall and for the strongly prestressed half (rest lengths 0.3-3x).
 
     python benchmarks/bench_family.py            # 500 networks
     python benchmarks/bench_family.py --count 100 --seed 1
+    python benchmarks/bench_family.py --medium --count 100  # 170-530 nodes: just above dense
     python benchmarks/bench_family.py --large --count 60   # 500-1100 nodes: the sparse Newton
 
 Targets: 0 failures, median <= 30, p95 <= 120 iterations. Clamp sets that no network can
@@ -35,24 +36,36 @@ def _parse() -> argparse.Namespace:
         help="lattices of 24-33 per side and Delaunay meshes of 500-1100 nodes (no paper "
         "patches): above the dense trust-region size, so the sparse Newton solves them",
     )
+    p.add_argument(
+        "--medium",
+        action="store_true",
+        help="lattices of 13-23 per side and Delaunay meshes of 170-530 nodes (no paper "
+        "patches): just above the dense trust-region size",
+    )
     return p.parse_args()
 
 
-def family_member(rng, *, large: bool = False):
-    """One random network and its clamps: ``(kind, prestressed, net, clamped)``; ``large``:
-    the same distributions on networks of 500-1100 nodes (lattices and Delaunay meshes)."""
+def family_member(rng, *, large: bool = False, medium: bool = False):
+    """One random network and its clamps: ``(kind, prestressed, net, clamped)``; ``large``
+    (``medium``): the same distributions on networks of 500-1100 (170-530) nodes, lattices
+    and Delaunay meshes."""
     import numpy as np
     from scipy.spatial import Delaunay
 
     import continuum_vs_network as cvn
     from continuum_vs_network.network.builders import paper_network, triangular_lattice
 
-    kind = ("lattice", "delaunay", "paper")[rng.integers(2 if large else 3)]
+    sides, nodes = (24, 34), (500, 1100)
+    if medium:
+        sides, nodes = (13, 24), (170, 530)
+    elif not large:
+        sides, nodes = (5, 13), (20, 120)
+    kind = ("lattice", "delaunay", "paper")[rng.integers(2 if large or medium else 3)]
     if kind == "lattice":
-        side = int(rng.integers(24, 34) if large else rng.integers(5, 13))
+        side = int(rng.integers(*sides))
         net = triangular_lattice(side, side, noise=0.15, rng=rng)
     elif kind == "delaunay":
-        n = int(rng.integers(500, 1100) if large else rng.integers(20, 120))
+        n = int(rng.integers(*nodes))
         pts = rng.random((n, 2)) * np.sqrt(n)
         tri = Delaunay(pts).simplices
         edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
@@ -104,7 +117,7 @@ def main() -> None:
     rows = []
     t0 = time.perf_counter()
     for i in range(args.count):
-        kind, prestressed, net, clamped = family_member(rng, large=args.large)
+        kind, prestressed, net, clamped = family_member(rng, large=args.large, medium=args.medium)
         if incompatible(net, clamped):
             kind = "incompatible"
         try:

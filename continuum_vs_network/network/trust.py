@@ -132,23 +132,39 @@ class StiffSprings:
         return J, r
 
     def restore(self, y: NDArray, x: NDArray, dx: NDArray) -> NDArray | None:
-        """``dx`` (n,) in the row order of ``coords`` given to :meth:`find`."""
+        """``dx`` (n,) in the row order of ``coords`` given to :meth:`find`.
+
+        A chord iteration: ``J J^T`` is factorised at the first iterate and reused while
+        each correction cuts the length error at least 10-fold (refactorised otherwise);
+        on the sparse trust region's networks (40 % of springs stiff) a factorisation per
+        Gauss-Newton iteration was half of the solve's time."""
         J0, r0 = self._jacobian(x)
         target = r0 + J0 @ dx
         z = y.copy()
         coords = np.flatnonzero(self.index >= 0)
         order = self.index[coords]
-        for _ in range(8):
+        lu = None
+        last = np.inf
+        fresh = False  # the factorisation was made at the last iterate
+        for _ in range(12):
             J, r = self._jacobian(z)
             c = r - target
-            if np.max(np.abs(c)) <= 1e-14 * max(float(np.max(r0)), 1e-300):
+            error = float(np.max(np.abs(c)))
+            if error <= 1e-14 * max(float(np.max(r0)), 1e-300):
                 return z
-            G = (J @ J.T).tocsc() + 1e-12 * sp.identity(J.shape[0], format="csc")
-            try:
-                lam = spla.splu(G).solve(c)
-            except RuntimeError:
-                return None
-            move = -(J.T @ lam)
+            if error > 0.1 * last:
+                if fresh and error > 0.5 * last:
+                    return None  # Gauss-Newton itself stalls: the lengths are not reachable
+                lu = None
+            fresh = lu is None
+            if lu is None:
+                G = (J @ J.T).tocsc() + 1e-12 * sp.identity(J.shape[0], format="csc")
+                try:
+                    lu = spla.splu(G)
+                except RuntimeError:
+                    return None
+            last = error
+            move = -(J.T @ lu.solve(c))
             z = z.copy()
             z.ravel()[coords] += move[order]
             if not np.all(np.isfinite(z)):

@@ -1,0 +1,48 @@
+"""The projection of stiff springs back onto their linearly predicted lengths
+(``StiffSprings.restore``): it meets reachable lengths to round-off and gives up at once on
+lengths no placement of the nodes can have."""
+
+import numpy as np
+
+from continuum_vs_network.network.trust import StiffSprings
+
+
+def _springs(springs, n_nodes):
+    index = np.arange(2 * n_nodes)  # every coordinate free, natural order
+    return StiffSprings(np.asarray(springs), index, 2 * n_nodes)
+
+
+def _lengths(x, springs):
+    d = x[springs[:, 1]] - x[springs[:, 0]]
+    return np.hypot(d[:, 0], d[:, 1])
+
+
+def test_a_triangle_turned_by_a_linear_step_gets_its_predicted_lengths_back():
+    springs = np.array([[0, 1], [1, 2], [2, 0]])
+    x = np.array([[0.0, 0.0], [1.0, 0.0], [0.3, 0.8]])
+    # a rotation by 0.4 rad taken linearly: it stretches every side to second order
+    turn = 0.4 * np.array([[0.0, -1.0], [1.0, 0.0]])
+    dx = (x @ turn.T).ravel()
+    y = x + dx.reshape(x.shape)
+    stiff = _springs(springs, 3)
+    z = stiff.restore(y, x, dx)
+    assert z is not None
+    J0, r0 = stiff._jacobian(x)
+    target = r0 + J0 @ dx  # the lengths the linear model predicts: r0 (a rotation)
+    np.testing.assert_allclose(_lengths(z, springs), target, rtol=0, atol=1e-13)
+    assert np.max(np.abs(_lengths(y, springs) - target)) > 1e-2  # the step had stretched them
+
+
+def test_lengths_no_placement_can_have_are_refused_quickly():
+    # a braced square: 6 lengths on 4 nodes (5 shape coordinates), so the second-order
+    # lengths of a large linear step are in general not reachable
+    springs = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [0, 2], [1, 3]])
+    x = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    rng = np.random.default_rng(3)
+    dx = 0.3 * rng.standard_normal(8)
+    stiff = _springs(springs, 4)
+    calls = []
+    jacobian = stiff._jacobian
+    stiff._jacobian = lambda z: calls.append(1) or jacobian(z)
+    assert stiff.restore(x + dx.reshape(4, 2), x, dx) is None
+    assert len(calls) <= 5  # it stops once Gauss-Newton stalls, not after 12 iterations
