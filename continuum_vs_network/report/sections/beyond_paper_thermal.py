@@ -177,8 +177,10 @@ def _thermal(doc, scene, units) -> None:
         """The noise scene's caveat (:func:`.decoupled_caveat`) over the judged GCL runs
         (unit keys under beyond/thermal/) whose coupling was measured."""
         metas = [units[f"beyond/thermal/{k}"].meta for k in judged]
+        metas = [m for m in metas if "coupling" in m]
         return decoupled_caveat(
-            [m["coupling"] for m in metas if "coupling" in m],
+            [m["coupling"] for m in metas],
+            ratios=[m.get("ratio", np.nan) for m in metas],
             runs=f"GCL runs judged here ({which}) with a coupling measurement",
             what="The floor is the rule's error under its thermal update noise over the "
             "steps run, whichever minimum the run descends to",
