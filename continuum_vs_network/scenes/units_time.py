@@ -32,7 +32,10 @@ the oscillation: the largest factor by which the error climbs back above its run
 minimum (floored at ``FLOOR``) at a time when it is above the quasi-static run's error
 (:func:`rebound`; a rebound the quasi-static run shares is the learning step's). The
 critical ratio is a bracket (:func:`critical_bracket`), narrowed by bisection inside the
-grid's bracket.
+grid's bracket. The coupling of every run's final learned state (source share and verdict,
+the unit's verdict from the smallest share: :mod:`.units_time_coupling`); the final state
+of each grid ratio is stored (``r<i>/rest_length``, ``r<i>/stiffness``; a body: its
+eigenstrain and modulus fields).
 """
 
 from __future__ import annotations
@@ -274,6 +277,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Learning in physical time against the ratio, for one size, draw, rule and medium."""
     from ..learning.physical_time import learn_in_time
     from ..learning.rules import LearningError
+    from .units_time_coupling import final_coupling, final_state, unit_coupling
 
     spec = scene.physical_time
     n, name, medium = params["n"], params["rule"], params.get("medium", "network")
@@ -346,6 +350,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
             "diverged": run is None,
             "error0": error0,
         }
+        row.update(final_coupling(net, task, run, medium))
         if run is None:  # diverged: never learned, unbounded oscillation
             row.update(
                 {
@@ -382,6 +387,8 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         for name_ in ("times", "error", "times_qs", "error_qs"):
             arrays[f"r{i}/{name_}"] = out[name_]
         run = out["run"]
+        if run is not None:  # the final learned state, whose coupling the row carries
+            arrays[f"r{i}/rest_length"], arrays[f"r{i}/stiffness"] = final_state(run)
         if params["series"] and ratio == series_ratio and run is not None:
             idx = np.unique(np.linspace(0, run.times.size - 1, spec.frames).round().astype(int))
             arrays.update(_series_arrays(net, task, run, idx, medium))
@@ -424,6 +431,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         "series_ratio": series_ratio if params["series"] else None,
         "runs": rows,
         "bisection": extra,
+        **unit_coupling(rows + extra),
     }
     return arrays, meta
 
