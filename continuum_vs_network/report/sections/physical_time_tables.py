@@ -47,9 +47,25 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
                 for n in sizes
             ]
         )
+    for name, units in rules.items():
+        rows.append(
+            [f"source share, {_NAMES[name]}"]
+            + [
+                _spread(
+                    [
+                        u.meta["source_share"]
+                        for u in units
+                        if u.meta["n_nodes"] == n and u.meta.get("source_share") is not None
+                    ]
+                )
+                for n in sizes
+            ]
+        )
     doc.add(
         "Median [smallest, largest] (number of draws) per size; rho*: over the draws whose "
-        "bracket is closed on both sides:"
+        "bracket is closed on both sides; source share: the coupling of the learned state "
+        "(`learning/coupling.py`; coupled from 0.5, decoupled below 0.1), per draw the "
+        "smallest over the ratios run:"
     )
     doc.table(["quantity"] + [f"N = {n}" for n in sizes], rows)
     parts = []
