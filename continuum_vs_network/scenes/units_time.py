@@ -78,6 +78,8 @@ def draws_per_size(scene: Scene) -> list[int]:
 def plan_time(scene: Scene) -> list[Unit]:
     """Phase 0: one task unit per size and draw; phase 1: one unit per size, draw, rule
     and medium, the largest sizes first (the longest units start first)."""
+    from .units_time_coupling import coupling_rule
+
     d = scene.to_dict()
     depends = {k: d[k] for k in ("seed", "network", "task", "physical_time") if k in d}
     sizes = [int(n) for n in scene.network.sizes]
@@ -100,7 +102,7 @@ def plan_time(scene: Scene) -> list[Unit]:
                 "medium": medium,
                 "series": bool(series and n == sizes[-1] and j == 0),
             },
-            depends=depends,
+            depends={**depends, "coupling": coupling_rule()},
             phase=1,
         )
         for n, m in sorted(zip(sizes, draws), reverse=True)

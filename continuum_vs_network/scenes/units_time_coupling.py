@@ -33,7 +33,16 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["final_coupling", "final_share", "final_state", "unit_coupling"]
+__all__ = ["coupling_rule", "final_coupling", "final_share", "final_state", "unit_coupling"]
+
+
+def coupling_rule() -> dict[str, Any]:
+    """The verdict's thresholds, which a run unit's stored verdict depends on (part of its
+    fingerprint: a unit stored under other thresholds, or before runs measured coupling,
+    is recomputed)."""
+    from ..learning.coupling import COUPLED_AT, DECOUPLED_BELOW
+
+    return {"coupled_at": COUPLED_AT, "decoupled_below": DECOUPLED_BELOW}
 
 
 def final_state(run) -> tuple[np.ndarray, np.ndarray]:
