@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...learning.coupling import COUPLED_AT, DECOUPLED_BELOW
 from ..document import Document, fmt
 from .physical_time_figures import bracket_closed
 from .physical_time_units import _NAMES, _bracket
@@ -63,9 +64,11 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
         )
     doc.add(
         "Median [smallest, largest] (number of draws) per size; rho*: over the draws whose "
-        "bracket is closed on both sides; source share: the coupling of the learned state "
-        "(`learning/coupling.py`; coupled from 0.5, decoupled below 0.1), per draw the "
-        "smallest over the ratios run:"
+        "bracket is closed on both sides; source share: the coupling of the final learned "
+        "state by the rule of `learning/coupling.py` (coupled from "
+        f"{COUPLED_AT:g}, decoupled below {DECOUPLED_BELOW:g}; at the free state the run "
+        "reads, a network's sources held by their end nodes), per draw the smallest over "
+        "the ratios run:"
     )
     doc.table(["quantity"] + [f"N = {n}" for n in sizes], rows)
     parts = []
