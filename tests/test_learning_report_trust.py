@@ -126,3 +126,34 @@ def test_package_checks_on_non_equilibrium_states_carry_the_claims_tag_and_note(
     doc = Document(tmp_path, 30)
     coupling(doc, result, lambda s, r, i=0: h, ("paper",), ("gcl",))
     assert "non-equilibrium" not in doc.findings[0].claim
+
+
+def _rest_length_claim(curve):
+    """The GPC claim "the target rest-length error converges to 0" on 4 trials whose
+    rest-length error follows ``curve`` (steps + 1,), desired length 2."""
+    err = np.ones((4, curve.size))
+    h = _history(err, reference="initial", gpc=True)
+    h.data["target_rest_length"] = np.broadcast_to(2.0 - curve[None, :, None], (4, curve.size, 1))
+    checks = check_claims({"gpc": h}, _gpc_initial())
+    return next(c for c in checks if c.claim.startswith("the target rest-length error"))
+
+
+def test_convergence_to_0_is_not_reproduced_only_once_the_error_stopped_falling():
+    t = np.arange(STEPS + 1, dtype=float)
+    # at 0.26 after the steps run, still falling 28 % over the last quarter: it would
+    # settle lower, so the run cannot show that it does not converge to 0
+    falling = np.exp(np.log(0.26) * t / STEPS)
+    c = _rest_length_claim(falling)
+    assert np.isclose(c.measured, 0.26) and c.verdict == "not comparable"
+    assert c.reason.startswith("still falling: -28 %") and "stopped falling" in c.rule
+    # the same final value on a curve that settled there: not reproduced
+    settled = 0.26 + 0.74 * np.exp(-0.1 * t)
+    c = _rest_length_claim(settled)
+    assert np.isclose(c.measured, 0.26, rtol=1e-3) and c.verdict == "not reproduced"
+    assert c.reason.startswith("plateaued: ")
+    # rising at the end (it cannot settle below the value read): not reproduced
+    c = _rest_length_claim(np.r_[falling[:76], falling[75] * np.exp(0.02 * t[1:26])])
+    assert c.verdict == "not reproduced" and c.reason.startswith("still rising: ")
+    # converged to 1e-3 (still falling): reproduced
+    c = _rest_length_claim(np.exp(np.log(1e-3) * t / STEPS))
+    assert np.isclose(c.measured, 1e-3) and c.verdict == "reproduced"

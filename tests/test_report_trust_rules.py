@@ -7,6 +7,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from continuum_vs_network.report.document import Document
 from continuum_vs_network.report.findings import (
@@ -74,17 +75,32 @@ def test_learning_speed_claims_need_a_coupling_measurement(tmp_path):
 def test_decoupled_caveat_counts_and_words():
     from continuum_vs_network.report.sections.learning_checks_noise import decoupled_caveat
 
+    verdicts = ["decoupled", "coupled", "decoupled", "decoupled", "decoupled"]
+    # final C/C0: met (<= 0.01), coupled, not met twice, not known
+    ratios = [1e-3, 1e-4, 0.02, 0.5, np.nan]
+    text, counts = decoupled_caveat(verdicts, ratios=ratios, runs="runs", what="X", noun="trials")
+    assert counts == {"trials": 5, "decoupled trials": 4, "trials met trivially (decoupled)": 1}
+    assert text.startswith("The 5 runs: 4 decoupled")
+    assert "1 met the task (final C/C0 <= 0.01) trivially" in text
+    assert "2 did not meet the task (final C/C0 0.02 to 0.5, above 0.01): their error is " in text
+    assert "1 have no final C/C0" in text
+    # decoupled runs that did not meet the task are not said to have met it
     text, counts = decoupled_caveat(
-        ["decoupled", "coupled", "decoupled"], runs="runs", what="X", noun="trials"
+        ["decoupled"] * 2, ratios=[0.02, 0.03], runs="runs", what="X", noun="trials"
     )
-    assert counts == {"trials": 3, "decoupled trials": 2}
-    assert text.startswith("The 3 runs: 2 decoupled") and "met trivially" in text
-    text, counts = decoupled_caveat(["coupled"], runs="runs", what="X", noun="trials")
+    assert "met the task" not in text and "trivially" not in text
+    assert "not carried by the sources" in text and counts["trials met trivially (decoupled)"] == 0
+    text, counts = decoupled_caveat(
+        ["coupled"], ratios=[1e-3], runs="runs", what="X", noun="trials"
+    )
     assert counts["decoupled trials"] == 0 and text.endswith("none here is decoupled.")
-    assert decoupled_caveat([], runs="runs", what="X", noun="trials") == ("", {})
+    assert decoupled_caveat([], ratios=[], runs="runs", what="X", noun="trials") == ("", {})
+    with pytest.raises(ValueError, match="ratios needs one final C/C0 per verdict"):
+        decoupled_caveat(["coupled"], ratios=[], runs="runs", what="X", noun="trials")
 
 
-def _thermal_doc(tmp_path, coupling):
+def _thermal_doc(tmp_path, coupling, ratio=None):
+    """``ratio``: every run's final C/C0 (None: that of its error curve)."""
     temps, etas = (0.0, 1e-6), (0.01, 1.0)
     steps = np.arange(61)
     falling = 0.04 * 0.93**steps  # -64 % over the last quarter: an upper bound
@@ -93,7 +109,10 @@ def _thermal_doc(tmp_path, coupling):
     for i in range(len(temps)):
         for run in [f"gcl_eta{eta:g}" for eta in etas] + ["exact"]:
             err = level if (i, run) == (1, "gcl_eta0.01") else falling
-            meta = {"floor": float(np.median(err[-15:]))}
+            meta = {
+                "floor": float(np.median(err[-15:])),
+                "ratio": float(err[-1] / err[0]) if ratio is None else ratio,
+            }
             if coupling is not None:
                 meta |= {"coupling": coupling, "source_share": 0.0}
             units[f"beyond/thermal/T{i}/{run}"] = SimpleNamespace(meta=meta, arrays={"error": err})
@@ -111,7 +130,12 @@ def test_thermal_floors_disclose_decoupled_runs_and_unsettled_points(tmp_path):
     (nudge,) = [f for f in doc.findings if "larger nudge" in f.claim]
     assert nudge.verdict == REPRODUCED  # judged on every run, as the noise floor is
     assert nudge.measured["decoupled GCL runs"] == 2 and nudge.measured["GCL runs"] == 2
-    assert "met trivially (by prestress)" in nudge.rule
+    # final C/C0 0.0129 (0.93^60) and 1: the task is not met, so not "met trivially"
+    assert (
+        "trivially" not in nudge.rule and nudge.measured["GCL runs met trivially (decoupled)"] == 0
+    )
+    assert "2 did not meet the task (final C/C0 0.0129 to 1, above 0.01)" in nudge.rule
+    assert "their error is not carried by the sources" in nudge.rule
     (grows,) = [f for f in doc.findings if "grows with the temperature" in f.claim]
     assert grows.measured["decoupled GCL runs"] == 4
     body = "\n".join(doc.lines)
@@ -119,6 +143,10 @@ def test_thermal_floors_disclose_decoupled_runs_and_unsettled_points(tmp_path):
     assert "GCL eta=0.01 at T = 1e-06" in body
     assert "upper bounds (C still falling: the run settles lower): every other point" in body
     assert "all decoupled (source share 0)" in body
+    met = _thermal_doc(tmp_path, "decoupled", ratio=1e-3)
+    (nudge,) = [f for f in met.findings if "larger nudge" in f.claim]
+    assert "2 met the task (final C/C0 <= 0.01) trivially" in nudge.rule
+    assert nudge.measured["GCL runs met trivially (decoupled)"] == 2
     coupled = _thermal_doc(tmp_path, "coupled")
     (nudge,) = [f for f in coupled.findings if "larger nudge" in f.claim]
     assert nudge.measured["decoupled GCL runs"] == 0 and "met trivially" not in nudge.rule

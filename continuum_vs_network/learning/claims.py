@@ -23,6 +23,11 @@ length; claims of a *size* reached (orders of magnitude, C = 0, ~50 %, 33 %, con
 paper's 300; :func:`last_measured`), and are "not comparable" when fewer than
 :func:`enough_trials` of them did.
 
+A claim that a quantity *converges to 0*, read between its bounds, is "not reproduced"
+only when the median curve over the judged trials has stopped falling by the plateau test
+(:func:`.metrics.tail_change`, :func:`.metrics.bound`), and "not comparable" while it
+still falls (the run settles lower than the value read; the reason gives the change).
+
 A claim that the task is learned, or that C is lowered, is judged per trial: a trial meets
 it when its own final value does *and* its own coupling verdict is not decoupled (a trial
 that meets it while decoupled met it trivially, :mod:`.coupling`); the verdict is
@@ -57,7 +62,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .history import History
-from .metrics import final_values, length_error, normalised, rest_length_error
+from .metrics import (
+    PLATEAU,
+    bound,
+    final_values,
+    length_error,
+    normalised,
+    rest_length_error,
+    tail_change,
+)
 
 __all__ = [
     "MIN_STEPS",
@@ -195,6 +208,9 @@ class _Statement:
     # a rise that must be specific to the claimed rule: reproduced only when the measured
     # value exceeds that of the reference rule (:data:`REFERENCE_RULE`) in the same run
     specific: bool = False
+    # a claim of convergence to 0: the quantity's normalised curves (trials, steps + 1);
+    # "not reproduced" stands only when their median has stopped falling (:func:`_settled`)
+    curve: Callable[[History], NDArray] | None = None
 
 
 def _c_ratio(h: History) -> NDArray:
@@ -298,6 +314,7 @@ def _gpc_statements() -> list[_Statement]:
             lambda m, n: (
                 "reproduced" if m <= 1e-2 else "contradicted" if m >= 1 else "not reproduced"
             ),
+            curve=lambda h: normalised(rest_length_error(h)),
         ),
     ]
 
@@ -392,7 +409,8 @@ def check_claims(
                         if st.size
                         else ""
                     )
-                    + (_specific_rule(refs) if st.specific else ""),
+                    + (_specific_rule(refs) if st.specific else "")
+                    + (_SETTLED_RULE if st.curve is not None else ""),
                     verdict=verdict,
                     reason=reason,
                     references=refs,
@@ -441,6 +459,30 @@ def _specific(verdict, reason, m, refs) -> tuple[str, str]:
     return verdict, "; ".join(x for x in (reason, why) if x)
 
 
+_SETTLED_RULE = (
+    "; in between, not reproduced only when the median curve over the trials judged has "
+    "stopped falling (its fitted relative change over the last quarter of the steps, "
+    f"learning.metrics.tail_change, is >= -{PLATEAU:.0%}), not comparable while it is still "
+    "falling (the run settles lower than the value read)"
+)
+
+
+def _settled(curves: NDArray, h: History) -> tuple[str, str]:
+    """Verdict and reason of a convergence claim whose value lies between its bounds, from
+    the median over the trials of ``curves`` (trials, steps + 1) up to the last step all of
+    ``h``'s trials measured: "not reproduced" when it has stopped falling (a plateau or
+    still rising, :func:`.metrics.bound`), else "not comparable"."""
+    end = int(np.min(last_measured(h)))
+    change = tail_change(np.median(np.asarray(curves, dtype=np.float64)[:, : end + 1], axis=0))
+    kind = bound(change)
+    if kind == "unknown":
+        return "not comparable", "no finite change of the median curve over the last quarter"
+    pct = f"{100 * change:+.2g} % over the last quarter of the steps (fitted, median curve)"
+    if kind == "upper bound":
+        return "not comparable", f"still falling: {pct}"
+    return "not reproduced", ("plateaued: " if kind == "plateau" else "still rising: ") + pct
+
+
 def _judge(st, h, judged, keep, m, family, verdicts) -> tuple[str, str]:
     """The verdict of one statement and its reason (rules: module docstring)."""
     if h.strain_reference not in _PAPER_CONVENTIONS[family]:
@@ -456,6 +498,9 @@ def _judge(st, h, judged, keep, m, family, verdicts) -> tuple[str, str]:
     n = judged.trials
     verdict = st.judge(m, n)
     note = f"{n} of {h.trials} trials judged; " if n < h.trials else ""
+    if st.curve is not None and verdict == "not reproduced":
+        verdict, why = _settled(st.curve(judged), judged)
+        note += why
     if st.per_trial is None:
         return verdict, note.rstrip("; ")
     if not verdicts:

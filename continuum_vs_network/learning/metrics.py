@@ -2,7 +2,8 @@
 
 Error curves (Fig. 4, 6, 8-10 of the paper) are per-trial arrays scaled by their initial
 value; :func:`summary` reduces the final values over trials; :func:`source_sweep` is the
-response of a trained network to other source strains (Fig. 5, appendix A.2 / A.3).
+response of a trained network to other source strains (Fig. 5, appendix A.2 / A.3);
+:func:`tail_change` and :func:`bound` tell whether a curve has settled (the plateau test).
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ from .states import Solver, Tracker
 from .tasks import AllosteryTask, StrainReference
 
 __all__ = [
+    "PLATEAU",
+    "bound",
     "cosine",
     "final_values",
     "length_error",
@@ -24,7 +27,14 @@ __all__ = [
     "rest_length_error",
     "source_sweep",
     "summary",
+    "tail_change",
 ]
+
+#: a curve has plateaued when its fitted relative change over the window a floor or a final
+#: value is read from (the last quarter of the steps) is at most this; else it is still
+#: falling (the value read is an upper bound of where the run settles) or still rising (a
+#: lower bound)
+PLATEAU = 0.1
 
 
 def normalised(values: ArrayLike) -> NDArray:
@@ -48,6 +58,33 @@ def rest_length_error(history: History) -> NDArray:
     """Fig. 9: ``sum_T |L_T - l_T|``, distance of the target rest lengths from the
     lengths that give the desired strains, (trials, steps + 1)."""
     return np.sum(np.abs(history.target_rest_length - history.desired_length), axis=-1)
+
+
+def tail_change(error: ArrayLike, *, fraction: float = 0.25) -> float:
+    """Fitted relative change of the error over its last ``fraction`` of entries: a least
+    squares line through log(error) against the step, ``exp(slope * (n - 1)) - 1`` over
+    the ``n = max(1, size * fraction)`` last entries (the window the floor is the median
+    of); NaN when fewer than 2 entries or any is not finite and positive.
+
+    ``error`` : (steps + 1,) float array (any scale).
+    """
+    e = np.asarray(error, dtype=np.float64).ravel()
+    tail = e[-max(1, int(e.size * fraction)) :]
+    if tail.size < 2 or not np.all(np.isfinite(tail) & (tail > 0)):
+        return float("nan")
+    slope = np.polyfit(np.arange(tail.size, dtype=float), np.log(tail), 1)[0]
+    return float(np.expm1(slope * (tail.size - 1)))
+
+
+def bound(change: float) -> str:
+    """What a value read at the end of a curve is, from :func:`tail_change`: "plateau"
+    (``|change| <= PLATEAU``), "upper bound" (still falling), "lower bound" (still rising)
+    or "unknown" (NaN)."""
+    if not np.isfinite(change):
+        return "unknown"
+    if abs(change) <= PLATEAU:
+        return "plateau"
+    return "upper bound" if change < 0 else "lower bound"
 
 
 def final_values(values: ArrayLike, completed: ArrayLike | None = None) -> NDArray:

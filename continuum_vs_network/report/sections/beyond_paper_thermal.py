@@ -1,5 +1,7 @@
 """Thermal noise in the ``beyond_paper`` section (:mod:`.beyond_paper`): the error floor
-against temperature.
+against temperature. Floors are told settled or not by the plateau test of
+:func:`~continuum_vs_network.learning.metrics.tail_change` and
+:func:`~continuum_vs_network.learning.metrics.bound`.
 """
 
 from __future__ import annotations
@@ -8,6 +10,7 @@ import itertools
 
 import numpy as np
 
+from ...learning.metrics import PLATEAU, bound, tail_change
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 from .beyond_paper_format import _g
@@ -15,36 +18,6 @@ from .learning_checks_noise import decoupled_caveat
 
 #: the least rise of a floor that counts as a rise (runs differ by ~1 % at equal settings)
 RISE = 1.1
-#: a floor is a plateau when the error's fitted relative change over the window it is read
-#: from (the last quarter of the steps) is at most this; else it is still falling (the
-#: floor is an upper bound of where the run settles) or still rising (a lower bound)
-PLATEAU = 0.1
-
-
-def tail_change(error, *, fraction: float = 0.25) -> float:
-    """Fitted relative change of the error over its last ``fraction`` of entries: a least
-    squares line through log(error) against the step, ``exp(slope * (n - 1)) - 1`` over
-    the ``n = max(1, size * fraction)`` last entries (the window the floor is the median
-    of); NaN when fewer than 2 entries or any is not finite and positive.
-
-    ``error`` : (steps + 1,) float array (any scale).
-    """
-    e = np.asarray(error, dtype=np.float64).ravel()
-    tail = e[-max(1, int(e.size * fraction)) :]
-    if tail.size < 2 or not np.all(np.isfinite(tail) & (tail > 0)):
-        return float("nan")
-    slope = np.polyfit(np.arange(tail.size, dtype=float), np.log(tail), 1)[0]
-    return float(np.expm1(slope * (tail.size - 1)))
-
-
-def bound(change: float) -> str:
-    """What a floor is, from :func:`tail_change`: "plateau", "upper bound" (still falling),
-    "lower bound" (still rising) or "unknown" (NaN)."""
-    if not np.isfinite(change):
-        return "unknown"
-    if abs(change) <= PLATEAU:
-        return "plateau"
-    return "upper bound" if change < 0 else "lower bound"
 
 
 def _at_least(kind: str) -> bool:  # the settled value is >= the floor read
@@ -204,8 +177,10 @@ def _thermal(doc, scene, units) -> None:
         """The noise scene's caveat (:func:`.decoupled_caveat`) over the judged GCL runs
         (unit keys under beyond/thermal/) whose coupling was measured."""
         metas = [units[f"beyond/thermal/{k}"].meta for k in judged]
+        metas = [m for m in metas if "coupling" in m]
         return decoupled_caveat(
-            [m["coupling"] for m in metas if "coupling" in m],
+            [m["coupling"] for m in metas],
+            ratios=[m.get("ratio", np.nan) for m in metas],
             runs=f"GCL runs judged here ({which}) with a coupling measurement",
             what="The floor is the rule's error under its thermal update noise over the "
             "steps run, whichever minimum the run descends to",

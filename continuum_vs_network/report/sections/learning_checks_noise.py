@@ -15,34 +15,66 @@ from .learning_checks_text import CONVENTION_TEXT
 __all__ = ["decoupled_caveat", "noise_floor"]
 
 
-def decoupled_caveat(verdicts, *, runs: str, what: str, noun: str) -> tuple[str, dict]:
+def decoupled_caveat(verdicts, *, ratios, runs: str, what: str, noun: str) -> tuple[str, dict]:
     """The caveat of a noise floor judged on every run, decoupled or not, and its counts.
 
     ``verdicts``: per-run coupling verdicts (:mod:`...learning.coupling`; empty when not
-    measured); ``runs``: what they are, in words; ``what``: what the judged quantity is a
-    property of (a sentence without its full stop); ``noun``: the counted thing ("trials").
-    Returns the sentences ("" when nothing is measured) and ``{noun: n, "decoupled "
-    + noun: d}`` for a finding's ``measured`` (empty when nothing is measured). Where runs
-    are decoupled the floor describes the rule's noise on a task met trivially (by
-    prestress), not on learned allostery."""
+    measured); ``ratios``: each run's final C/C0 (NaN: not known), one per verdict, which
+    tells whether it met the task (``<= MET_AT``); ``runs``: what they are, in words;
+    ``what``: what the judged quantity is a property of (a sentence without its full
+    stop); ``noun``: the counted thing ("trials"). Returns the sentences ("" when nothing
+    is measured) and ``{noun: n, "decoupled " + noun: d, noun + " met trivially
+    (decoupled)": k}`` for a finding's ``measured`` (empty when nothing is measured). Only
+    the decoupled runs that met the task are said to have met it trivially; of those that
+    did not, that their error is not carried by the sources."""
+    from ...learning.coupling import MET_AT
+
+    verdicts = list(verdicts)
+    ratios = np.asarray(ratios, dtype=np.float64).ravel()
+    if ratios.size != len(verdicts):
+        raise ValueError(
+            f"ratios needs one final C/C0 per verdict ({len(verdicts)}), got {ratios.size}"
+        )
     if not verdicts:
         return "", {}
-    decoupled = list(verdicts).count("decoupled")
+    dec = np.array([v == "decoupled" for v in verdicts], dtype=bool)
+    met, missed = dec & (ratios <= MET_AT), dec & (ratios > MET_AT)
+    unknown = int(dec.sum() - met.sum() - missed.sum())
+    parts = []
+    if met.any():
+        parts.append(
+            f"{int(met.sum())} met the task (final C/C0 <= {MET_AT:g}) trivially, their target "
+            "strains not carried by the sources"
+        )
+    if missed.any():
+        lo, hi = fmt(float(ratios[missed].min())), fmt(float(ratios[missed].max()))
+        parts.append(
+            f"{int(missed.sum())} did not meet the task (final C/C0 "
+            + (lo if lo == hi else f"{lo} to {hi}")
+            + f", above {MET_AT:g}): their error is not carried by the sources"
+        )
+    if unknown:
+        parts.append(f"{unknown} have no final C/C0 (whether they met the task is not known)")
     text = (
-        f"The {len(verdicts)} {runs}: {decoupled} decoupled (learning.coupling). {what}; it "
-        "is judged on every run, "
+        f"The {len(verdicts)} {runs}: {int(dec.sum())} decoupled (learning.coupling). {what}; "
+        "it is judged on every run, "
         + (
-            "but where the runs are decoupled it describes noise on a task met trivially "
-            "(by prestress), not on learned allostery."
-            if decoupled
+            f"but a decoupled run shows no learned allostery; of the {int(dec.sum())} "
+            "decoupled runs, " + "; ".join(parts) + "."
+            if dec.any()
             else "and none here is decoupled."
         )
     )
-    return text, {noun: len(verdicts), f"decoupled {noun}": decoupled}
+    return text, {
+        noun: len(verdicts),
+        f"decoupled {noun}": int(dec.sum()),
+        f"{noun} met trivially (decoupled)": int(met.sum()),
+    }
 
 
 def noise_floor(doc: Document, result, h, solver: str, names) -> None:
     """Floors of every run against the noise, the (sigma/eta)^2 fit, a table."""
+    from ...learning.metrics import final_values, normalised
     from ...learning.noise import floor_scaling
     from ...learning.noise import noise_floor as floor_of
 
@@ -91,15 +123,17 @@ def noise_floor(doc: Document, result, h, solver: str, names) -> None:
         f"Fit over {fit['n']} GCL points: floor = {fmt(fit['c'])} (sigma/eta)^"
         f"{fmt(fit['p'])}; the prefactor varies by a factor {fmt(fit['spread'])} over them."
     )
-    verdicts = [
-        v
-        for name in gcl
-        for i, sigma in enumerate(sigmas)
-        if sigma > 0
-        for v in coupling_verdicts(result, f"{solver}/{name}/noise{i}")
-    ]
+    verdicts, ratios = [], []
+    for name in gcl:
+        for i in np.flatnonzero(sigmas > 0):
+            v = coupling_verdicts(result, f"{solver}/{name}/noise{int(i)}")
+            hist = h(solver, name, int(i))
+            final = final_values(normalised(hist.task_error(hist.strain_reference)), hist.completed)
+            verdicts += v
+            ratios += list(final) if len(final) == len(v) else [np.nan] * len(v)
     trivially, counts = decoupled_caveat(
         verdicts,
+        ratios=ratios,
         runs="noisy GCL trials' trained networks",
         what="The exponent is a property of the rule's gradient estimate (a length noise "
         "sigma read through a nudge eta, balanced by the descent's pull near the minimum it "
