@@ -35,7 +35,7 @@ from ..network.viscous import Stepper, Viscosity
 from .medium import check_rule_on_medium
 from .rules import ProspectiveConfiguration, Step
 
-__all__ = ["BodyTime", "NetworkTime"]
+__all__ = ["BodyTime", "NetworkTime", "held_free_state"]
 
 
 def _equilibrium_stepper(net: SpringNetwork, free: NDArray, tol: float) -> Stepper:
@@ -43,6 +43,24 @@ def _equilibrium_stepper(net: SpringNetwork, free: NDArray, tol: float) -> Stepp
     ``1e-12 k_mean |x - x0|^2 / 2`` is negligible, so one step is the equilibrium with the
     held coordinates (Newton with a line search, the factorisation reused)."""
     return Stepper(net, Viscosity(drag=1.0), free, 1e12 / float(np.mean(net.stiffness)), tol=tol)
+
+
+def held_free_state(
+    net: SpringNetwork, task, *, reference: str = "initial", tol: float = 1e-10
+) -> NDArray:
+    """Free state (n_nodes, 2) of ``net`` as learning in time holds it: the task's sources
+    at their clamp lengths (``reference`` convention) by their end nodes, set symmetrically
+    along each spring from ``net.positions`` and held, its pins held, the rest at
+    equilibrium (the state :meth:`NetworkTime.error` reads).
+
+    Raises
+    ------
+    RuntimeError
+        The equilibrium step does not converge.
+    """
+    clamps = task.source_clamps(net, reference)
+    x, free = _boundary(net, task.pinned, None, clamps, net.positions)
+    return _equilibrium_stepper(net, free, tol).step(net, x)[0]
 
 
 class _Copy:

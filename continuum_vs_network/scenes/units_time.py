@@ -32,7 +32,10 @@ the oscillation: the largest factor by which the error climbs back above its run
 minimum (floored at ``FLOOR``) at a time when it is above the quasi-static run's error
 (:func:`rebound`; a rebound the quasi-static run shares is the learning step's). The
 critical ratio is a bracket (:func:`critical_bracket`), narrowed by bisection inside the
-grid's bracket.
+grid's bracket. The coupling of every run's final learned state (source share and verdict,
+the unit's verdict from the smallest share: :mod:`.units_time_coupling`); the final state
+of each grid ratio is stored (``r<i>/rest_length``, ``r<i>/stiffness``; a body: its
+eigenstrain and modulus fields).
 """
 
 from __future__ import annotations
@@ -75,6 +78,8 @@ def draws_per_size(scene: Scene) -> list[int]:
 def plan_time(scene: Scene) -> list[Unit]:
     """Phase 0: one task unit per size and draw; phase 1: one unit per size, draw, rule
     and medium, the largest sizes first (the longest units start first)."""
+    from .units_time_coupling import coupling_rule
+
     d = scene.to_dict()
     depends = {k: d[k] for k in ("seed", "network", "task", "physical_time") if k in d}
     sizes = [int(n) for n in scene.network.sizes]
@@ -97,7 +102,7 @@ def plan_time(scene: Scene) -> list[Unit]:
                 "medium": medium,
                 "series": bool(series and n == sizes[-1] and j == 0),
             },
-            depends=depends,
+            depends={**depends, "coupling": coupling_rule()},
             phase=1,
         )
         for n, m in sorted(zip(sizes, draws), reverse=True)
@@ -274,6 +279,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Learning in physical time against the ratio, for one size, draw, rule and medium."""
     from ..learning.physical_time import learn_in_time
     from ..learning.rules import LearningError
+    from .units_time_coupling import final_coupling, final_state, unit_coupling
 
     spec = scene.physical_time
     n, name, medium = params["n"], params["rule"], params.get("medium", "network")
@@ -346,6 +352,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
             "diverged": run is None,
             "error0": error0,
         }
+        row.update(final_coupling(net, task, run, medium))
         if run is None:  # diverged: never learned, unbounded oscillation
             row.update(
                 {
@@ -382,6 +389,8 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         for name_ in ("times", "error", "times_qs", "error_qs"):
             arrays[f"r{i}/{name_}"] = out[name_]
         run = out["run"]
+        if run is not None:  # the final learned state, whose coupling the row carries
+            arrays[f"r{i}/rest_length"], arrays[f"r{i}/stiffness"] = final_state(run)
         if params["series"] and ratio == series_ratio and run is not None:
             idx = np.unique(np.linspace(0, run.times.size - 1, spec.frames).round().astype(int))
             arrays.update(_series_arrays(net, task, run, idx, medium))
@@ -424,6 +433,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         "series_ratio": series_ratio if params["series"] else None,
         "runs": rows,
         "bisection": extra,
+        **unit_coupling(rows + extra),
     }
     return arrays, meta
 

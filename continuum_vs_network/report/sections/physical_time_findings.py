@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from ...learning.coupling import DECOUPLED_BELOW
 from ..document import Document
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 from .physical_time_figures import bracket_closed
@@ -57,14 +58,24 @@ def coupling_reason(units) -> str:
     draw) is not comparable, or "" when it can be judged: a claim about learning counts only
     runs that are not decoupled (as in :mod:`...learning.claims`), so every unit needs a
     coupling verdict (meta ``"coupling"``, :mod:`...learning.coupling`) and none may be
-    decoupled. The physical_time runs keep only error curves, so this is the reason there."""
+    decoupled. A unit's verdict is that of its smallest source share over its runs
+    (:mod:`...scenes.units_time_coupling`)."""
     verdicts = [u.meta.get("coupling") for u in units]
     if not verdicts or None in verdicts:
         return "coupling not measured: the task may be met trivially by prestress"
     n = verdicts.count("decoupled")
     if n:
-        return f"{n} of {len(verdicts)} sizes x draws decoupled: the task was met by prestress"
+        return (
+            f"{n} of {len(verdicts)} sizes x draws decoupled (source share < "
+            f"{DECOUPLED_BELOW:g}): what they learned is prestress, not a response to the sources"
+        )
     return ""
+
+
+def _shares(units) -> dict[str, float]:
+    """Smallest and largest unit source share (units with one), for the measured numbers."""
+    v = [u.meta["source_share"] for u in units if u.meta.get("source_share") is not None]
+    return {"smallest source share": min(v), "largest source share": max(v)} if v else {}
 
 
 #: The clause every claim about learning adds to its rule (:func:`coupling_reason`).
@@ -118,7 +129,7 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                     "tau_force / tau is the bracket's low end in units of the fast (net-force) "
                     "relaxation time"
                 ),
-                measured={**measured, **_lo_force(units)},
+                measured={**measured, **_lo_force(units), **_shares(units)},
                 verdict=NOT_COMPARABLE if why else verdict,
                 rule=(
                     f"contradicted when the speed-up is >= {SPEEDUP_YES:g} at every size and "
@@ -159,6 +170,7 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                     "met by oscillation": sum(b in osc for b in by),
                     "sizes x draws": len(units),
                     "smallest speed-up below rho*": worst_below,
+                    **_shares(units),
                 },
                 verdict=NOT_COMPARABLE if why else (REPRODUCED if ok else NOT_REPRODUCED),
                 rule=(

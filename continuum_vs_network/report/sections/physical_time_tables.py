@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...learning.coupling import COUPLED_AT, DECOUPLED_BELOW
 from ..document import Document, fmt
 from .physical_time_figures import bracket_closed
 from .physical_time_units import _NAMES, _bracket
@@ -47,9 +48,27 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
                 for n in sizes
             ]
         )
+    for name, units in rules.items():
+        rows.append(
+            [f"source share, {_NAMES[name]}"]
+            + [
+                _spread(
+                    [
+                        u.meta["source_share"]
+                        for u in units
+                        if u.meta["n_nodes"] == n and u.meta.get("source_share") is not None
+                    ]
+                )
+                for n in sizes
+            ]
+        )
     doc.add(
         "Median [smallest, largest] (number of draws) per size; rho*: over the draws whose "
-        "bracket is closed on both sides:"
+        "bracket is closed on both sides; source share: the coupling of the final learned "
+        "state by the rule of `learning/coupling.py` (coupled from "
+        f"{COUPLED_AT:g}, decoupled below {DECOUPLED_BELOW:g}; at the free state the run "
+        "reads, a network's sources held by their end nodes), per draw the smallest over "
+        "the ratios run:"
     )
     doc.table(["quantity"] + [f"N = {n}" for n in sizes], rows)
     parts = []
