@@ -153,12 +153,12 @@ def test_learning_speed_findings_are_judged_only_without_decoupled_units(network
 
 
 def test_continuum_unit_carries_the_source_share_of_its_final_learned_body(tmp_path):
-    from continuum_vs_network.scenes.units_continuum_learning import _continuum_coupling
+    from continuum_vs_network.learning.coupling import body_source_share
     from continuum_vs_network.scenes.units_time import _body
 
     _, _, net, task, runs = _run(tmp_path, '["continuum"]')
     body, mtask = _body(net, task)
-    assert _continuum_coupling(body, body, mtask) == pytest.approx(1.0)  # untrained
+    assert body_source_share(body, body, mtask) == pytest.approx(1.0)  # untrained
     for u in runs:
         m = u.meta
         assert m["medium"] == "continuum"
@@ -166,7 +166,7 @@ def test_continuum_unit_carries_the_source_share_of_its_final_learned_body(tmp_p
             field = u.arrays[f"r{i}/rest_length"]
             assert field.shape == body.eigenstrain.shape and np.any(field != 0)
             trained = body.with_eigenstrain(field).with_modulus(u.arrays[f"r{i}/stiffness"])
-            share = _continuum_coupling(body, trained, mtask)
+            share = body_source_share(body, trained, mtask)
             assert row["source_share"] == pytest.approx(share, abs=1e-12)
             final = mtask.error(trained.free_state(mtask).target_strain)
             assert final == pytest.approx(m["error0"] * u.arrays[f"r{i}/error"][-1], rel=1e-6)

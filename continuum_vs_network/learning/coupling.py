@@ -72,6 +72,7 @@ __all__ = [
     "MET_AT",
     "SCALES",
     "Coupling",
+    "body_source_share",
     "coupling_verdict",
     "measure_coupling",
     "outcome",
@@ -120,6 +121,22 @@ def source_share(
         return responds
     delivered = float((transmitted - (base_on - base_off)) @ change) / c2
     return min(responds, min(max(delivered, 0.0), 1.0))
+
+
+def body_source_share(initial, trained, task) -> float:
+    """:func:`source_share` of a trained continuum ``trained`` (a
+    :class:`~continuum_vs_network.continuum.learnable.LearnableBody`) started from
+    ``initial`` on its ``task`` (a ``MaterialTask``): the target strains of its free state
+    with the sources on and off, against the initial body's."""
+    import dataclasses
+
+    off = dataclasses.replace(task, source_strain=np.zeros(task.n_sources))
+    return source_share(
+        trained.free_state(task).target_strain,
+        trained.free_state(off).target_strain,
+        initial.free_state(off).target_strain,
+        initial.free_state(task).target_strain,
+    )
 
 
 def coupling_verdict(share: float) -> str:

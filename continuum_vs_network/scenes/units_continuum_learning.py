@@ -201,23 +201,6 @@ def network_unit(scene: Scene, params: dict, ctx: UnitContext):
     return arrays, meta
 
 
-def _continuum_coupling(initial, trained, mtask) -> float:
-    """Source share (:func:`~continuum_vs_network.learning.coupling.source_share`) of a
-    trained continuum: target strains with the sources on and off, against the initial
-    body's."""
-    import dataclasses
-
-    from ..learning.coupling import source_share
-
-    off = dataclasses.replace(mtask, source_strain=np.zeros(mtask.n_sources))
-    return source_share(
-        trained.free_state(mtask).target_strain,
-        trained.free_state(off).target_strain,
-        initial.free_state(off).target_strain,
-        initial.free_state(mtask).target_strain,
-    )
-
-
 def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Train the continuum at one refinement with the rule; its learned eigenstrain."""
     from ..continuum.learnable import learnable_body
@@ -259,9 +242,9 @@ def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
         points=body.body.mesh.p.T,
         triangles=body.body.mesh.t.T,
     )
-    from ..learning.coupling import coupling_verdict, outcome
+    from ..learning.coupling import body_source_share, coupling_verdict, outcome
 
-    share = _continuum_coupling(body, h.final[0], mtask)
+    share = body_source_share(body, h.final[0], mtask)
     ratio = float(h.error_initial[0, -1] / h.error_initial[0, 0])
     meta.update(
         source_share=share,

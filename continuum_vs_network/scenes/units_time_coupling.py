@@ -17,7 +17,7 @@ state the run itself reads:
   5 % off the run's);
 * a continuum: its free state with the clamps as exact strain constraints, as the
   continuum_learning scene measures a trained body
-  (:func:`~.units_continuum_learning._continuum_coupling`).
+  (:func:`~..learning.coupling.body_source_share`).
 
 The unit's verdict (meta ``"coupling"``, read by
 :func:`~..report.sections.physical_time_findings.coupling_reason`) is
@@ -82,12 +82,12 @@ def final_share(initial, task, run, medium: str) -> float | None:
                 strains(trained, task), strains(trained, off), strains(initial, off),
                 strains(initial, task),
             )  # fmt: skip
-        from .units_continuum_learning import _continuum_coupling
+        from ..learning.coupling import body_source_share
 
         trained = initial.with_eigenstrain(rest)
         if not np.array_equal(stiff, initial.modulus):  # keeps the shared factorisations
             trained = trained.with_modulus(stiff)
-        return float(_continuum_coupling(initial, trained, task))
+        return float(body_source_share(initial, trained, task))
     except RuntimeError:  # no equilibrium (EquilibriumError, a step that did not converge)
         return None
 
