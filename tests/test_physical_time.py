@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from physical_time_scenes import tiny_physical_time
 
 import continuum_vs_network as cvn
 from continuum_vs_network.learning import (
@@ -255,29 +256,11 @@ def test_physical_time_scene_runs_and_judges(tmp_path):
     pytest.importorskip("matplotlib")
     from continuum_vs_network.report.writer import write_report
     from continuum_vs_network.scenes.runner import run_scene
-    from continuum_vs_network.scenes.schema import parse_scene
 
-    text = """
-name = "pt"
-description = "tiny"
-kind = "physical_time"
-[network]
-builder = "triangular"
-sizes = [5, 6]
-[task]
-kind = "stern"
-n_sources = 1
-n_targets = 1
-[physical_time]
-rules = ["gpc"]
-ratios = [0.3, 3.0]
-relaxation_times = 1.0
-learning_times = 3.0
-draws = [2, 1]
-"""
-    import tomllib
-
-    scene = parse_scene(tomllib.loads(text), "pt.toml")
+    scene = tiny_physical_time(
+        sizes=[5, 6], n_sources=1, rules=["gpc"], ratios=[0.3, 3.0], relaxation_times=1.0,
+        learning_times=3.0, draws=[2, 1],
+    )  # fmt: skip
     result = run_scene(scene, tmp_path / "results")
     units = result.select("physical_time/")
     assert sorted(units) == [

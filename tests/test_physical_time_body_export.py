@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from physical_time_scenes import tiny_physical_time
 
 import continuum_vs_network as cvn
 from continuum_vs_network.learning import ProspectiveConfiguration, stern_task
@@ -88,38 +89,17 @@ def test_physical_time_scene_exports_the_continuum_series(tmp_path):
     """A continuum physical_time scene with [export] series = true writes the body's
     series: the scene's frame count, the last frame the run's last output."""
     pytest.importorskip("meshio")
-    import tomllib
 
     import meshio
 
     from continuum_vs_network.io.export import read_series_index
     from continuum_vs_network.scenes.meshes import export_meshes
     from continuum_vs_network.scenes.runner import run_scene
-    from continuum_vs_network.scenes.schema import parse_scene
 
-    text = """
-name = "ptb"
-description = "tiny"
-kind = "physical_time"
-[network]
-builder = "triangular"
-sizes = [5]
-[task]
-kind = "stern"
-n_sources = 2
-n_targets = 1
-[physical_time]
-rules = ["gpc"]
-media = ["continuum"]
-ratios = [1.0]
-bisections = 0
-arm_stiffness = 0.5
-arm_dashpot = 2.0
-frames = 4
-[export]
-series = true
-"""
-    scene = parse_scene(tomllib.loads(text), "ptb.toml")
+    scene = tiny_physical_time(
+        "ptb", rules=["gpc"], media=["continuum"], ratios=[1.0], bisections=0,
+        arm_stiffness=0.5, arm_dashpot=2.0, frames=4, series=True,
+    )  # fmt: skip
     result = run_scene(scene, tmp_path / "results")
     (unit,) = [u for u in result.select("physical_time/").values() if u.meta["kind"] == "run"]
     a = unit.arrays

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from physical_time_scenes import tiny_physical_time
 
 import continuum_vs_network as cvn
 from continuum_vs_network.learning import CoupledLearning, ProspectiveConfiguration, stern_task
@@ -177,33 +178,15 @@ def test_continuum_scene_bisects_the_critical_ratio(tmp_path):
     the last ratio run (grid or bisection) before it and the first past it, and the report
     names the continuum rows."""
     pytest.importorskip("matplotlib")
-    import tomllib
 
     from continuum_vs_network.report.writer import write_report
     from continuum_vs_network.scenes.runner import run_scene
-    from continuum_vs_network.scenes.schema import parse_scene
     from continuum_vs_network.scenes.units_time import OSCILLATION, SLOWDOWN
 
-    text = """
-name = "ptc"
-description = "tiny"
-kind = "physical_time"
-[network]
-builder = "triangular"
-sizes = [6]
-[task]
-kind = "stern"
-n_sources = 2
-n_targets = 1
-[physical_time]
-rules = ["gcl"]
-media = ["continuum"]
-ratios = [0.3, 100.0]
-bisections = 3
-relaxation_times = 1.5
-learning_times = 3.0
-"""
-    scene = parse_scene(tomllib.loads(text), "ptc.toml")
+    scene = tiny_physical_time(
+        "ptc", sizes=[6], rules=["gcl"], media=["continuum"], ratios=[0.3, 100.0],
+        bisections=3, relaxation_times=1.5, learning_times=3.0,
+    )  # fmt: skip
     result = run_scene(scene, tmp_path / "results")
     (unit,) = [u for u in result.select("physical_time/").values() if u.meta["kind"] == "run"]
     m = unit.meta

@@ -6,11 +6,11 @@ when no size or draw is decoupled."""
 
 from __future__ import annotations
 
-import tomllib
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from physical_time_scenes import tiny_physical_time
 
 from continuum_vs_network import triangular_lattice
 from continuum_vs_network.learning import stern_task
@@ -26,33 +26,15 @@ from continuum_vs_network.report.findings import NOT_COMPARABLE
 from continuum_vs_network.report.sections.physical_time_findings import _findings
 from continuum_vs_network.report.sections.physical_time_units import _by_rule
 from continuum_vs_network.scenes.runner import run_scene
-from continuum_vs_network.scenes.schema import parse_scene
 from continuum_vs_network.scenes.units_physics import lattice
 from continuum_vs_network.scenes.units_time_coupling import final_coupling
 
-SCENE = """
-name = "ptc"
-description = "tiny"
-kind = "physical_time"
-[network]
-builder = "triangular"
-sizes = [5]
-[task]
-kind = "stern"
-n_sources = 2
-n_targets = 1
-[physical_time]
-rules = ["gpc", "gcl"]
-media = {media}
-ratios = [0.3, 3.0]
-bisections = 1
-relaxation_times = 1.0
-learning_times = 3.0
-"""
-
 
 def _run(tmp_path, media):
-    scene = parse_scene(tomllib.loads(SCENE.format(media=media)), "ptc.toml")
+    scene = tiny_physical_time(
+        "ptc", rules=["gpc", "gcl"], media=media, ratios=[0.3, 3.0], bisections=1,
+        relaxation_times=1.0, learning_times=3.0,
+    )  # fmt: skip
     result = run_scene(scene, tmp_path / "results")
     stored = result.select("physical_time/n5/d0/task")["physical_time/n5/d0/task"].arrays
     net = lattice(scene, 5)
@@ -66,7 +48,7 @@ def _run(tmp_path, media):
 
 @pytest.fixture(scope="module")
 def network_scene(tmp_path_factory):
-    return _run(tmp_path_factory.mktemp("ptn"), '["network"]')
+    return _run(tmp_path_factory.mktemp("ptn"), ["network"])
 
 
 def _held_strains(net, task):
@@ -156,7 +138,7 @@ def test_continuum_unit_carries_the_source_share_of_its_final_learned_body(tmp_p
     from continuum_vs_network.learning.coupling import body_source_share
     from continuum_vs_network.scenes.units_time import _body
 
-    _, _, net, task, runs = _run(tmp_path, '["continuum"]')
+    _, _, net, task, runs = _run(tmp_path, ["continuum"])
     body, mtask = _body(net, task)
     assert body_source_share(body, body, mtask) == pytest.approx(1.0)  # untrained
     for u in runs:
