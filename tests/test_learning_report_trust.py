@@ -157,3 +157,31 @@ def test_convergence_to_0_is_not_reproduced_only_once_the_error_stopped_falling(
     # converged to 1e-3 (still falling): reproduced
     c = _rest_length_claim(np.exp(np.log(1e-3) * t / STEPS))
     assert np.isclose(c.measured, 1e-3) and c.verdict == "reproduced"
+
+
+def _gcl_claims(curve):
+    """The paper's GCL claims on 4 coupled trials whose C/C0 follows ``curve`` (steps + 1,)."""
+    experiments = [e for e in paper_experiments() if e.name == "gcl"]
+    h = _history(np.array([curve] * 4))
+    checks = check_claims({"gcl": h}, experiments, coupling={"gcl": ["coupled"] * 4})
+    return {c.claim: c for c in checks}
+
+
+def test_gcl_convergence_claims_are_judged_only_once_c_stopped_falling():
+    t = np.arange(STEPS + 1, dtype=float)
+    # C/C0 at 1e-3 after the steps run and still falling: none of the trials has reached
+    # 1e-6 yet, but the run cannot show that they do not converge
+    claims = _gcl_claims(np.exp(np.log(1e-3) * t / STEPS))
+    c = claims["all trials but one converge to C = 0"]
+    assert c.measured == 0 and c.verdict == "not comparable"
+    assert c.reason.startswith("still falling: ")
+    assert claims["GCL lowers C by orders of magnitude"].verdict == "reproduced"
+    # settled at 1e-3: no trial converges to 0, which contradicts the claim
+    c = _gcl_claims(1e-3 + (1 - 1e-3) * np.exp(-0.2 * t))["all trials but one converge to C = 0"]
+    assert c.verdict == "contradicted" and c.reason.startswith("plateaued: ")
+    # at 0.05 and still falling: "by orders of magnitude" is not judged yet; settled there,
+    # it is not reproduced
+    falling = _gcl_claims(np.exp(np.log(0.05) * t / STEPS))
+    assert falling["GCL lowers C by orders of magnitude"].verdict == "not comparable"
+    settled = _gcl_claims(0.05 + 0.95 * np.exp(-0.2 * t))
+    assert settled["GCL lowers C by orders of magnitude"].verdict == "not reproduced"

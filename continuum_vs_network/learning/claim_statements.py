@@ -52,12 +52,17 @@ class Statement:
     # value exceeds that of the reference rule (:data:`REFERENCE_RULE`) in the same run
     specific: bool = False
     # a claim of convergence to 0: the quantity's normalised curves (trials, steps + 1);
-    # "not reproduced" stands only when their median has stopped falling (:func:`_settled`)
+    # a verdict other than reproduced stands only once their median has stopped falling
+    # (:func:`.claims._settled`)
     curve: Callable[[History], NDArray] | None = None
 
 
 def _c_ratio(h: History) -> NDArray:
     return _ratio_final(h.error_current, h)
+
+
+def _c_curves(h: History) -> NDArray:
+    return normalised(h.error_current)
 
 
 def _converged(h: History) -> NDArray:
@@ -88,6 +93,7 @@ def _gcl_statements() -> list[Statement]:
                 "reproduced" if m <= 1e-2 else "contradicted" if m >= 1 else "not reproduced"
             ),
             per_trial=lambda h: _c_ratio(h) <= 1e-2,
+            curve=_c_curves,
         ),
         Statement(
             "all trials but one converge to C = 0",
@@ -100,6 +106,7 @@ def _gcl_statements() -> list[Statement]:
             ),
             per_trial=_converged,
             needed=lambda n: n - 1,
+            curve=_c_curves,
         ),
     ]
 

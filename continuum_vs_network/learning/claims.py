@@ -275,18 +275,18 @@ def _specific(verdict, reason, m, refs) -> tuple[str, str]:
 
 
 _SETTLED_RULE = (
-    "; in between, not reproduced only when the median curve over the trials judged has "
-    "stopped falling (its fitted relative change over the last quarter of the steps, "
-    f"learning.metrics.tail_change, is >= -{PLATEAU:.0%}), not comparable while it is still "
-    "falling (the run settles lower than the value read)"
+    "; a verdict other than reproduced stands only once the median curve over the trials "
+    "judged has stopped falling (its fitted relative change over the last quarter of the "
+    f"steps, learning.metrics.tail_change, is >= -{PLATEAU:.0%}): not comparable while it "
+    "still falls (the run settles lower than the value read)"
 )
 
 
-def _settled(curves: NDArray, h: History) -> tuple[str, str]:
-    """Verdict and reason of a convergence claim whose value lies between its bounds, from
-    the median over the trials of ``curves`` (trials, steps + 1) up to the last step all of
-    ``h``'s trials measured: "not reproduced" when it has stopped falling (a plateau or
-    still rising, :func:`.metrics.bound`), else "not comparable"."""
+def _settled(curves: NDArray, h: History, verdict: str) -> tuple[str, str]:
+    """``verdict`` (not reproduced or contradicted) of a convergence claim and its reason,
+    from the median over the trials of ``curves`` (trials, steps + 1) up to the last step
+    all of ``h``'s trials measured: it stands when that median has stopped falling (a
+    plateau, or still rising: :func:`.metrics.bound`), else "not comparable"."""
     end = int(np.min(last_measured(h)))
     change = tail_change(np.median(np.asarray(curves, dtype=np.float64)[:, : end + 1], axis=0))
     kind = bound(change)
@@ -295,7 +295,7 @@ def _settled(curves: NDArray, h: History) -> tuple[str, str]:
     pct = f"{100 * change:+.2g} % over the last quarter of the steps (fitted, median curve)"
     if kind == "upper bound":
         return "not comparable", f"still falling: {pct}"
-    return "not reproduced", ("plateaued: " if kind == "plateau" else "still rising: ") + pct
+    return verdict, ("plateaued: " if kind == "plateau" else "still rising: ") + pct
 
 
 def _judge(st, h, judged, keep, m, family, verdicts) -> tuple[str, str]:
@@ -313,9 +313,9 @@ def _judge(st, h, judged, keep, m, family, verdicts) -> tuple[str, str]:
     n = judged.trials
     verdict = st.judge(m, n)
     note = f"{n} of {h.trials} trials judged; " if n < h.trials else ""
-    if st.curve is not None and verdict == "not reproduced":
-        verdict, why = _settled(st.curve(judged), judged)
-        note += why
+    if st.curve is not None and verdict in ("not reproduced", "contradicted"):
+        verdict, why = _settled(st.curve(judged), judged, verdict)
+        note += why + "; "
     if st.per_trial is None:
         return verdict, note.rstrip("; ")
     if not verdicts:
