@@ -41,7 +41,8 @@ def section(doc: Document, result) -> None:
         "the task by learning its own rest length), strains against the initial rest lengths, "
         f"{L.steps} steps per run. A task is *met* when C/C0 <= {MET_AT:g}; the coupling "
         "verdict (learning.coupling) says whether the sources cause the trained target "
-        "strain or the network met it trivially by prestressing the targets.",
+        "strain; a decoupled network that meets the task met it trivially, by prestressing "
+        "the targets.",
         "",
     )
     _compare(doc, scene, units)
