@@ -155,3 +155,17 @@ def test_continuum_unit_carries_the_source_share_of_its_final_learned_body(tmp_p
         every = m["runs"] + m["bisection"]
         share = min(r["source_share"] for r in every if r["source_share"] is not None)
         assert m["coupling"] == coupling_verdict(share)
+
+
+def test_the_report_opens_with_the_measured_coupling_of_every_unit():
+    from continuum_vs_network.report.sections.physical_time import _coupling_summary
+
+    def unit(verdict, share):
+        return SimpleNamespace(meta={"coupling": verdict, "source_share": share})
+
+    text = _coupling_summary({"gcl": [unit("decoupled", 0.0), unit("decoupled", 2e-4)]})
+    assert "2 of 2 decoupled, shares 0 to 0.0002" in text and "not comparable" in text
+    text = _coupling_summary({"gcl": [unit("coupled", 0.9)], "gpc": [unit("coupled", 0.6)]})
+    assert "0 of 2 decoupled" in text and "not comparable" not in text
+    text = _coupling_summary({"gcl": [unit("coupled", 0.9), unit(None, None)]})
+    assert text.startswith("Coupling (learning.coupling) is not measured for every run")

@@ -82,7 +82,10 @@ def test_decoupled_caveat_counts_and_words():
     assert counts == {"trials": 5, "decoupled trials": 4, "trials met trivially (decoupled)": 1}
     assert text.startswith("The 5 runs: 4 decoupled")
     assert "1 met the task (final C/C0 <= 0.01) trivially" in text
-    assert "2 did not meet the task (final C/C0 0.02 to 0.5, above 0.01): their error is " in text
+    assert (
+        "2 did not meet the task (final C/C0 0.02 to 0.5, above 0.01): what they learned is "
+        in text
+    )
     assert "1 have no final C/C0" in text
     # decoupled runs that did not meet the task are not said to have met it
     text, counts = decoupled_caveat(
@@ -135,7 +138,7 @@ def test_thermal_floors_disclose_decoupled_runs_and_unsettled_points(tmp_path):
         "trivially" not in nudge.rule and nudge.measured["GCL runs met trivially (decoupled)"] == 0
     )
     assert "2 did not meet the task (final C/C0 0.0129 to 1, above 0.01)" in nudge.rule
-    assert "their error is not carried by the sources" in nudge.rule
+    assert "what they learned is not carried by the sources" in nudge.rule
     (grows,) = [f for f in doc.findings if "grows with the temperature" in f.claim]
     assert grows.measured["decoupled GCL runs"] == 4
     body = "\n".join(doc.lines)

@@ -23,10 +23,12 @@ length; claims of a *size* reached (orders of magnitude, C = 0, ~50 %, 33 %, con
 paper's 300; :func:`last_measured`), and are "not comparable" when fewer than
 :func:`enough_trials` of them did.
 
-A claim that a quantity *converges to 0*, read between its bounds, is "not reproduced"
-only when the median curve over the judged trials has stopped falling by the plateau test
-(:func:`.metrics.tail_change`, :func:`.metrics.bound`), and "not comparable" while it
-still falls (the run settles lower than the value read; the reason gives the change).
+A claim that a quantity *converges to 0* (C falls by orders of magnitude, all trials but
+one reach C = 0, the rest-length error converges to 0) is "not reproduced" or
+"contradicted" only when the median curve over the judged trials has stopped falling by
+the plateau test (:func:`.metrics.tail_change`, :func:`.metrics.bound`), and "not
+comparable" while it still falls (the run settles lower than the value read; the reason
+gives the change).
 
 A claim that the task is learned, or that C is lowered, is judged per trial: a trial meets
 it when its own final value does *and* its own coupling verdict is not decoupled (a trial

@@ -26,7 +26,7 @@ def decoupled_caveat(verdicts, *, ratios, runs: str, what: str, noun: str) -> tu
     is measured) and ``{noun: n, "decoupled " + noun: d, noun + " met trivially
     (decoupled)": k}`` for a finding's ``measured`` (empty when nothing is measured). Only
     the decoupled runs that met the task are said to have met it trivially; of those that
-    did not, that their error is not carried by the sources."""
+    did not, that what they learned is not carried by the sources."""
     from ...learning.coupling import MET_AT
 
     verdicts = list(verdicts)
@@ -51,7 +51,7 @@ def decoupled_caveat(verdicts, *, ratios, runs: str, what: str, noun: str) -> tu
         parts.append(
             f"{int(missed.sum())} did not meet the task (final C/C0 "
             + (lo if lo == hi else f"{lo} to {hi}")
-            + f", above {MET_AT:g}): their error is not carried by the sources"
+            + f", above {MET_AT:g}): what they learned is not carried by the sources"
         )
     if unknown:
         parts.append(f"{unknown} have no final C/C0 (whether they met the task is not known)")

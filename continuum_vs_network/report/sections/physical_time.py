@@ -103,6 +103,7 @@ def section(doc: Document, result) -> None:
             else ""
         )
     )
+    doc.add(_coupling_summary(rules))
     tasks = _tasks(result)
     _draws_text(doc, tasks)
     rows = []
@@ -177,3 +178,29 @@ def section(doc: Document, result) -> None:
     _summary(doc, rules, tasks)
     figures(doc, rules, tasks, ratios, _NAMES)
     _findings(doc, rules, ratios)
+
+
+def _coupling_summary(rules: dict[str, list]) -> str:
+    """One computed sentence: how many run units (size x draw x rule x medium) are decoupled,
+    by :func:`~.physical_time_findings.coupling_reason`'s measurement, and what follows."""
+    units = [u for group in rules.values() for u in group]
+    verdicts = [u.meta.get("coupling") for u in units]
+    if not units or None in verdicts:
+        return (
+            "Coupling (learning.coupling) is not measured for every run: the learning-speed "
+            "and critical-ratio findings are not comparable (a task met by prestress alone "
+            "would look learned)."
+        )
+    decoupled = verdicts.count("decoupled")
+    shares = [u.meta["source_share"] for u in units]
+    return (
+        f"Coupling of the final learned states (learning.coupling; per size, draw, rule and "
+        f"medium the least source share over the ratios run): {decoupled} of {len(units)} "
+        f"decoupled, shares {fmt(min(shares))} to {fmt(max(shares))}"
+        + (
+            ": what the rules learned is prestress on the targets, not a response to the "
+            "sources, so the learning-speed and critical-ratio findings are not comparable."
+            if decoupled
+            else "."
+        )
+    )

@@ -73,9 +73,15 @@ def coupling_reason(units) -> str:
 
 
 def _shares(units) -> dict[str, float]:
-    """Smallest and largest unit source share (units with one), for the measured numbers."""
+    """Smallest and largest unit source share (units with one; a unit's share is the least
+    over its ratios), for the measured numbers."""
     v = [u.meta["source_share"] for u in units if u.meta.get("source_share") is not None]
-    return {"smallest source share": min(v), "largest source share": max(v)} if v else {}
+    if not v:
+        return {}
+    return {
+        "smallest source share (per draw, least over its ratios)": min(v),
+        "largest source share (per draw, least over its ratios)": max(v),
+    }
 
 
 #: The clause every claim about learning adds to its rule (:func:`coupling_reason`).
