@@ -73,6 +73,10 @@ class Provenance:
     threads : str
         BLAS / OpenMP thread pools as threadpoolctl reports them, and the environment's
         thread variables.
+    unit_commits : dict of str to int
+        How many of the scene's units were computed at each commit (units are reused
+        across runs whatever the code is then; "not recorded": stored before units
+        recorded their commit).
     """
 
     version: str
@@ -92,6 +96,7 @@ class Provenance:
     libraries: dict[str, str] = field(default_factory=dict)
     cpu: str = "unknown"
     threads: str = "unknown"
+    unit_commits: dict[str, int] = field(default_factory=dict)
 
 
 def library_versions() -> dict[str, str]:

@@ -234,7 +234,12 @@ def _run_scene(
             bar.close()
     _clean(directory, units)
     wall = time.perf_counter() - t_start
-    compute = sum(_read_record(directory, k)["seconds"] for k in keys)
+    records = [_read_record(directory, k) for k in keys]
+    compute = sum(r["seconds"] for r in records)
+    commits: dict[str, int] = {}
+    for r in records:
+        c = str(r.get("commit", "not recorded"))
+        commits[c] = commits.get(c, 0) + 1
     prov = Provenance(
         version=_version(),
         commit=env["commit"],
@@ -255,6 +260,7 @@ def _run_scene(
         libraries=dict(env["libraries"]),
         cpu=env["cpu"],
         threads=blas_threads(),
+        unit_commits=commits,
     )
     write_text_atomic(
         directory / "run.json", dumps_record(dataclasses.asdict(prov), indent=1, sort_keys=True)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..io.atomic import atomic_path, write_text_atomic
 from ..io.strict_json import dumps_record, loads_record
+from .provenance import environment
 from .units import Unit, UnitResult
 
 __all__: list[str] = []  # helpers of the runner (:mod:`.runner`) and :mod:`.compute`
@@ -86,7 +87,13 @@ def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None
         with atomic_path(payload) as tmp, open(tmp, "wb") as fh:
             np.savez_compressed(fh, **{k: np.asarray(v) for k, v in arrays.items()})
         record = {"history": False, "meta": meta}
-    record.update(key=unit.key, fingerprint=unit.fingerprint, seconds=float(seconds))
+    # the code that computed it: a later run reuses the unit whatever the code is then
+    record.update(
+        key=unit.key,
+        fingerprint=unit.fingerprint,
+        seconds=float(seconds),
+        commit=environment()["commit"],
+    )
     write_text_atomic(
         _record_path(directory, unit.key),
         dumps_record(record, sort_keys=True, default=_json_default),

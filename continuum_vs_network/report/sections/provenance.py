@@ -61,10 +61,26 @@ def section(doc: Document, result) -> None:
             ["wall time of the completing run", f"{p.wall_seconds:.1f} s"],
             ["compute time (sum over units)", f"{p.compute_seconds:.1f} s"],
             ["units (reused from an earlier run)", f"{p.units} ({p.reused})"],
+            ["units computed at", unit_commits(p.commit, p.unit_commits)],
             ["worker processes", str(p.workers)],
             ["scene file", f"`{short_source(result.scene.source)}`"],
         ],
     )
+
+
+def unit_commits(commit: str, counts: dict[str, int]) -> str:
+    """Where the units were computed, against the report's ``commit``: "this commit" when
+    all were; else the counts per commit (units are reused whatever the code is now: a
+    stale one is recomputed with ``--fresh``)."""
+    if not counts:
+        return "not recorded"
+    if set(counts) == {commit}:
+        return "this commit (all)"
+    parts = [
+        ("this commit" if c == commit else c if c == "not recorded" else f"`{c[:12]}`") + f": {n}"
+        for c, n in sorted(counts.items(), key=lambda kv: (kv[0] != commit, -kv[1]))
+    ]
+    return "; ".join(parts) + " (units are reused whatever the code is now; `--fresh` recomputes)"
 
 
 def short_source(source: str) -> str:
