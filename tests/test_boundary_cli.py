@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scene_texts import TRANS
 
 from continuum_vs_network import _validate
 from continuum_vs_network.cli import EXIT, main
@@ -25,17 +26,6 @@ from continuum_vs_network.scenes.runner import run_scene
 from continuum_vs_network.scenes.schema import SceneError, load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
-
-TRANS = """
-name = "trans"
-description = "tiny transmission scene"
-kind = "transmission"
-[network]
-builder = "triangular"
-sizes = [5, 6]
-[task]
-kind = "source"
-"""
 
 LEARN = """
 name = "learn"

@@ -2,19 +2,10 @@
 
 from __future__ import annotations
 
+from scene_texts import TRANS
+
 from continuum_vs_network.cli import EXIT, main
 from continuum_vs_network.scenes.schema import builtin_names, load_scene
-
-TRANS = """
-name = "trans"
-description = "tiny transmission scene"
-kind = "transmission"
-[network]
-builder = "triangular"
-sizes = [5, 6]
-[task]
-kind = "source"
-"""
 
 EXPLODE = """
 name = "explode"

@@ -3,21 +3,12 @@ units of other commits (a unit is reused whatever the code is when the scene rer
 
 from __future__ import annotations
 
+from scene_texts import TRANS
+
 from continuum_vs_network.report.sections.provenance import unit_commits
 from continuum_vs_network.scenes import provenance, store
 from continuum_vs_network.scenes.runner import run_scene
 from continuum_vs_network.scenes.schema import load_scene
-
-TRANS = """
-name = "trans"
-description = "tiny transmission scene"
-kind = "transmission"
-[network]
-builder = "triangular"
-sizes = [5, 6]
-[task]
-kind = "source"
-"""
 
 
 def _environment(commit):

@@ -65,11 +65,7 @@ from numpy.typing import NDArray
 
 from .claim_statements import statements
 from .history import History
-from .metrics import (
-    PLATEAU,
-    bound,
-    tail_change,
-)
+from .metrics import PLATEAU, bound, tail_change
 
 __all__ = [
     "MIN_STEPS",

@@ -18,7 +18,7 @@ from .physical_time_figures import figures, first_draws
 from .physical_time_findings import QS_AGREEMENT as QS_AGREEMENT
 from .physical_time_findings import SPEEDUP_NO as SPEEDUP_NO
 from .physical_time_findings import SPEEDUP_YES as SPEEDUP_YES
-from .physical_time_findings import _findings
+from .physical_time_findings import _findings, decoupled_count
 from .physical_time_tables import _summary
 from .physical_time_text import (
     _draws_text,
@@ -184,14 +184,13 @@ def _coupling_summary(rules: dict[str, list]) -> str:
     """One computed sentence: how many run units (size x draw x rule x medium) are decoupled,
     by :func:`~.physical_time_findings.coupling_reason`'s measurement, and what follows."""
     units = [u for group in rules.values() for u in group]
-    verdicts = [u.meta.get("coupling") for u in units]
-    if not units or None in verdicts:
+    decoupled = decoupled_count(units)
+    if decoupled is None:
         return (
             "Coupling (learning.coupling) is not measured for every run: the learning-speed "
             "and critical-ratio findings are not comparable (a task met by prestress alone "
             "would look learned)."
         )
-    decoupled = verdicts.count("decoupled")
     shares = [u.meta["source_share"] for u in units]
     return (
         f"Coupling of the final learned states (learning.coupling; per size, draw, rule and "

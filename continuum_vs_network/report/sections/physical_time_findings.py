@@ -53,6 +53,15 @@ def _lo_force(units) -> dict[str, float]:
     return {"smallest lo x tau_force/tau": min(v), "largest lo x tau_force/tau": max(v)}
 
 
+def decoupled_count(units) -> int | None:
+    """How many of ``units`` (physical_time run units) are decoupled (meta ``"coupling"``);
+    None when there are none or any has no coupling measurement."""
+    verdicts = [u.meta.get("coupling") for u in units]
+    if not verdicts or None in verdicts:
+        return None
+    return verdicts.count("decoupled")
+
+
 def coupling_reason(units) -> str:
     """Why a claim about learning over ``units`` (physical_time units, one per size and
     draw) is not comparable, or "" when it can be judged: a claim about learning counts only
@@ -60,13 +69,12 @@ def coupling_reason(units) -> str:
     coupling verdict (meta ``"coupling"``, :mod:`...learning.coupling`) and none may be
     decoupled. A unit's verdict is that of its smallest source share over its runs
     (:mod:`...scenes.units_time_coupling`)."""
-    verdicts = [u.meta.get("coupling") for u in units]
-    if not verdicts or None in verdicts:
+    n = decoupled_count(units)
+    if n is None:
         return "coupling not measured: the task may be met trivially by prestress"
-    n = verdicts.count("decoupled")
     if n:
         return (
-            f"{n} of {len(verdicts)} sizes x draws decoupled (source share < "
+            f"{n} of {len(units)} sizes x draws decoupled (source share < "
             f"{DECOUPLED_BELOW:g}): what they learned is prestress, not a response to the sources"
         )
     return ""
