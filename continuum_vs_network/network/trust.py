@@ -98,6 +98,9 @@ class StiffSprings:
         self.springs = springs
         self.index = index
         self.n = n
+        # the free flat coordinates and their rows, for scattering a move (read-only)
+        self.coords = np.flatnonzero(index >= 0)
+        self.order = index[self.coords]
 
     @classmethod
     def find(
@@ -141,8 +144,7 @@ class StiffSprings:
         J0, r0 = self._jacobian(x)
         target = r0 + J0 @ dx
         z = y.copy()
-        coords = np.flatnonzero(self.index >= 0)
-        order = self.index[coords]
+        coords, order = self.coords, self.order
         lu = None
         last = np.inf
         fresh = False  # the factorisation was made at the last iterate
