@@ -20,7 +20,7 @@ each iteration
    a spring lengthens it by ``|turn|^2 r / 2``, so the step through a curved valley (a
    stiff spring swinging about soft ones) is corrected to second order; then moves back
    onto the clamp lengths (Gauss-Newton projection) and puts springs stiffer than
-   :data:`_CONTRAST` times the median back to the lengths the linear model predicted
+   :attr:`~.stiff_springs.StiffSprings.CONTRAST` times the median back to the lengths the linear model predicted
    (:class:`StiffSprings`);
 5. accepts the step when the energy falls by a fair share of the model's prediction
    (computed without cancellation), and grows or shrinks the radius by the ratio; while a
@@ -57,19 +57,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 from scipy.linalg import lapack
 
 from .constraints import Problem, clamp_tensions
 from .lagrangian import Frame
 from .memo import per_network
+from .stiff_springs import StiffSprings, median
 from .stopping import Outcome, StopRule, Trace
 from .trust_kernels import kernels
 from .trust_model import Model, RigidBasis, null_basis, rigid_motions, subproblem
 
-__all__ = ["TR_DENSE_MAX", "StiffSprings", "trust_region_newton"]
+__all__ = ["TR_DENSE_MAX", "trust_region_newton"]
 
 TR_DENSE_MAX = 400  # free coordinates; above, the sparse shifted Newton of newton.py (faster there)
 _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
@@ -77,101 +76,7 @@ _GROW = 2.0  # radius growth after a good step that reached the boundary
 _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model holds
 _ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
 _ACCEL2 = _ACCEL_MAX**2
-_CONTRAST = 10.0  # springs this much stiffer than the median are put back (StiffSprings)
 _EMPTY = np.empty(0)
-
-
-class StiffSprings:
-    """Springs much stiffer than the network's median (and exact clamps), and a projection
-    onto their lengths.
-
-    ``restore(y, x, dx)`` moves ``y = x + dx`` the least (Gauss-Newton, minimum norm) so
-    that every such spring has the length the linear model predicted,
-    ``r(x) + u(x) . (dx_b - dx_a)``; None when that does not converge. A linear step that
-    rotates a spring lengthens it by ``|rotation|^2 r / 2``: for a spring ``1e3``-``1e12``
-    times stiffer than the rest that second-order error alone would veto the step.
-    """
-
-    CONTRAST = 1e3
-
-    def __init__(self, springs: NDArray, index: NDArray, n: int) -> None:
-        self.springs = springs
-        self.index = index
-        self.n = n
-        # the free flat coordinates and their rows, for scattering a move (read-only)
-        self.coords = np.flatnonzero(index >= 0)
-        self.order = index[self.coords]
-
-    @classmethod
-    def find(
-        cls, problem: Problem, coords: NDArray, *, contrast: float | None = None
-    ) -> StiffSprings | None:
-        """Springs ``contrast`` (default :attr:`CONTRAST`) times stiffer than the median."""
-        contrast = cls.CONTRAST if contrast is None else contrast
-        springs, k, _ = problem.all_springs()
-        positive = k[k > 0]
-        if not positive.size:
-            return None
-        stiff = np.flatnonzero(k > contrast * _median(positive))
-        if not stiff.size:
-            return None
-        if problem.exact:  # clamps are infinitely stiff springs: restored the same way
-            stiff = np.union1d(stiff, problem.clamp_springs)
-        index = np.full(2 * problem.net.n_nodes, -1, dtype=np.int64)
-        index[coords] = np.arange(coords.size)
-        return cls(springs[stiff], index, coords.size)
-
-    def _jacobian(self, x: NDArray) -> tuple[sp.csr_matrix, NDArray]:
-        s = self.springs
-        d = x[s[:, 1]] - x[s[:, 0]]
-        r = np.hypot(d[:, 0], d[:, 1])
-        u = d / np.maximum(r, 1e-300)[:, None]
-        flat = np.stack([2 * s[:, 0], 2 * s[:, 0] + 1, 2 * s[:, 1], 2 * s[:, 1] + 1], 1)
-        vals = np.concatenate([-u, u], axis=1)
-        cols = self.index[flat]
-        keep = cols >= 0
-        rows = np.broadcast_to(np.arange(len(s))[:, None], flat.shape)
-        J = sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(len(s), self.n))
-        return J, r
-
-    def restore(self, y: NDArray, x: NDArray, dx: NDArray) -> NDArray | None:
-        """``dx`` (n,) in the row order of ``coords`` given to :meth:`find`.
-
-        A chord iteration: ``J J^T`` is factorised at the first iterate and reused while
-        each correction cuts the length error at least 10-fold (refactorised otherwise);
-        on the sparse trust region's networks (40 % of springs stiff) a factorisation per
-        Gauss-Newton iteration was half of the solve's time."""
-        J0, r0 = self._jacobian(x)
-        target = r0 + J0 @ dx
-        z = y.copy()
-        coords, order = self.coords, self.order
-        lu = None
-        last = np.inf
-        fresh = False  # the factorisation was made at the last iterate
-        for _ in range(12):
-            J, r = self._jacobian(z)
-            c = r - target
-            error = float(np.max(np.abs(c)))
-            if error <= 1e-14 * max(float(np.max(r0)), 1e-300):
-                return z
-            if error > 0.1 * last:
-                if fresh and error > 0.5 * last:
-                    return None  # Gauss-Newton itself stalls: the lengths are not reachable
-                lu = None
-            fresh = lu is None
-            if lu is None:
-                G = (J @ J.T).tocsc() + 1e-12 * sp.identity(J.shape[0], format="csc")
-                try:
-                    lu = spla.splu(G)
-                except RuntimeError:
-                    return None
-            last = error
-            move = -(J.T @ lu.solve(c))
-            z = z.copy()
-            z.ravel()[coords] += move[order]
-            if not np.all(np.isfinite(z)):
-                return None
-        return None  # no convergence: the caller keeps the unprojected point
 
 
 def _node_stiffness(problem: Problem) -> NDArray:
@@ -202,22 +107,16 @@ def _setup(problem: Problem) -> tuple:
         return hit
     frame = Frame(net, problem.free)
     coords = frame.coords
-    stiff = StiffSprings.find(problem, coords, contrast=_CONTRAST)
+    stiff = StiffSprings.find(problem, coords)
     kappa = _node_stiffness(problem)
     kappa = kappa if coords.size == 2 * net.n_nodes else kappa[coords]
     inv_root = 1.0 / np.sqrt(kappa)
     inv_root.setflags(write=False)
     mean_rest = float(np.add.reduce(net.rest_length)) / net.n_springs
     hit = per[key] = (
-        frame, stiff, inv_root, mean_rest, _median(kappa), float(np.add.reduce(kappa))
+        frame, stiff, inv_root, mean_rest, median(kappa), float(np.add.reduce(kappa))
     )  # fmt: skip
     return hit
-
-
-def _median(a: NDArray) -> float:
-    """``np.median`` of a non-empty 1-d array (the same value), without its overhead."""
-    s = np.sort(a)
-    return float((s[(s.size - 1) // 2] + s[s.size // 2]) / 2)
 
 
 def _trial(
