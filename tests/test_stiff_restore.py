@@ -46,3 +46,41 @@ def test_lengths_no_placement_can_have_are_refused_quickly():
     stiff.geometry = lambda z: calls.append(1) or geometry(z)
     assert stiff.restore(x + dx.reshape(4, 2), x, dx) is None
     assert len(calls) <= 5  # it stops once Gauss-Newton stalls, not after 12 iterations
+
+
+def _dense_jacobian(x, springs, index, n):
+    """J (s, n) written out entry by entry: row s has -u and u on its end nodes' free
+    coordinates (``index`` -1 where pinned)."""
+    J = np.zeros((len(springs), n))
+    for row, (a, b) in enumerate(springs):
+        d = x[b] - x[a]
+        u = d / np.hypot(*d)
+        for node, sign in ((a, -1.0), (b, 1.0)):
+            for c in range(2):
+                col = index[2 * node + c]
+                if col >= 0:
+                    J[row, col] += sign * u[c]
+    return J
+
+
+def test_the_array_jacobian_and_gram_matrix_equal_the_written_out_ones():
+    rng = np.random.default_rng(7)
+    n_nodes = 9
+    x = rng.random((n_nodes, 2)) * 3
+    springs = np.array([[0, 1], [1, 2], [2, 3], [3, 4], [0, 4], [1, 5], [5, 6], [6, 2],
+                        [7, 8], [8, 0], [7, 3], [5, 8]])  # fmt: skip
+    free = np.ones(2 * n_nodes, dtype=bool)
+    free[[0, 1, 15]] = False  # node 0 pinned, node 7's y pinned
+    index = np.full(2 * n_nodes, -1)
+    rows = rng.permutation(int(free.sum()))  # a move vector's rows in any order
+    index[np.flatnonzero(free)] = rows
+    n = int(free.sum())
+    stiff = StiffSprings(springs, index, n)
+    J = _dense_jacobian(x, springs, index, n)
+    u, r = stiff.geometry(x)
+    np.testing.assert_allclose(r, _lengths(x, springs), rtol=1e-15)
+    v, w = rng.standard_normal(n), rng.standard_normal(len(springs))
+    np.testing.assert_allclose(stiff.lengthening(u, v), J @ v, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(stiff.spread(u, w), J.T @ w, rtol=0, atol=1e-14)
+    gram = stiff._gram.matrix(u).toarray()
+    np.testing.assert_allclose(gram, J @ J.T + 1e-12 * np.eye(len(springs)), rtol=0, atol=1e-14)
