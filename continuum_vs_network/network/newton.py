@@ -36,9 +36,10 @@ second-order error alone cuts steps short. Each trial step is therefore
 also tried after a Gauss-Newton projection that puts the stiff springs (and exact clamps)
 back to the lengths the linear model predicted (:class:`StiffSprings`). With it the
 8x8 lattices with 20 % of springs 1e9-1e12 times stiffer converge in 5-12 iterations
-instead of creeping; putting back springs from 10x the median (the trust region's
-choice), not only from 1e3x, took the first 30 networks of ``bench_family.py --medium``
-from a median of 157.5 to 97 iterations (p95 551 to 353) in 7 % more time.
+instead of creeping. Putting back springs from 10x the median (the trust region's
+choice), not only from 1e3x, cut ``benchmarks/bench_family.py`` (60 networks, seed 0)
+from a median of 167 to 96 iterations (p95 511 to 388) with ``--medium`` and from 215 to
+158 (p95 720 to 600) with ``--large``, in 0.84x and 1.12x the time.
 
 Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones
 :func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
