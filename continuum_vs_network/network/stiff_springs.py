@@ -6,7 +6,7 @@ methods (:mod:`.trust`, :mod:`.newton`) therefore also try each trial step after
 the least onto the lengths the linear model predicted for the stiff springs and the exact
 clamps.
 
-The projection is called for most trial steps, so it works on arrays alone: the Jacobian
+The projection is called for most rejected trial steps, so it works on arrays alone: the Jacobian
 ``J`` (one row per stiff spring, ``-u`` and ``u`` on its end nodes' free coordinates) is
 applied by gathers and scatters, and the pattern of ``J J^T`` (pairs of stiff springs on a
 common free coordinate) is found once, so each factorisation only fills its values. Built
@@ -95,7 +95,8 @@ class StiffSprings:
         return np.einsum("ij,ij->i", u, padded[:, 2:] - padded[:, :2])
 
     def spread(self, u: NDArray, w: NDArray) -> NDArray:
-        """``J^T w`` (n,): the move of least norm pattern for spring length changes ``w``."""
+        """``J^T w`` (n,): the node forces of spring tensions ``w`` (s,) on the move rows
+        (a Gauss-Newton correction is ``-J^T (J J^T)^-1`` of the length errors)."""
         values = np.concatenate([-u, u], axis=1) * w[:, None]
         return np.bincount(self._cols.ravel(), values.ravel(), self.n + 1)[: self.n]
 
