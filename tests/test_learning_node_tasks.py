@@ -117,7 +117,7 @@ def test_hold_meets_the_values_with_equal_and_opposite_reactions(relative):
     from continuum_vs_network.network.lagrangian import Frame
 
     frame = Frame(net, problem.free)
-    A = frame.dense_rows(net, held.positions, problem.clamp_springs)
+    A = frame.rows(net, held.positions, problem.clamp_springs, dense=True)
     force = frame.put(frame.take(g) + A.T @ mu).reshape(-1, 2)
     a, b, c = task.nodes[0], task.relative_to[0], task.coords[0]
     fa, fb = force[a, c], force[b, c]

@@ -82,7 +82,9 @@ class Sensitivity:
         self.frame = Frame(net, self.problem.free)
         self.n = self.frame.n
         W = lagrangian_hessian(self.problem, self.x, mu, frame=self.frame)
-        self.A = self.frame.rows(net, self.x, self.problem.clamp_springs) if m else None
+        self.A = (
+            self.frame.rows(net, self.x, self.problem.clamp_springs, dense=False) if m else None
+        )
         factor = self.frame.factor(W)
         if factor is not None:
             self._solve_W = factor.solve
@@ -124,7 +126,7 @@ class Sensitivity:
 
     def length_rows(self, springs: ArrayLike) -> NDArray:
         """``dr/dx`` of ``springs`` on free coordinates, dense (len(springs), n)."""
-        return self.frame.rows(self.net, self.x, springs).toarray()
+        return self.frame.rows(self.net, self.x, springs, dense=True)
 
     def compliance(self, springs: ArrayLike) -> NDArray:
         """Length change of ``springs`` per unit tension pair on them, (p, p).

@@ -146,7 +146,7 @@ class _Linearisation:
         n = self.frame.n
         missing = [s for s in key if s not in self.columns]
         if missing:
-            A = self.frame.dense_rows(net, self.x, np.array(missing))
+            A = self.frame.rows(net, self.x, np.array(missing), dense=True)
             Z = np.asarray(self.factor.solve(A.T.copy())).reshape(n, len(missing))
             for j, s in enumerate(missing):
                 self.columns[s] = (A[j], Z[:, j].copy())
@@ -411,7 +411,7 @@ class Tracker:
             if minus_load is not None:
                 g = g + minus_load
             if clamps.size:
-                A = frame.rows(net, x, clamps)  # sparse: 4 entries a row (dense: 200 MB at 1e6)
+                A = frame.rows(net, x, clamps)  # dense while small (200 MB at 1e6)
                 viol = r[clamps] - problem.clamp_lengths
                 mu = clamp_tensions(A, g, stop.scale[frame.coords])
                 force = g + A.T @ mu

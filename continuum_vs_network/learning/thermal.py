@@ -86,7 +86,7 @@ def thermal_sample(
     mu = -np.asarray(eq.clamp_force, dtype=np.float64)
     W = lagrangian_hessian(problem, x, mu, frame=frame).toarray()
     if problem.n_clamps:
-        A = frame.rows(net, x, problem.clamp_springs).toarray()
+        A = frame.rows(net, x, problem.clamp_springs, dense=True)
         N = sla.null_space(A)
     else:
         N = np.eye(frame.n)

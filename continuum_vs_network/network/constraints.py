@@ -24,6 +24,7 @@ from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .memo import per_network
 from .model import SpringNetwork
+from .spd import DENSE_MAX
 from .stopping import StopRule, coordinate_scale
 
 __all__ = ["Problem", "Residual", "clamp_tensions", "default_pins", "pin_mask"]
@@ -106,6 +107,40 @@ def _clamp_arrays(
     net: SpringNetwork, clamped: Mapping[int, float] | None
 ) -> tuple[NDArray, NDArray]:
     return clamp_arrays(net, clamped)
+
+
+DENSE_JACOBIAN = 100_000  # entries: a length Jacobian this small is kept dense (0.8 MB)
+
+
+def dense_jacobian_pays(m: int, n: int) -> bool:
+    """True when an (m, n) length Jacobian is cheaper dense: ``n <= DENSE_MAX`` or at most
+    ``DENSE_JACOBIAN`` entries. Below that scipy.sparse's construction and products cost
+    more than the dense arithmetic (0.4 ms a call at 1e3 nodes with one clamp, 5x the
+    dense products; a coupled-learning step at 1e3 nodes with 13 clamps went from 7.1 to
+    4.8 ms, ``benchmarks/bench_learning.py``)."""
+    return n <= DENSE_MAX or m * n <= DENSE_JACOBIAN
+
+
+def length_jacobian(
+    x: NDArray, pairs: NDArray, column: NDArray, n: int, *, dense: bool
+) -> sp.csr_matrix | NDArray:
+    """``dr/dx`` (m, n) of the springs with node pairs ``pairs`` (m, 2) at ``x`` (n_nodes,
+    2): row ``j`` is ``-u_j`` on its first node's and ``+u_j`` on its second node's
+    coordinates, in columns ``column`` (2 n_nodes,) (-1: a pinned coordinate, left out);
+    a dense ndarray or a sparse CSR matrix."""
+    m = len(pairs)
+    d = x[pairs[:, 1]] - x[pairs[:, 0]]
+    u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
+    a, b = pairs[:, 0], pairs[:, 1]
+    cols = column[np.stack([2 * a, 2 * a + 1, 2 * b, 2 * b + 1], axis=1)]  # (m, 4)
+    vals = np.concatenate([-u, u], axis=1)
+    if dense:
+        out = np.zeros((m, n + 1))  # column n collects the pinned entries
+        out[np.arange(m)[:, None], np.where(cols >= 0, cols, n)] = vals
+        return out[:, :n]
+    keep = cols >= 0
+    rows = np.broadcast_to(np.arange(m)[:, None], cols.shape)
+    return sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(m, n))
 
 
 def clamp_tensions(A: sp.spmatrix | NDArray, g: NDArray, scale: NDArray) -> NDArray:
@@ -281,21 +316,10 @@ class Problem:
         ``dense`` a (m, n_free) ndarray (cheaper for small problems).
         """
         coords = self.free_flat if coords is None else coords
-        m = self.n_clamps
-        s = self.net.springs[self.clamp_springs]
-        d = x[s[:, 1]] - x[s[:, 0]]
-        u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
-        flat = np.concatenate([2 * s[:, 0], 2 * s[:, 0] + 1, 2 * s[:, 1], 2 * s[:, 1] + 1])
-        vals = np.concatenate([-u[:, 0], -u[:, 1], u[:, 0], u[:, 1]])
-        rows = np.tile(np.arange(m), 4)
         column = np.full(2 * self.net.n_nodes, -1, dtype=np.int64)
         column[coords] = np.arange(coords.size)
-        keep = column[flat] >= 0
-        if dense:
-            out = np.zeros((m, coords.size))
-            out[rows[keep], column[flat][keep]] = vals[keep]  # (row, column) pairs are distinct
-            return out
-        return sp.csr_matrix((vals[keep], (rows[keep], column[flat][keep])), shape=(m, coords.size))
+        pairs = self.net.springs[self.clamp_springs]
+        return length_jacobian(x, pairs, column, coords.size, dense=dense)
 
     # -- the one residual used by every method ----------------------------------------
     def residual(self, x: NDArray, *, force: tuple[NDArray, NDArray] | None = None) -> Residual:
@@ -343,10 +367,7 @@ class Problem:
         g = spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel()[coords]
         if not self.n_clamps:
             return g, np.empty(0)
-        # a dense Jacobian up to 1e5 entries: scipy.sparse's overhead cost 0.4 ms a call
-        # at 1e3 nodes with one clamp (5x the dense products)
-        dense = coords.size <= 400 or self.n_clamps * coords.size <= 100_000
-        A = self.clamp_jacobian(x, coords, dense=dense)
+        A = self.clamp_jacobian(x, coords, dense=dense_jacobian_pays(self.n_clamps, coords.size))
         mu = clamp_tensions(A, g, self.scale[coords])
         return g + A.T @ mu, mu
 

@@ -20,7 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from .constraints import Problem
+from .constraints import Problem, dense_jacobian_pays, length_jacobian
 from .energy import HessianPattern
 from .kkt import DENSE_MAX, banded_pays, factor_spd, sparse_solver
 from .memo import per_array
@@ -135,20 +135,16 @@ class Frame:
         out[self.coords] = vec
         return out.reshape(self.n_nodes, 2)
 
-    def rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> sp.csr_matrix:
-        """Length gradients ``dr_j/dx`` of ``springs`` as a sparse (len(springs), n)."""
+    def rows(
+        self, net: SpringNetwork, x: NDArray, springs: NDArray, *, dense: bool | None = None
+    ) -> sp.csr_matrix | NDArray:
+        """Length gradients ``dr_j/dx`` of ``springs`` (len(springs), n): a dense ndarray
+        or a sparse CSR matrix (``dense=None``: whichever
+        :func:`~.constraints.dense_jacobian_pays` picks)."""
         springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
-        pairs = net.springs[springs]
-        d = x[pairs[:, 1]] - x[pairs[:, 0]]
-        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
-        flat = np.stack(
-            [2 * pairs[:, 0], 2 * pairs[:, 0] + 1, 2 * pairs[:, 1], 2 * pairs[:, 1] + 1], 1
-        )
-        vals = np.stack([-u[:, 0], -u[:, 1], u[:, 0], u[:, 1]], 1)
-        cols = self.index[flat]
-        keep = cols >= 0
-        rows = np.repeat(np.arange(springs.size), 4).reshape(-1, 4)
-        return sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(springs.size, self.n))
+        if dense is None:
+            dense = dense_jacobian_pays(springs.size, self.n)
+        return length_jacobian(x, net.springs[springs], self.index, self.n, dense=dense)
 
     def gradient(self, net: SpringNetwork, x: NDArray) -> NDArray:
         """``dE/dx`` on free coordinates in row order, (n,), by two sparse products.
@@ -172,19 +168,6 @@ class Frame:
         r = np.sqrt(d[:, 0] ** 2 + d[:, 1] ** 2)
         t = (net.stiffness * (r - net.rest_length) / np.maximum(r, 1e-300))[:, None] * d
         return (Dt @ t).reshape(-1)[self.coords], r
-
-    def dense_rows(self, net: SpringNetwork, x: NDArray, springs: NDArray) -> NDArray:
-        """Length gradients ``dr_j/dx`` of ``springs`` as a dense (len(springs), n) array."""
-        springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
-        pairs = net.springs[springs]
-        d = x[pairs[:, 1]] - x[pairs[:, 0]]
-        u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
-        out = np.zeros((springs.size, self.n + 1))  # column n collects pinned entries
-        rows = np.arange(springs.size)
-        for k, (node, c, sign) in enumerate(((0, 0, -1), (0, 1, -1), (1, 0, 1), (1, 1, 1))):
-            del k
-            out[rows, self.index[2 * pairs[:, node] + c]] = sign * u[:, c]
-        return out[:, : self.n]
 
     def factor(self, W: sp.csr_matrix):
         """Positive-definite factorisation of ``W`` (None when it is not)."""
@@ -251,7 +234,7 @@ def trust_region(
             return x, True
         g = frame.take(problem.gradient(x))
         if m:
-            vt = np.linalg.svd(frame.rows(net, x, clamps).toarray())[2]
+            vt = np.linalg.svd(frame.rows(net, x, clamps, dense=True))[2]
             Q = vt[m:].T
         else:
             Q = np.eye(frame.n)

@@ -55,7 +55,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from .constraints import Problem, clamp_tensions
+from .constraints import Problem, clamp_tensions, dense_jacobian_pays
 from .energy import HessianPattern, spring_energy_change, spring_gradient
 from .kkt import (
     DENSE_MAX,
@@ -77,7 +77,6 @@ DAMP_UP = 10.0  # shift growth after a step cut below a quarter
 DAMP_UP_MILD = 2.0  # after a step cut to a quarter or more (Nielsen's gentler growth)
 DAMP_RETRY = 1e-4  # least shift after a line search that found no decrease
 DAMP_GIVE_UP = 1e6  # no decrease even at this shift: the solve fails
-DENSE_JACOBIAN = 100_000  # entries: a clamp Jacobian this small is kept dense (0.8 MB)
 DAMP_MIN = 1e-6
 
 
@@ -102,7 +101,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     shift = 0.0
     exact_ok = True
     # a few clamps: a dense Jacobian, whose products cost less than scipy.sparse's overhead
-    dense_jacobian = pattern.size <= DENSE_MAX or problem.n_clamps * pattern.size <= DENSE_JACOBIAN
+    dense_jacobian = dense_jacobian_pays(problem.n_clamps, pattern.size)
     x = np.array(x, dtype=np.float64)
     reusable = None
     if m:

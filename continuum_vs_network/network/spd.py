@@ -177,7 +177,14 @@ def _banded_cholesky(W: sp.spmatrix) -> Factor | bool | None:
             raise ValueError(f"spbtrs: illegal argument {-info}")
         return x.astype(np.float64)
 
-    solve = lambda b: sla.cho_solve_banded((c, True), b, check_finite=False)  # noqa: E731
+    def solve(b: NDArray) -> NDArray:
+        # LAPACK directly: scipy's cho_solve_banded checks cost as much as the solve at 1e3
+        # nodes (0.15 against 0.08 ms), and the chord of a learning step makes ~7 of them
+        x, info = sla.lapack.dpbtrs(c, np.asarray(b, dtype=np.float64), lower=1)
+        if info:
+            raise ValueError(f"dpbtrs: illegal argument {-info}")
+        return x
+
     return Factor(solve, n, precondition)
 
 

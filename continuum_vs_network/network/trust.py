@@ -20,8 +20,8 @@ each iteration
    a spring lengthens it by ``|turn|^2 r / 2``, so the step through a curved valley (a
    stiff spring swinging about soft ones) is corrected to second order; then moves back
    onto the clamp lengths (Gauss-Newton projection) and puts springs stiffer than
-   :attr:`~.stiff_springs.StiffSprings.CONTRAST` times the median back to the lengths the linear model predicted
-   (:class:`StiffSprings`);
+   :attr:`~.stiff_springs.StiffSprings.CONTRAST` times the median back to the lengths the
+   linear model predicted (:class:`~.stiff_springs.StiffSprings`);
 5. accepts the step when the energy falls by a fair share of the model's prediction
    (computed without cancellation), and grows or shrinks the radius by the ratio; while a
    step on the boundary keeps its promise, radii twice as large are tried at the same
