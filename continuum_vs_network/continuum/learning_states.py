@@ -108,8 +108,23 @@ class _System:
         self.S = self.G @ self.Z
         self.n_sources = task.n_sources
         self._u0: tuple[NDArray, tuple] | None = None
+        self._rows: dict[bytes, tuple] = {}
         if tracker is not None:
             tracker.stats.factorisations += 1
+
+    def held(self, clamped: NDArray) -> tuple:
+        """``G``'s rows ``clamped`` (sparse), ``Z``'s columns and ``S``'s block for them,
+        kept per clamp set (a solve's free and clamped states use two; slicing the sparse
+        rows at every solve cost more than the solve)."""
+        key = clamped.tobytes()
+        hit = self._rows.get(key)
+        if hit is None:
+            hit = self._rows[key] = (
+                self.G[clamped],
+                self.Z[:, clamped],
+                self.S[np.ix_(clamped, clamped)],
+            )
+        return hit
 
     def u0(self, medium) -> tuple[NDArray, NDArray, float]:
         """``K^-1 f``, the load ``f`` on the free DOFs and the energy constant
@@ -141,8 +156,8 @@ def _system(medium, task, tracker) -> _System:
 def _solve(medium, task, clamped: NDArray, values: NDArray, tracker) -> MaterialState:
     sys_ = _system(medium, task, tracker)
     u0, f, const = sys_.u0(medium)
-    Gc = sys_.G[clamped]
-    uf, lam = schur_solve(u0, Gc, sys_.Z[:, clamped], sys_.S[np.ix_(clamped, clamped)], values)
+    Gc, Zc, Sc = sys_.held(np.asarray(clamped))
+    uf, lam = schur_solve(u0, Gc, Zc, Sc, values)
     u = np.zeros(medium.n_dofs)
     u[sys_.free] = uf
     Ku = sys_.K @ uf
