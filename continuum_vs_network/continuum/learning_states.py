@@ -116,7 +116,7 @@ class _System:
         """``G``'s rows ``clamped`` (sparse), ``Z``'s columns and ``S``'s block for them,
         kept per clamp set (a solve's free and clamped states use two; slicing the sparse
         rows at every solve cost more than the solve)."""
-        key = clamped.tobytes()
+        key = np.asarray(clamped, dtype=np.int64).tobytes()  # one dtype: equal sets, equal keys
         hit = self._rows.get(key)
         if hit is None:
             hit = self._rows[key] = (

@@ -180,7 +180,10 @@ def _banded_cholesky(W: sp.spmatrix) -> Factor | bool | None:
     def solve(b: NDArray) -> NDArray:
         # LAPACK directly: scipy's cho_solve_banded checks cost as much as the solve at 1e3
         # nodes (0.15 against 0.08 ms), and the chord of a learning step makes ~7 of them
-        x, info = sla.lapack.dpbtrs(c, np.asarray(b, dtype=np.float64), lower=1)
+        b = np.asarray(b, dtype=np.float64)
+        if b.shape[:1] != (n,) or b.ndim > 2:
+            raise ValueError(f"right-hand side must be ({n},) or ({n}, k), got {b.shape}")
+        x, info = sla.lapack.dpbtrs(c, b, lower=1)
         if info:
             raise ValueError(f"dpbtrs: illegal argument {-info}")
         return x

@@ -108,10 +108,14 @@ class StiffSprings:
         the length error at least 10-fold (refactorised otherwise; a factorisation per
         Gauss-Newton iteration was half of the sparse trust region's time). Gives up (None)
         when a correction with a fresh factorisation does not cut it 10-fold either: near
-        reachable lengths Gauss-Newton converges quadratically, so that means they are not
-        reachable (giving up at 2-fold instead took 5 factorisations a failed call, and
-        ``benchmarks/bench_family.py`` 6 % longer, with the same iterations); also after
-        12 corrections."""
+        reachable lengths Gauss-Newton converges quadratically, so that mostly means they
+        are not reachable (a review found 4 of 200 random reachable large steps given up;
+        the caller then keeps the unprojected point). Giving up at 2-fold instead took 5
+        factorisations a failed call and 6 % more time on ``benchmarks/bench_family.py``,
+        for about the same iterations. Also gives up after 12 corrections.
+
+        Not for threads sharing one network: the cached ``J J^T`` matrix is refilled in
+        place (processes, as the package's own parallel runs use, are safe)."""
         u0, r0 = self.geometry(x)
         target = r0 + self.lengthening(u0, dx)
         tol = 1e-14 * max(float(np.max(r0)), 1e-300)
@@ -166,10 +170,13 @@ class _GramPattern:
         first = np.repeat(by_column, width)
         within = np.arange(int(width.sum())) - np.repeat(np.cumsum(width) - width, width)
         second = by_column[np.repeat(starts[group], width) + within]
-        self._first, self._second = first, second  # entry pairs sharing a column
         key = np.concatenate([(second // 4) * s + first // 4, np.arange(s) * (s + 1)])
         stored, slot = np.unique(key, return_inverse=True)  # column-major: CSC order
-        self._slot = slot[: first.size]
+        # kept for the network's lifetime: int32 where it fits (half the memory; at 1e5
+        # nodes with half the springs stiff the int64 pairs were 71 MB)
+        small = np.int32 if key.size < 2**31 and 4 * s < 2**31 else np.int64
+        self._first, self._second = first.astype(small), second.astype(small)  # pairs
+        self._slot = slot[: first.size].astype(small)
         self._diagonal = slot[first.size :]
         indices = (stored % s).astype(np.int32)
         indptr = np.r_[0, np.cumsum(np.bincount(stored // s, minlength=s))].astype(np.int32)
