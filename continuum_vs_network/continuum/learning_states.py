@@ -116,7 +116,8 @@ class _System:
         """``G``'s rows ``clamped`` (sparse), ``Z``'s columns and ``S``'s block for them,
         kept per clamp set (a solve's free and clamped states use two; slicing the sparse
         rows at every solve cost more than the solve)."""
-        key = np.asarray(clamped, dtype=np.int64).tobytes()  # one dtype: equal sets, equal keys
+        clamped = np.asarray(clamped, dtype=np.int64)  # one dtype: equal sets, equal keys
+        key = clamped.tobytes()
         hit = self._rows.get(key)
         if hit is None:
             hit = self._rows[key] = (
@@ -156,7 +157,7 @@ def _system(medium, task, tracker) -> _System:
 def _solve(medium, task, clamped: NDArray, values: NDArray, tracker) -> MaterialState:
     sys_ = _system(medium, task, tracker)
     u0, f, const = sys_.u0(medium)
-    Gc, Zc, Sc = sys_.held(np.asarray(clamped))
+    Gc, Zc, Sc = sys_.held(clamped)
     uf, lam = schur_solve(u0, Gc, Zc, Sc, values)
     u = np.zeros(medium.n_dofs)
     u[sys_.free] = uf

@@ -121,6 +121,13 @@ def dense_jacobian_pays(m: int, n: int) -> bool:
     return n <= DENSE_MAX or m * n <= DENSE_JACOBIAN
 
 
+def end_columns(pairs: NDArray, column: NDArray) -> NDArray:
+    """``column`` (2 n_nodes,) at the four end coordinates of each spring of ``pairs`` (m,
+    2): (m, 4), first node x, y then second node x, y (-1 stays -1: pinned)."""
+    a, b = pairs[:, 0], pairs[:, 1]
+    return column[np.stack([2 * a, 2 * a + 1, 2 * b, 2 * b + 1], axis=1)]
+
+
 def length_jacobian(
     x: NDArray, pairs: NDArray, column: NDArray, n: int, *, dense: bool
 ) -> sp.csr_matrix | NDArray:
@@ -131,8 +138,7 @@ def length_jacobian(
     m = len(pairs)
     d = x[pairs[:, 1]] - x[pairs[:, 0]]
     u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
-    a, b = pairs[:, 0], pairs[:, 1]
-    cols = column[np.stack([2 * a, 2 * a + 1, 2 * b, 2 * b + 1], axis=1)]  # (m, 4)
+    cols = end_columns(pairs, column)
     vals = np.concatenate([-u, u], axis=1)
     if dense:
         out = np.zeros((m, n + 1))  # column n collects the pinned entries

@@ -21,7 +21,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from .constraints import Problem
+from .constraints import Problem, end_columns
 
 __all__ = ["StiffSprings", "median"]
 
@@ -50,13 +50,11 @@ class StiffSprings:
 
     def __init__(self, springs: NDArray, index: NDArray, n: int) -> None:
         self.springs = springs
-        self.index = index
         self.n = n
         # the free flat coordinates and their rows, for scattering a move
         self.coords = np.flatnonzero(index >= 0)
         self.order = index[self.coords]
-        a, b = springs[:, 0], springs[:, 1]
-        rows = index[np.stack([2 * a, 2 * a + 1, 2 * b, 2 * b + 1], axis=1)]
+        rows = end_columns(springs, index)
         # J's column of each entry (s, 4); pinned entries point at a padding row n
         self._cols = np.where(rows >= 0, rows, n)
         self._gram = _GramPattern(self._cols, n)
