@@ -262,6 +262,20 @@ def test_dense_and_sparse_rank_counts_agree():
     assert counts[0] == 3 and counts[-1] > 3
 
 
+def test_dense_and_sparse_rank_counts_agree_with_pins_and_clamps():
+    """The dense count builds its matrix without scipy.sparse: rows (k > 0 or clamped) and
+    columns (free coordinates) must be the ones the sparse count selects."""
+    rng = np.random.default_rng(5)
+    net = triangular_lattice(7, 7, noise=0.05, rng=rng)
+    k = np.where(rng.random(net.n_springs) < 0.45, 0.0, 1.0)  # many springs without stiffness
+    soft = net.with_stiffness(k)
+    zero = np.flatnonzero(k == 0)
+    for pins, clamps in [(None, []), ([0, 1], zero[:5].tolist()), ([3], zero[:20].tolist())]:
+        dense = zero_modes(soft, pinned=pins, clamped=clamps, method="dense")
+        sparse = zero_modes(soft, pinned=pins, clamped=clamps, method="sparse")
+        assert dense == sparse > 0
+
+
 def test_self_stresses_and_support():
     net = triangular_lattice(6, 5, noise=0.1, rng=np.random.default_rng(4))
     B = self_stresses(net)

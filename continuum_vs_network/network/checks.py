@@ -24,7 +24,7 @@ from .kkt import factor_spd
 from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
 from .memo import per_array
 from .model import SpringNetwork
-from .rigidity import zero_modes
+from .rigidity import count_zero_modes
 from .trust_model import null_basis, rigid_motions
 
 __all__ = [
@@ -66,8 +66,8 @@ def floppy_modes(problem: Problem) -> int:
     key = (net.n_nodes, problem.free.tobytes(), rows.tobytes())
     per = per_array(net.springs, "floppy_modes")
     if key not in per:
-        per[key] = zero_modes(
-            net, pinned=~problem.free, clamped=problem.clamp_springs, x=_generic(net), rtol=1e-9
+        per[key] = count_zero_modes(
+            net, problem.free, problem.clamp_springs, _generic(net), rtol=1e-9
         )
     return int(per[key])
 

@@ -16,6 +16,8 @@ gradients) and source sweeps.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
@@ -50,7 +52,7 @@ def pattern_for(
     if key not in per_topology:
         coords = None
         nested = None
-        if order and int(free.sum()) > DENSE_MAX:
+        if _reordered(free):
             nested = coordinate_order(nested_dissection(positions, springs), free)
             coords, width = band_order(springs, n_nodes, free)
             if not banded_pays(coords.size, width):
@@ -63,6 +65,12 @@ def pattern_for(
         pattern.nested_rows = None if nested is None else pattern.free_index[nested]
         per_topology[key] = pattern
     return per_topology[key]
+
+
+def _reordered(free: NDArray) -> bool:
+    """True when :func:`pattern_for` puts the rows of pin mask ``free`` in a fill-reducing
+    order; otherwise they are the free coordinates in natural order."""
+    return sparse_solver() != "pardiso" and int(np.count_nonzero(free)) > DENSE_MAX
 
 
 def lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) -> NDArray:
@@ -114,16 +122,23 @@ class Frame:
 
     def __init__(self, net: SpringNetwork, free: NDArray) -> None:
         free = np.asarray(free, dtype=bool)
-        pattern = pattern_for(net.springs, net.n_nodes, free, net.positions)
-        self.pattern = pattern
-        coords = getattr(pattern, "coords", None)
-        self.coords = np.flatnonzero(free.ravel()) if coords is None else np.asarray(coords)
-        self.ordered = bool(getattr(pattern, "ordered", False))
+        self._pattern_args = (net.springs, net.n_nodes, free, net.positions)
+        if _reordered(free):
+            self.coords = np.asarray(self.pattern.coords)
+            self.ordered = bool(self.pattern.ordered)
+        else:  # natural order: the pattern is built only when a matrix is assembled
+            self.coords = np.flatnonzero(free.ravel())
+            self.ordered = False
         self.n_nodes = net.n_nodes
         self.n = int(self.coords.size)
         self.index = np.full(2 * net.n_nodes, -1, dtype=np.int64)
         self.index[self.coords] = np.arange(self.n)
         self._incidence: tuple[sp.csr_matrix, sp.csr_matrix] | None = None
+
+    @functools.cached_property
+    def pattern(self) -> HessianPattern:
+        """The Hessian pattern of the topology and pins (:func:`pattern_for`), in row order."""
+        return pattern_for(*self._pattern_args)
 
     def take(self, full: NDArray) -> NDArray:
         """Free entries of a (n_nodes, 2) array, in row order, (n,)."""

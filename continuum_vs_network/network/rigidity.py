@@ -39,6 +39,7 @@ from .model import SpringNetwork
 
 __all__ = [
     "DENSE_LIMIT",
+    "count_zero_modes",
     "is_rigid",
     "rigidity_matrix",
     "self_stress_support",
@@ -75,7 +76,13 @@ def rigidity_matrix(net: SpringNetwork, x: ArrayLike | None = None) -> sp.csr_ma
     ValueError
         When a spring has zero length at ``x`` (its direction is undefined).
     """
-    x = _positions(net, x)
+    rows, cols, vals = _rigidity_entries(net, _positions(net, x))
+    return sp.csr_matrix((vals, (rows, cols)), shape=(net.n_springs, 2 * net.n_nodes))
+
+
+def _rigidity_entries(net: SpringNetwork, x: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """Row, column and value (each (4 n_springs,)) of the rigidity matrix's entries at ``x``
+    (n_nodes, 2); raises ValueError for a spring of zero length."""
     s = net.springs
     d = x[s[:, 1]] - x[s[:, 0]]
     r = np.hypot(d[:, 0], d[:, 1])
@@ -83,11 +90,20 @@ def rigidity_matrix(net: SpringNetwork, x: ArrayLike | None = None) -> sp.csr_ma
     if zero.size:
         raise ValueError(f"spring {zero[0]} has zero length at x; its direction is undefined")
     u = d / r[:, None]
-    m = net.n_springs
-    rows = np.repeat(np.arange(m), 4)
+    rows = np.repeat(np.arange(net.n_springs), 4)
     cols = np.stack([2 * s[:, 0], 2 * s[:, 0] + 1, 2 * s[:, 1], 2 * s[:, 1] + 1], axis=1).ravel()
     vals = np.stack([-u[:, 0], -u[:, 1], u[:, 0], u[:, 1]], axis=1).ravel()
-    return sp.csr_matrix((vals, (rows, cols)), shape=(m, 2 * net.n_nodes))
+    return rows, cols, vals
+
+
+def _dense_rigidity(net: SpringNetwork, x: NDArray, rows: NDArray, cols: NDArray) -> NDArray:
+    """The rigidity matrix's ``rows`` (springs) and ``cols`` (flat coordinates) as a dense
+    array, built without scipy.sparse (whose construction and slicing cost ~10x the SVD of a
+    small network's matrix)."""
+    r, c, v = _rigidity_entries(net, x)
+    R = np.zeros((net.n_springs, 2 * net.n_nodes))
+    R[r, c] = v  # a spring's two nodes differ: no entry written twice
+    return R[np.ix_(rows, cols)]
 
 
 def _clamp_indices(net: SpringNetwork, clamped: Mapping[int, float] | Sequence[int]) -> NDArray:
@@ -109,10 +125,10 @@ def _check_rtol(rtol: float) -> None:
         raise ValueError(f"rtol must be in (0, 1), got {rtol}")
 
 
-def _dense_rank(R: sp.spmatrix, rtol: float) -> int:
+def _dense_rank(R: sp.spmatrix | NDArray, rtol: float) -> int:
     if min(R.shape) == 0:
         return 0
-    s = np.linalg.svd(R.toarray(), compute_uv=False)
+    s = np.linalg.svd(R.toarray() if sp.issparse(R) else R, compute_uv=False)
     return int(np.sum(s > rtol * s[0])) if s.size and s[0] > 0 else 0
 
 
@@ -183,14 +199,31 @@ def zero_modes(
     _check_rtol(rtol)
     _positions(net, None)  # checks net
     free = np.ones((net.n_nodes, 2), bool) if pinned is None else ~pin_mask(net, pinned)
+    return count_zero_modes(
+        net, free, _clamp_indices(net, clamped), _positions(net, x), method=method, rtol=rtol
+    )
+
+
+def count_zero_modes(
+    net: SpringNetwork,
+    free: NDArray,
+    clamps: NDArray,
+    x: NDArray,
+    *,
+    method: Method = "auto",
+    rtol: float = 1e-8,
+) -> int:
+    """:func:`zero_modes` on arguments already checked: ``free`` (n_nodes, 2) bool, the
+    clamped springs' indices, positions ``x`` (n_nodes, 2)."""
     rows = net.stiffness > 0
-    rows[_clamp_indices(net, clamped)] = True
-    R = rigidity_matrix(net, x)[np.flatnonzero(rows)][:, np.flatnonzero(free.ravel())]
-    n_free = R.shape[1]
+    rows[clamps] = True
+    rows, cols = np.flatnonzero(rows), np.flatnonzero(free.ravel())
+    n_free = cols.size
     if n_free == 0:
         return 0
     if method == "dense" or (method == "auto" and n_free <= DENSE_LIMIT):
-        return n_free - _dense_rank(R, rtol)
+        return n_free - _dense_rank(_dense_rigidity(net, x, rows, cols), rtol)
+    R = rigidity_matrix(net, x)[rows][:, cols]
     return _sparse_nullity(R.tocsr(), max(rtol, _SPARSE_RTOL))
 
 
