@@ -146,7 +146,8 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             # Not below 0.5 tol / residual (Kelley's safeguard against oversolving): a last
             # step from just above the tolerance needs no accurate solve (at N = 4096, strain 1
             # one from 1.2e-10 took 14 preconditioner solves for eta = sqrt(residual))
-            eta = max(min(1e-1, np.sqrt(residual)), min(0.5, 0.5 * stop.tol / residual))
+            enough = min(0.5, 0.5 * stop.tol / max(residual, 1e-300))  # residual 0: clamps only
+            eta = max(min(1e-1, np.sqrt(residual)), enough)
             budget = reuse_budget(pattern.size)
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             if shift > 0.0:  # the damped model a refactorisation would solve now
