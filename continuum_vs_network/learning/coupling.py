@@ -229,7 +229,7 @@ def _target_strains(
         net, task.pinned, task.source_clamps(net, strain_reference), None, key="free"
     ).positions
     one = np.flatnonzero(scales == 1.0)
-    out[one] = task.target_strains(net, net.lengths(start)[task.targets], strain_reference)
+    out[one] = task.target_strains(net, net.lengths(start, task.targets), strain_reference)
     for side in (scales > 1.0, scales < 1.0):
         x = start
         for i in np.flatnonzero(side)[np.argsort(np.abs(scales[side] - 1.0))]:
@@ -244,7 +244,7 @@ def _target_strains(
             except EquilibriumError:
                 break
             x = eq.positions
-            out[i] = t.target_strains(net, net.lengths(x)[task.targets], strain_reference)
+            out[i] = t.target_strains(net, net.lengths(x, task.targets), strain_reference)
     return out
 
 
@@ -303,7 +303,7 @@ def measure_coupling(
             initial, task.pinned, t.source_clamps(initial, strain_reference), None, key="free"
         )
         initial_strains.append(
-            t.target_strains(initial, initial.lengths(eq.positions)[task.targets], strain_reference)
+            t.target_strains(initial, initial.lengths(eq.positions, task.targets), strain_reference)
         )
     return Coupling(
         scales=s,

@@ -227,7 +227,7 @@ def anchored(
         rest_node = dataclasses.replace(off, displacement=off.outputs(eq.positions) - off.reference)
         return TaskSet((task, rest_node))
     rest = off.with_target_strain(
-        off.target_strains(net, net.lengths(eq.positions)[task.targets], strain_reference)
+        off.target_strains(net, net.lengths(eq.positions, task.targets), strain_reference)
     )
     return TaskSet((task, rest))
 
@@ -368,7 +368,7 @@ def gain_examples(
     for task in tasks.tasks:
         task.check(net)
         eq = tracker.solve(net, task.pinned, task.source_clamps(net), None, key="free")
-        s0 = task.target_strains(net, net.lengths(eq.positions)[task.targets])
+        s0 = task.target_strains(net, net.lengths(eq.positions, task.targets))
         sign = rng.choice([-1.0, 1.0], size=s0.size)
         out.append(task.with_target_strain(s0 * (1.0 + sign * change)))
     return TaskSet(tuple(out))

@@ -185,5 +185,5 @@ def source_sweep(
                 net, task.pinned, t.source_clamps(net, strain_reference), x, key="free"
             )
             x = eq.positions
-            out[i] = t.target_strains(net, net.lengths(x)[task.targets], strain_reference)
+            out[i] = t.target_strains(net, net.lengths(x, task.targets), strain_reference)
     return out

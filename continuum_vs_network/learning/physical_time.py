@@ -188,8 +188,8 @@ def network_relaxation_time(
     if measure == "target":
         big = 1e12 / k_mean  # one backward-Euler step this long: the clamped equilibrium
         eq = simulate_viscous(net, viscosity, dt=big, t_end=big, pinned=task.pinned, clamped=clamps)
-        end = net.lengths(eq.positions[-1])[task.targets] / rest
-        start = net.lengths(net.positions)[task.targets] / rest
+        end = net.lengths(eq.positions[-1], task.targets) / rest
+        start = net.lengths(net.positions, task.targets) / rest
     t_end = 4.0 * (viscosity.drag + viscosity.dashpot) / k_mean * max(net.n_nodes, 4) ** 0.5
     for _ in range(30):
         traj = simulate_viscous(
@@ -201,7 +201,7 @@ def network_relaxation_time(
             except ValueError:
                 tau = math.inf
         else:
-            strains = np.stack([net.lengths(x)[task.targets] / rest for x in traj.positions])
+            strains = np.stack([net.lengths(x, task.targets) / rest for x in traj.positions])
             tau = settling_time(traj.times, strains, start, end, fraction)
         if 3.0 * tau <= t_end:
             return tau

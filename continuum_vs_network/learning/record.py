@@ -76,7 +76,7 @@ def record_measure(rec, t, net, task, rule, free, mask) -> None:
     if free is None:
         return
     x = free.positions
-    r_t = net.lengths(x)[task.targets]
+    r_t = net.lengths(x, task.targets)
     rec["target_length"][t] = r_t
     rec["target_strain"][t] = task.target_strains(net, r_t, ref)
     rec["error_current"][t] = task.error(net, x, "current")
@@ -104,10 +104,10 @@ def _record_examples(rec, t, net, tasks: TaskSet, rule, free, mask) -> None:
             [o - k.reference for o, k in zip(out, tasks.tasks)]
         )
     else:
-        r_t = np.concatenate([net.lengths(x)[k.targets] for x, k in zip(xs, tasks.tasks)])
+        r_t = np.concatenate([net.lengths(x, k.targets) for x, k in zip(xs, tasks.tasks)])
         rec["target_length"][t] = r_t
         rec["target_strain"][t] = np.concatenate(
-            [k.target_strains(net, net.lengths(x)[k.targets], ref) for x, k in zip(xs, tasks.tasks)]
+            [k.target_strains(net, net.lengths(x, k.targets), ref) for x, k in zip(xs, tasks.tasks)]
         )
     rec["error_current"][t] = tasks.error(net, xs, "current")
     rec["error_initial"][t] = tasks.error(net, xs, "initial")

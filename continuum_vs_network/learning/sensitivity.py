@@ -31,7 +31,7 @@ from ..network.constraints import Problem
 from ..network.equilibrium import Equilibrium
 from ..network.kkt import schur_solve
 from ..network.lagrangian import Frame, lagrangian_hessian
-from ..network.model import SpringNetwork
+from ..network.model import SpringNetwork, spring_vectors
 from .tasks import AllosteryTask, StrainReference
 
 __all__ = ["Cost", "Sensitivity", "cost_gradient", "gcl_limit", "length_jacobian_rows"]
@@ -45,9 +45,9 @@ def length_jacobian_rows(net: SpringNetwork, x: NDArray, v: NDArray) -> NDArray:
 
     ``x`` and ``v`` are (n_nodes, 2); returns (n_springs,).
     """
-    d = x[net.springs[:, 1]] - x[net.springs[:, 0]]
+    d = spring_vectors(x, net.springs)
     u = d / np.hypot(d[:, 0], d[:, 1])[:, None]
-    dv = v[net.springs[:, 1]] - v[net.springs[:, 0]]
+    dv = spring_vectors(v, net.springs)
     return np.einsum("ij,ij->i", u, dv)
 
 
@@ -186,7 +186,7 @@ def cost_gradient(
         raise ValueError(f"cost must be 'strain' or 'length', got {cost!r}")
     x = np.asarray(eq.positions, float)
     t = task.targets
-    r_t = net.lengths(x)[t] if target_lengths is None else np.asarray(target_lengths, float)
+    r_t = net.lengths(x, t) if target_lengths is None else np.asarray(target_lengths, float)
     ref_t = task.target_rest(net, strain_reference)
     if cost == "strain":
         err = r_t / ref_t - 1.0 - task.target_strain
@@ -237,7 +237,7 @@ def gcl_limit(
         net, task.pinned, task.source_clamps(net, strain_reference), eq
     )
     K = np.linalg.inv(sens.compliance(task.targets))
-    err = net.lengths(x)[task.targets] - task.desired_lengths(net, strain_reference)
+    err = net.lengths(x, task.targets) - task.desired_lengths(net, strain_reference)
     rows = sens.length_rows(task.targets)
     v, _ = sens.solve(rows.T @ (K @ err))
     dr = length_jacobian_rows(net, x, v)

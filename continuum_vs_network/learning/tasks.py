@@ -262,7 +262,7 @@ class AllosteryTask:
         strain_reference: StrainReference = "initial",
     ) -> float:
         """Task error ``C = sum_T (S_T^F - S_T)^2 / 2`` (Eq. 26) at free-state ``positions``."""
-        r = net.lengths(positions)[self.targets]
+        r = net.lengths(positions, self.targets)
         err = self.target_strains(net, r, strain_reference) - self.target_strain
         return float(0.5 * np.sum(err**2))
 

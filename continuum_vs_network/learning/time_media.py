@@ -157,7 +157,7 @@ class NetworkTime:
         return copy.x.copy()
 
     def target_length(self, net, copy: _Copy) -> NDArray:
-        return net.lengths(copy.x)[self.task.targets]
+        return net.lengths(copy.x, self.task.targets)
 
     def learning_arrays(self, net) -> tuple[NDArray, NDArray]:
         return net.rest_length.copy(), net.stiffness.copy()

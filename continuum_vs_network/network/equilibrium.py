@@ -219,7 +219,7 @@ def relax(
     x = _start(problem, x0)
     trace = Trace()
     solve = METHODS[method]
-    start_lengths = net.lengths(x)[problem.clamp_springs] if problem.n_clamps else None
+    start_lengths = net.lengths(x, problem.clamp_springs) if problem.n_clamps else None
     iterations = 0
     outcome = Outcome(x, 0, True)
     reaction = None  # the pins' reaction at outcome.x, when known

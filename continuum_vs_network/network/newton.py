@@ -65,6 +65,7 @@ from .kkt import (
     range_space_solve,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
+from .model import spring_vectors
 from .reuse import NegativeCurvature, SolveFailed, projected_pcg, reuse_budget
 from .stiff_springs import StiffSprings
 from .stopping import Outcome, StopRule, Trace
@@ -259,8 +260,8 @@ def _clamp_predictor(
         return x, None
     y = x.copy()
     y.ravel()[coords] += step
-    a, b = problem.net.springs.T
-    turned = np.einsum("ij,ij->i", x[b] - x[a], y[b] - y[a]) <= 0.0
+    springs = problem.net.springs
+    turned = np.einsum("ij,ij->i", spring_vectors(x, springs), spring_vectors(y, springs)) <= 0.0
     turned[problem.clamp_springs] = False
     if not np.all(np.isfinite(y)) or turned.any():
         return x, None
@@ -323,7 +324,7 @@ def _factor_lagrangian_hessian(
         if factor is not None:
             return factor, rho, 0.0, True
         if lam.size:
-            d = np.maximum(problem.net.lengths(x)[problem.clamp_springs], 1e-300)
+            d = np.maximum(problem.net.lengths(x, problem.clamp_springs), 1e-300)
             new_rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
             # rho A^T A adds (new_rho - rho) |A v|^2 to the curvature along v: if a known
             # negative direction stays negative, factorising again cannot succeed (the larger

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .energy import spring_energy_change, spring_gradient, spring_hessian_blocks
-from .model import SpringNetwork
+from .model import SpringNetwork, spring_vectors
 from .newton import factor_pd, pattern_for
 
 __all__ = ["ProximalSolver"]
@@ -62,7 +62,7 @@ class ProximalSolver:
         for clip in (False, True):
             L = net.rest_length
             if clip:
-                d = x[net.springs[:, 1]] - x[net.springs[:, 0]]
+                d = spring_vectors(x, net.springs)
                 L = np.minimum(L, np.hypot(d[:, 0], d[:, 1]))
             blocks = spring_hessian_blocks(x, net.springs, net.stiffness, L)
             W = self.pattern.assemble(blocks, shift=self.a)

@@ -22,6 +22,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .constraints import Problem, end_columns
+from .model import spring_vectors
 
 __all__ = ["StiffSprings", "median"]
 
@@ -82,7 +83,7 @@ class StiffSprings:
     def geometry(self, x: NDArray) -> tuple[NDArray, NDArray]:
         """Unit vectors ``u`` (s, 2) from each stiff spring's first node to its second, and
         lengths ``r`` (s,), at positions ``x`` (n_nodes, 2): ``J``'s rows are ``(-u, u)``."""
-        d = x[self.springs[:, 1]] - x[self.springs[:, 0]]
+        d = spring_vectors(x, self.springs)
         r = np.hypot(d[:, 0], d[:, 1])
         return d / np.maximum(r, 1e-300)[:, None], r
 

@@ -26,6 +26,7 @@ from .constraints import Problem
 from .energy import _scatter_nodes, spring_energy_change, spring_gradient
 from .lagrangian import Frame, lagrangian_blocks
 from .memo import per_array
+from .model import spring_vectors
 
 __all__ = ["DENSE_NODES", "DenseKernels", "SparseKernels", "kernels"]
 
@@ -75,10 +76,10 @@ class SparseKernels:
         full = np.zeros(x.size)
         full[self.coords] = step
         full = full.reshape(x.shape)
-        d = x[springs[:, 1]] - x[springs[:, 0]]
+        d = spring_vectors(x, springs)
         r = np.maximum(np.hypot(d[:, 0], d[:, 1]), _TINY)
         u = d / r[:, None]
-        dd = full[springs[:, 1]] - full[springs[:, 0]]
+        dd = spring_vectors(full, springs)
         perp = dd[:, 0] * u[:, 1] - dd[:, 1] * u[:, 0]
         t = (k * perp * perp / r)[:, None] * u
         return _scatter_nodes(t, springs, x.shape[0]).ravel()[self.coords]

@@ -52,7 +52,7 @@ from .energy import (
     spring_gradient,
     spring_hessian_blocks,
 )
-from .model import SpringNetwork
+from .model import SpringNetwork, spring_vectors
 from .newton import factor_pd, pattern_for
 
 __all__ = [
@@ -110,7 +110,7 @@ class Viscosity:
 
 
 def _unit(x: NDArray, springs: NDArray) -> tuple[NDArray, NDArray]:
-    d = x[springs[:, 1]] - x[springs[:, 0]]
+    d = spring_vectors(x, springs)
     r = np.hypot(d[:, 0], d[:, 1])
     return d / np.maximum(r, 1e-300)[:, None], r
 
@@ -135,7 +135,7 @@ def dashpot_force(x: ArrayLike, net: SpringNetwork, gamma: float, v: ArrayLike) 
     """Dashpot force ``-D_kv(x) v`` on every node (n_nodes, 2) for velocities ``v``."""
     x = np.asarray(x, dtype=np.float64)
     e, _ = _unit(x, net.springs)
-    dv = np.asarray(v)[net.springs[:, 1]] - np.asarray(v)[net.springs[:, 0]]
+    dv = spring_vectors(np.asarray(v), net.springs)
     rate = gamma * np.einsum("ij,ij->i", e, dv)
     # the force on b is -rate e, on a +rate e: the gradient of a spring with tension `rate`
     t = rate[:, None] * e

@@ -298,7 +298,7 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
     i, j = trained.springs[task.targets].T
     pos = traj.positions
     net_strain = np.linalg.norm(pos[:, j] - pos[:, i], axis=2) / L0[task.targets] - 1.0
-    net_final = trained.lengths(x_on)[task.targets] / L0[task.targets] - 1.0
+    net_final = trained.lengths(x_on, task.targets) / L0[task.targets] - 1.0
 
     field = ctx.unit(f"continuum_learning/refine0/{rule}").arrays["field"]
     c = scene.continuum

@@ -148,7 +148,7 @@ def transmission_unit(scene: Scene, params: dict, ctx: UnitContext):
         from ..continuum.transmission import continuum_transmission
 
         c = scene.continuum
-        length = float(net.lengths()[src])
+        length = float(net.lengths(None, src))
         b = continuum_transmission(
             net,
             src,

@@ -289,7 +289,7 @@ def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
         check_name = "|x - x(float64 Newton)| / mean L"
     if clamped:
         j = next(iter(clamped))
-        clamp_err = abs(float(net.lengths(x)[j]) - clamped[j]) / float(net.rest_length[j])
+        clamp_err = abs(float(net.lengths(x, j)) - clamped[j]) / float(net.rest_length[j])
     else:
         clamp_err = 0.0
     meta.update(

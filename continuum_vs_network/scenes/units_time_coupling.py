@@ -76,7 +76,7 @@ def final_share(initial, task, run, medium: str) -> float | None:
 
             def strains(net, t):
                 x = held_free_state(net, t, reference="initial")
-                return t.target_strains(net, net.lengths(x)[t.targets], "initial")
+                return t.target_strains(net, net.lengths(x, t.targets), "initial")
 
             return source_share(
                 strains(trained, task), strains(trained, off), strains(initial, off),
