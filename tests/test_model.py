@@ -66,6 +66,24 @@ def test_strain_and_clamp_length_are_inverse():
         net.clamp_length(3, 0.1)
 
 
+def test_lengths_of_chosen_springs_equal_the_full_lengths_there():
+    """``lengths(x, springs)`` measures only the springs named: the same numbers as the full
+    lengths at those indices, shaped as the selection; bad selections are named."""
+    net = _triangle(positions=[[0.0, 0.0], [3.0, 0.0], [0.0, 4.0]])
+    full = net.lengths()
+    np.testing.assert_array_equal(full, [3.0, 5.0, 4.0])
+    np.testing.assert_array_equal(net.lengths(None, [2, 0]), full[[2, 0]])
+    assert net.lengths(None, 1).shape == () and float(net.lengths(None, 1)) == 5.0
+    np.testing.assert_array_equal(net.lengths(None, full > 3.5), [5.0, 4.0])
+    assert net.lengths(None, [[0, 1], [1, 2]]).shape == (2, 2)
+    with pytest.raises(ValueError, match=r"springs must be a spring index in 0\.\.2, got 3"):
+        net.lengths(None, 3)
+    with pytest.raises(ValueError, match=r"springs\[1\] must be spring indices in 0\.\.2"):
+        net.lengths(None, [0, -1])
+    with pytest.raises(ValueError, match=r"springs must be a bool mask of shape \(3,\)"):
+        net.lengths(None, np.ones(2, dtype=bool))
+
+
 def test_with_copies_validate_and_share_topology():
     net = _triangle()
     moved = net.with_rest_length([1.5, 1.5, 1.5])

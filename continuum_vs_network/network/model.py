@@ -148,14 +148,30 @@ class SpringNetwork:
     ) -> NDArray[np.float64]:
         """Spring lengths ``r_j`` at positions ``x`` (default: the stored positions).
 
-        ``springs``: the springs to measure (an index, indices or a mask; default all), e.g.
-        a task's targets, without computing the others. Returns a (n_springs,) float array,
-        or one shaped as ``net.stiffness[springs]``.
+        ``springs``: the springs to measure (an index, an integer array of indices or a
+        (n_springs,) bool mask; default all), e.g. a task's targets, without computing the
+        others. Returns a (n_springs,) float array, or one shaped as
+        ``net.stiffness[springs]``.
         """
         x = self.positions if x is None else self._positions_like(x)
-        pairs = self.springs if springs is None else self.springs[springs]
+        pairs = self.springs if springs is None else self.springs[self._selection(springs)]
         d = spring_vectors(x, pairs.reshape(-1, 2))
         return np.hypot(d[:, 0], d[:, 1]).reshape(pairs.shape[:-1])
+
+    def _selection(self, springs: ArrayLike) -> NDArray | int:
+        """``springs`` checked as a spring index, indices or a (n_springs,) bool mask."""
+        n, top = self.n_springs, self.n_springs - 1
+        if isinstance(springs, np.ndarray) and springs.dtype == bool:
+            if springs.shape != (n,):
+                raise check.ArgumentError("springs", springs, f"a bool mask of shape ({n},)")
+            return springs
+        if np.ndim(springs) == 0:
+            return check.integer(
+                "springs", springs, low=0, high=top, what=f"a spring index in 0..{top}"
+            )
+        shape = np.shape(springs)
+        flat = check.index_array("springs", np.ravel(springs), n, what="spring indices")
+        return flat.reshape(shape)
 
     def _positions_like(self, x: ArrayLike) -> NDArray[np.float64]:
         """``x`` as (n_nodes, 2) float64 positions: arrays already so pass without a copy."""
