@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
-from .model import SpringNetwork
+from .model import SpringNetwork, spring_vectors
 from .rigidity import is_rigid, self_stress_support
 
 __all__ = [
@@ -251,7 +251,7 @@ def triangular_lattice(
         pos = pos + rng.normal(0.0, noise * spacing, size=pos.shape)
     k = _per_spring("stiffness", stiffness, len(springs))
     if rest_length is None:
-        d = pos[springs[:, 1]] - pos[springs[:, 0]]
+        d = spring_vectors(pos, springs)
         L = np.hypot(d[:, 0], d[:, 1])
     else:
         L = _per_spring("rest_length", rest_length, len(springs))

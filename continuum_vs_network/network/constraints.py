@@ -23,7 +23,7 @@ from .._validate import choice, index_array, real
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .memo import per_network
-from .model import SpringNetwork
+from .model import SpringNetwork, spring_vectors
 from .spd import DENSE_MAX
 from .stopping import StopRule, coordinate_scale
 
@@ -136,7 +136,7 @@ def length_jacobian(
     coordinates, in columns ``column`` (2 n_nodes,) (-1: a pinned coordinate, left out);
     a dense ndarray or a sparse CSR matrix."""
     m = len(pairs)
-    d = x[pairs[:, 1]] - x[pairs[:, 0]]
+    d = spring_vectors(x, pairs)
     u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
     cols = end_columns(pairs, column)
     vals = np.concatenate([-u, u], axis=1)
@@ -310,7 +310,7 @@ class Problem:
         if not self.n_clamps:
             return np.empty(0)
         s = self.net.springs[self.clamp_springs]
-        d = x[s[:, 1]] - x[s[:, 0]]
+        d = spring_vectors(x, s)
         return np.hypot(d[:, 0], d[:, 1]) - self.clamp_lengths
 
     def clamp_jacobian(

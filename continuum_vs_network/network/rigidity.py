@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
 from .constraints import default_pins, pin_mask
-from .model import SpringNetwork
+from .model import SpringNetwork, spring_vectors
 
 __all__ = [
     "DENSE_LIMIT",
@@ -84,7 +84,7 @@ def _rigidity_entries(net: SpringNetwork, x: NDArray) -> tuple[NDArray, NDArray,
     """Row, column and value (each (4 n_springs,)) of the rigidity matrix's entries at ``x``
     (n_nodes, 2); raises ValueError for a spring of zero length."""
     s = net.springs
-    d = x[s[:, 1]] - x[s[:, 0]]
+    d = spring_vectors(x, s)
     r = np.hypot(d[:, 0], d[:, 1])
     zero = np.flatnonzero(r == 0.0)
     if zero.size:
