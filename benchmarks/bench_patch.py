@@ -7,8 +7,10 @@ median iterations and the time per iteration, and the same with explicit default
 (the pinned problem solved directly, rigid motion not removed by the solver), side by side;
 ``fresh network`` times default pins on a new network object with slightly other stiffness
 each run, so that nothing ``relax`` keeps per network (setup, checks) is reused; ``new
-network`` builds the network anew each run (new arrays), so nothing kept per topology is
-reused either: a user's first ``relax`` of a network.
+network`` builds the network anew each run (new arrays of the same topology: what is kept
+per topology, such as the rank check, is shared by content), a user's first ``relax`` of
+another patch; ``new topology`` relabels its nodes by a new random permutation each run,
+so nothing kept per topology is reused either.
 
     python benchmarks/bench_patch.py
     python benchmarks/bench_patch.py --count 50 --repeats 20
@@ -45,7 +47,17 @@ def main() -> None:
 
     nets = [paper_network(np.random.default_rng(seed)) for seed in range(args.count)]
 
-    def measure(pinned: bool, fresh: bool = False, new: bool = False) -> tuple[float, float, float]:
+    def relabelled(net: cvn.SpringNetwork, rng: np.random.Generator) -> cvn.SpringNetwork:
+        """The same patch, node ``j`` renamed ``p[j]`` for a random permutation ``p``."""
+        p = rng.permutation(net.n_nodes)
+        positions = np.empty_like(net.positions)
+        positions[p] = net.positions
+        return cvn.SpringNetwork(positions, p[net.springs], net.stiffness, net.rest_length)
+
+    def measure(
+        pinned: bool, fresh: bool = False, new: bool = False, relabel: bool = False
+    ) -> tuple[float, float, float]:
+        shuffle = np.random.default_rng(12345)
         times, iterations = [], []
         for seed, net in enumerate(nets):
             pins = cvn.default_pins(net) if pinned else None
@@ -58,6 +70,8 @@ def main() -> None:
                 one = net.with_stiffness(net.stiffness * (1 + 1e-12 * (i + 1))) if fresh else net
                 if new:
                     one = paper_network(np.random.default_rng(seed))
+                if relabel:
+                    one = relabelled(net, shuffle)
                 t0 = time.perf_counter()
                 eq = cvn.relax(one, pinned=pins)
                 best = min(best, time.perf_counter() - t0)
@@ -72,6 +86,7 @@ def main() -> None:
         "explicit pins": measure(True),
         "fresh network": measure(False, fresh=True),
         "new network": measure(False, new=True),
+        "new topology": measure(False, relabel=True),
     }
     for name, (ms, its, per) in rows.items():
         print(f"{name:14s} median {ms:6.2f} ms  iterations {its:5.1f}  {per:6.3f} ms/iteration")

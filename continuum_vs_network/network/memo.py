@@ -5,8 +5,11 @@ array, so results that depend only on the topology (Hessian patterns, incidence 
 scatter indices, validation) or only on one network (its scale, pins, rigidity checks,
 solver setup) are computed once. Two stores, each a dict per ``(object, name)``:
 
-- :func:`per_array` keys on the array's identity and drops the entry when the array is
-  collected (an id is not reused before that);
+- :func:`per_array` keys a small array (up to :data:`CONTENT_MAX_BYTES`) on its content, so
+  networks built anew with the same topology (a sweep over seeds of one patch) share the
+  entry, at most :data:`CONTENT_KEPT` topologies per name, least recently used dropped
+  first; a larger array on its identity, dropping the entry when the array is collected
+  (an id is not reused before that);
 - :func:`per_network` keys weakly on the network object.
 
 Callers use a ``name`` of their own, so the stores of different modules never mix.
@@ -15,18 +18,38 @@ Callers use a ``name`` of their own, so the stores of different modules never mi
 from __future__ import annotations
 
 import weakref
+from collections import OrderedDict
 from typing import Any
 
 import numpy as np
 
 __all__ = ["per_array", "per_network"]
 
+CONTENT_MAX_BYTES = 4096  # 256 springs: a key of this size hashes in ~1 us
+CONTENT_KEPT = 64  # topologies kept per name (least recently used dropped)
+
 _ARRAYS: dict[tuple[int, str], dict] = {}
+_CONTENT: dict[str, OrderedDict] = {}
 _NETWORKS: dict[str, weakref.WeakKeyDictionary] = {}
 
 
 def per_array(array: np.ndarray, name: str) -> dict:
-    """The ``name`` store of ``array`` (read-only callers only), emptied when it goes."""
+    """The ``name`` store of ``array`` (read-only callers only): shared by arrays of equal
+    content when small, else kept while this array lives."""
+    if array.nbytes <= CONTENT_MAX_BYTES:
+        kept = _CONTENT.setdefault(name, OrderedDict())
+        content = (array.shape, array.dtype.str, array.tobytes())
+        store = kept.get(content)
+        if store is None:
+            store = kept[content] = {}
+            if len(kept) > CONTENT_KEPT:
+                kept.popitem(last=False)
+        else:
+            try:
+                kept.move_to_end(content)
+            except KeyError:  # dropped meanwhile by another thread: the store still serves
+                pass
+        return store
     key = (id(array), name)
     store = _ARRAYS.get(key)
     if store is None:
