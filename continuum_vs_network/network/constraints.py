@@ -361,16 +361,21 @@ class Problem:
             viol = viol - np.asarray(multipliers) / self.rod_stiffness
         return viol
 
-    def unbalanced_force(self, x: NDArray, coords: NDArray) -> tuple[NDArray, NDArray]:
+    def unbalanced_force(
+        self, x: NDArray, coords: NDArray, *, grad: NDArray | None = None
+    ) -> tuple[NDArray, NDArray]:
         """``grad E + A^T mu`` at flat coordinates ``coords``, with least-squares ``mu``.
 
         Uses the network's springs only: a rod's force lies along its clamp normal and is
         projected out anyway, so ``mu`` holds the clamp forces in both clamp modes. The
         least squares are weighted by the local force scale (:func:`clamp_tensions`).
+        ``grad``: the springs' flat (2 n_nodes,) gradient at ``x``, when the caller has it.
         Returns ``((len(coords),) array, (m,) multipliers)``.
         """
         net = self.net
-        g = spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel()[coords]
+        if grad is None:
+            grad = spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel()
+        g = grad[coords]
         if not self.n_clamps:
             return g, np.empty(0)
         A = self.clamp_jacobian(x, coords, dense=dense_jacobian_pays(self.n_clamps, coords.size))

@@ -260,7 +260,8 @@ def relax(
         if pinned is not None or not outcome.converged:
             break
         if reaction is None or outcome is not checked:
-            reaction = _pin_reaction(problem, outcome.x)
+            found, reaction = _residual_and_reaction(problem, outcome.x)
+            known = (problem, outcome.x, found)  # _finish's residual, if x stays
         if reaction <= stop.tol:
             break
         avoid = problem.clamp_springs
@@ -406,14 +407,20 @@ def _place(x: NDArray, start: NDArray, free: NDArray) -> NDArray:
 
 
 def _residual_and_reaction(problem: Problem, x: NDArray) -> tuple[Residual, float]:
-    """``problem.residual(x)`` and :func:`_pin_reaction` at ``x``; from one net force on
-    every coordinate when there are no clamps (no multipliers to fit per coordinate set)."""
-    if problem.n_clamps:
-        return problem.residual(x), _pin_reaction(problem, x)
+    """``problem.residual(x)`` and :func:`_pin_reaction` at ``x`` from one spring gradient
+    (the clamp tensions are fitted on each coordinate set, free and all, as those do)."""
     net = problem.net
-    force = np.abs(spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel())
-    relative = force / problem.scale  # the same numbers Problem.residual and _pin_reaction use
+    grad = spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel()
     free, pinned = problem.free_flat, np.flatnonzero(~problem.free.ravel())
+    if problem.n_clamps:
+        res = problem.residual(x, force=problem.unbalanced_force(x, free, grad=grad))
+        if not pinned.size:
+            return res, 0.0
+        every = np.arange(grad.size)
+        force = problem.unbalanced_force(x, every, grad=grad)[0]
+        return res, _pin_reaction(problem, x, force)
+    force = np.abs(grad)
+    relative = force / problem.scale  # the same numbers Problem.residual and _pin_reaction use
     res = Residual(
         float(np.max(relative[free])) if free.size else 0.0,
         float(np.max(force[free])) if free.size else 0.0,
