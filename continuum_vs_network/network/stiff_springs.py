@@ -16,6 +16,8 @@ trust region's time on ``benchmarks/bench_family.py``.
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -179,16 +181,21 @@ class _GramPattern:
         self._diagonal = slot[first.size :]
         indices = (stored % s).astype(np.int32)
         indptr = np.r_[0, np.cumsum(np.bincount(stored // s, minlength=s))].astype(np.int32)
-        # one matrix whose values are overwritten: building a new one each time cost more
-        # than the values (SuperLU copies what it factorises)
+        # one matrix per thread whose values are overwritten: building a new one each time
+        # cost more than the values (SuperLU copies what it factorises); per thread, since
+        # the pattern is kept with the network and threads may relax one network at once
         self._gram = sp.csc_matrix((np.zeros(indices.size), indices, indptr), shape=(s, s))
+        self._local = threading.local()
 
     def matrix(self, u: NDArray) -> sp.csc_matrix:
         """``J J^T + 1e-12 I`` for unit vectors ``u`` (s, 2), ``J``'s rows ``(-u, u)``: the
-        same matrix object each call, its values overwritten (factorise it before the next
-        call)."""
+        same matrix object at each call from one thread, its values overwritten (factorise
+        it before the next call)."""
         values = np.concatenate([-u, u], axis=1).ravel()
-        data = self._gram.data
+        gram = getattr(self._local, "gram", None)
+        if gram is None:
+            gram = self._local.gram = self._gram.copy()
+        data = gram.data
         data[:] = np.bincount(self._slot, values[self._first] * values[self._second], data.size)
         data[self._diagonal] += _REGULARISATION
-        return self._gram
+        return gram
