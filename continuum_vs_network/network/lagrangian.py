@@ -46,6 +46,8 @@ def pattern_for(
     made with ``with_*`` share their read-only springs array, so a learning loop builds the
     pattern once.
     """
+    # shared by networks of equal small springs arrays (memo.per_array): the order depends
+    # on positions only above DENSE_MAX free coordinates, which 256 springs cannot hold rigid
     per_topology = per_array(springs, "hessian_pattern")
     order = sparse_solver() != "pardiso"
     key = (n_nodes, free.tobytes(), order)

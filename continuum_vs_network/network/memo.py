@@ -12,7 +12,8 @@ solver setup) are computed once. Two stores, each a dict per ``(object, name)``:
   (an id is not reused before that);
 - :func:`per_network` keys weakly on the network object.
 
-Callers use a ``name`` of their own, so the stores of different modules never mix.
+Callers use a ``name`` of their own, so the stores of different modules never mix, and keep
+only what the array's content and the rest of their key decide.
 """
 
 from __future__ import annotations
