@@ -100,6 +100,10 @@ def _run(args: argparse.Namespace) -> int:
 
 def _report(args: argparse.Namespace) -> int:
     scenes = _load(args.scenes) if args.scenes else _default_scenes()
+    if args.workers is None:  # one per core; serial if a local cluster cannot start
+        from .scenes.executor import default_workers
+
+        args.workers, args.serial_fallback = default_workers(), True
     t0 = time.perf_counter()
     first_failure = EXIT["ok"]
     for scene in scenes:

@@ -88,7 +88,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="scene files or built-in names (none: the default set)",
     )
     _common(report)
-    report.set_defaults(func=_report)
+    report.set_defaults(func=_report, workers=None)
+    for action in report._actions:
+        if action.dest == "workers":
+            action.default = None
+            action.help = (
+                "processes for learning trials and lattice sizes (default: one per core, up "
+                "to 8, when dask.distributed is installed, else 1; results agree with 1 to "
+                "solver round-off)"
+            )
 
     export = sub.add_parser(
         "export", help="write a scene's meshes (VTU, PVD) for ParaView", epilog=_EPILOG

@@ -189,3 +189,45 @@ def test_units_modules_do_not_import_the_runner():
             if isinstance(node, ast.ImportFrom) and node.module is not None
         }
         assert "runner" not in imported, f"{path.name} imports the runner"
+
+
+def test_report_defaults_to_one_worker_per_core_when_dask_is_there(monkeypatch):
+    import importlib.util
+
+    from continuum_vs_network.cli_parser import build_parser
+    from continuum_vs_network.scenes import executor
+
+    assert build_parser().parse_args(["report"]).workers is None  # resolved when run
+    assert build_parser().parse_args(["run", "x.toml"]).workers == 1
+    real = importlib.util.find_spec
+    monkeypatch.setattr(executor, "machine_workers", lambda: 12)
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda n, *a: None if n == "distributed" else real(n, *a)
+    )
+    assert executor.default_workers() == 1  # no Dask: serial
+    monkeypatch.setattr(importlib.util, "find_spec", real)
+    assert executor.default_workers() == executor.DEFAULT_WORKERS_MAX == 8
+
+
+def test_a_local_cluster_that_does_not_start_falls_back_to_serial_only_when_allowed(
+    tmp_path, monkeypatch
+):
+    path = tmp_path / "learn.toml"
+    path.write_text(LEARN)
+    scene = load_scene(path)
+
+    def broken(**kw):
+        raise OSError("no sockets here")
+
+    monkeypatch.setattr(runner_module, "open_executor", broken)
+    messages = []
+    fallback = run_scene(
+        scene, tmp_path / "f", workers=2, serial_fallback=True, progress=False, log=messages.append
+    )
+    assert fallback.provenance.workers == 1
+    assert any("did not start (no sockets here); serial" in m for m in messages)
+    serial = run_scene(scene, tmp_path / "s", progress=False)
+    for key, h in serial.histories.items():
+        np.testing.assert_array_equal(h.error_initial, fallback.histories[key].error_initial)
+    with pytest.raises(OSError, match="no sockets"):
+        run_scene(scene, tmp_path / "x", workers=2, progress=False)

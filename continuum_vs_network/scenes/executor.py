@@ -61,6 +61,19 @@ def machine_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+DEFAULT_WORKERS_MAX = 8  # each worker process imports the package (~0.2 GB)
+
+
+def default_workers() -> int:
+    """Worker processes when none are asked for: one per core this process may use, up to
+    :data:`DEFAULT_WORKERS_MAX`, when dask.distributed is installed; else 1 (serial)."""
+    import importlib.util
+
+    if importlib.util.find_spec("distributed") is None:
+        return 1
+    return min(machine_workers(), DEFAULT_WORKERS_MAX)
+
+
 def pinned_call(func: Callable[..., Any], args: tuple) -> Any:
     """``func(*args)`` with BLAS and OpenMP pools limited to one thread."""
     from threadpoolctl import threadpool_limits

@@ -42,7 +42,7 @@ from .compute import KILL_ENV as KILL_ENV
 from .compute import SceneRunError, _Killer, _run_parallel, _run_serial
 from .compute import _compute as _compute
 from .compute import _worker as _worker
-from .executor import open_executor
+from .executor import Executor, ExecutorUnavailable, SerialExecutor, open_executor
 from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
 from .store import _clean, _is_done, _merged_history, _read_record, _read_unit, _units_dir
@@ -144,12 +144,31 @@ def run_scene(scene: Scene, directory: str | os.PathLike[str], **options: Any) -
     second run on it raises :class:`~continuum_vs_network.io.lock.FolderBusyError` at once.
     Temporaries that killed runs left in it are removed first, and a unit whose stored
     payload does not read back is computed again. The keyword options (``workers``,
-    ``scheduler``, ``progress``, ``fresh``, ``command``, ``log``) are described at
-    :func:`_run_scene`.
+    ``scheduler``, ``progress``, ``fresh``, ``command``, ``log``, ``serial_fallback``) are
+    described at :func:`_run_scene`.
     """
     with folder_lock(directory):
         remove_stale_temporaries(directory, locked=True)
         return _run_scene(scene, directory, **options)
+
+
+def _open(
+    workers: int,
+    scheduler: str | None,
+    serial_fallback: bool,
+    scene: Scene,
+    log: Callable[[str], None] | None,
+) -> Executor:
+    """:func:`.executor.open_executor`, or the serial executor when a local cluster
+    cannot be started and ``serial_fallback`` allows it."""
+    try:
+        return open_executor(workers=workers, scheduler=scheduler)
+    except (ExecutorUnavailable, OSError, RuntimeError, TimeoutError) as err:
+        if not serial_fallback or scheduler is not None:
+            raise
+        if log:
+            log(f"{scene.name}: {workers} local worker processes did not start ({err}); serial")
+        return SerialExecutor()
 
 
 def _run_scene(
@@ -162,6 +181,7 @@ def _run_scene(
     fresh: bool = False,
     command: str | None = None,
     log: Callable[[str], None] | None = None,
+    serial_fallback: bool = False,
 ) -> SceneResult:
     """Compute every unit of ``scene`` not already in ``directory``; return the result.
 
@@ -184,6 +204,9 @@ def _run_scene(
         Recorded in the provenance (default: this process's command line).
     log : callable, optional
         Receives one-line messages (resumed units, ...).
+    serial_fallback : bool
+        When the local Dask cluster of ``workers`` cannot be started, run serially (with
+        a message) instead of failing: for a worker count the caller chose by default.
 
     Raises
     ------
@@ -223,7 +246,7 @@ def _run_scene(
             serial = [u for u in todo if not (parallel and u.parallel)]
             pooled = [u for u in todo if parallel and u.parallel]
             if pooled:
-                executor = executor or open_executor(workers=workers, scheduler=scheduler)
+                executor = executor or _open(workers, scheduler, serial_fallback, scene, log)
                 _run_parallel(executor, scene, pooled, directory, bar)
             for unit in serial:
                 _run_serial(scene, unit, directory, bar, killer)
