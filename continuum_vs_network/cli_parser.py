@@ -10,7 +10,11 @@ from .cli_commands import _demo, _export, _report, _run, _scenes, _sweep
 from .cli_messages import _DEBUG_ENV, _EPILOG
 
 
-def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
+def _common(
+    p: argparse.ArgumentParser, *, report: bool = True, workers_help: str | None = None
+) -> None:
+    """Options every scene command takes; ``workers_help``: the command chooses its own
+    worker count when ``--workers`` is not given (default None), as this help says."""
     p.add_argument(
         "--out",
         default=".",
@@ -20,10 +24,11 @@ def _common(p: argparse.ArgumentParser, *, report: bool = True) -> None:
     p.add_argument(
         "--workers",
         type=int,
-        default=1,
+        default=1 if workers_help is None else None,
         metavar="N",
-        help="processes for learning trials and lattice sizes (default 1; results "
-        "agree with 1 to solver round-off)",
+        help=workers_help
+        or "processes for learning trials and lattice sizes (default 1; results agree with 1 "
+        "to solver round-off)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bars or messages")
     p.add_argument(
@@ -87,16 +92,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SCENE",
         help="scene files or built-in names (none: the default set)",
     )
-    _common(report)
-    report.set_defaults(func=_report, workers=None)
-    for action in report._actions:
-        if action.dest == "workers":
-            action.default = None
-            action.help = (
-                "processes for learning trials and lattice sizes (default: one per core, up "
-                "to 8, when dask.distributed is installed, else 1; results agree with 1 to "
-                "solver round-off)"
-            )
+    _common(
+        report,
+        workers_help="processes for learning trials and lattice sizes (default: one per core, "
+        "up to 8, when dask.distributed is installed, else 1; results agree with 1 to solver "
+        "round-off)",
+    )
+    report.set_defaults(func=_report)
 
     export = sub.add_parser(
         "export", help="write a scene's meshes (VTU, PVD) for ParaView", epilog=_EPILOG
@@ -147,14 +149,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--dry-run", action="store_true", help="print the grid and the estimated cost only"
     )
     sweep.add_argument("--no-report", action="store_true", help="compute the table only")
-    _common(sweep, report=False)
-    sweep.set_defaults(func=_sweep, workers=None)
-    for action in sweep._actions:
-        if action.dest == "workers":
-            action.default = None
-            action.help = (
-                "local Dask worker processes (default: this machine's cores; 1: serial, no Dask)"
-            )
+    _common(
+        sweep,
+        report=False,
+        workers_help="local Dask worker processes (default: this machine's cores; 1: serial, "
+        "no Dask)",
+    )
+    sweep.set_defaults(func=_sweep)
 
     scenes = sub.add_parser("scenes", help="list the built-in scenes")
     scenes.add_argument("--keys", action="store_true", help="list every key a scene may set")
