@@ -231,3 +231,15 @@ def test_a_local_cluster_that_does_not_start_falls_back_to_serial_only_when_allo
         np.testing.assert_array_equal(h.error_initial, fallback.histories[key].error_initial)
     with pytest.raises(OSError, match="no sockets"):
         run_scene(scene, tmp_path / "x", workers=2, progress=False)
+
+
+def test_local_workers_have_no_memory_cap_that_would_restart_a_large_unit():
+    """Dask's default splits the machine's memory evenly between the workers and restarts
+    one past its share; a unit that runs serially must not be killed for running beside
+    others."""
+    with open_executor(workers=2) as ex:
+        got = {}
+        ex.run(_square, [(i,) for i in range(4)], on_result=got.__setitem__)
+        limits = [w.get("memory_limit") for w in ex.client.scheduler_info()["workers"].values()]
+    assert got == {i: i * i for i in range(4)}
+    assert limits == [0, 0]

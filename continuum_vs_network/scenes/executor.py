@@ -222,6 +222,10 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Executor
         host="127.0.0.1",
         dashboard_address=None,
         silence_logs=logging.ERROR,
+        # no per-worker cap: Dask's default splits the memory evenly and restarts a worker
+        # past its share, which would kill a large unit that runs fine serially (8 workers
+        # on 16 GB: 2 GB each); the units hold small results, so there is nothing to spill
+        memory_limit=0,
     )
     try:
         client = Client(cluster)
