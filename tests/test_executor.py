@@ -233,6 +233,7 @@ def test_a_local_cluster_that_does_not_start_falls_back_to_serial_only_when_allo
         run_scene(scene, tmp_path / "x", workers=2, progress=False)
 
 
+@pytest.mark.filterwarnings("ignore:Port 8787 is already in use")  # the fixture's cluster
 def test_local_workers_have_no_memory_cap_that_would_restart_a_large_unit():
     """Dask's default splits the machine's memory evenly between the workers and restarts
     one past its share; a unit that runs serially must not be killed for running beside
