@@ -92,31 +92,18 @@ def _process_sweep(args: argparse.Namespace, scene, *, report: bool) -> int:
 
     out = Path(args.out)
     t0 = time.perf_counter()
-
-    def sweep(workers: int):
-        return run_sweep(
+    try:
+        result = run_sweep(
             scene,
             out / "results" / scene.name,
-            workers=workers,
+            workers=args.workers,
             scheduler=getattr(args, "scheduler", None),
             progress=not args.quiet,
             fresh=getattr(args, "fresh", False),
             dry_run=getattr(args, "dry_run", False),
             log=lambda m: _info(args, m),
+            serial_fallback=getattr(args, "serial_fallback", False),
         )
-
-    try:
-        try:
-            result = sweep(args.workers)
-        except (ExecutorUnavailable, OSError, RuntimeError, TimeoutError) as err:
-            # a default worker count whose local cluster did not start: serial (the points
-            # already stored are kept, the rest computed here)
-            if isinstance(err, SweepRunError | FolderBusyError) or not getattr(
-                args, "serial_fallback", False
-            ):
-                raise
-            _info(args, f"{scene.name}: local worker processes did not start ({err}); serial")
-            result = sweep(1)
     except SweepRunError as err:
         if _debug():
             traceback.print_exception(err.cause)

@@ -134,7 +134,12 @@ def test_scene_workers_run_through_the_executor(tmp_path, monkeypatch, scheduler
     serial = run_scene(scene, tmp_path / "serial", progress=False)
     assert opened == []  # one worker: no executor, no Dask
     remote = run_scene(scene, tmp_path / "remote", scheduler=scheduler, progress=False)
-    assert opened == [({"workers": 1, "scheduler": scheduler}, "DaskExecutor")]
+    assert opened == [
+        (
+            {"workers": 1, "scheduler": scheduler, "serial_fallback": False, "log": None},
+            "DaskExecutor",
+        )
+    ]
     assert remote.provenance.workers == 2
     for key, h in serial.histories.items():
         np.testing.assert_array_equal(h.error_initial, remote.histories[key].error_initial)
@@ -216,10 +221,12 @@ def test_a_local_cluster_that_does_not_start_falls_back_to_serial_only_when_allo
     path.write_text(LEARN)
     scene = load_scene(path)
 
+    import distributed
+
     def broken(**kw):
         raise OSError("no sockets here")
 
-    monkeypatch.setattr(runner_module, "open_executor", broken)
+    monkeypatch.setattr(distributed, "LocalCluster", broken)
     messages = []
     fallback = run_scene(
         scene, tmp_path / "f", workers=2, serial_fallback=True, progress=False, log=messages.append

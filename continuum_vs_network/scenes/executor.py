@@ -177,7 +177,13 @@ class DaskExecutor(Executor):
             self.cluster.close()
 
 
-def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Executor:
+def open_executor(
+    *,
+    workers: int = 1,
+    scheduler: str | None = None,
+    serial_fallback: bool = False,
+    log: Callable[[str], None] | None = None,
+) -> Executor:
     """The executor for ``workers`` local processes or an existing Dask ``scheduler``.
 
     Parameters
@@ -187,6 +193,10 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Executor
         Ignored when ``scheduler`` is given.
     scheduler : str, optional
         Address of a running Dask scheduler (``"tcp://10.0.0.5:8786"``).
+    serial_fallback : bool
+        When the local cluster cannot be started (Dask missing, no worker process), return
+        the serial executor with a message to ``log`` instead of raising: for a worker count
+        the caller chose by default. A ``scheduler`` that cannot be reached still raises.
 
     Raises
     ------
@@ -200,23 +210,42 @@ def open_executor(*, workers: int = 1, scheduler: str | None = None) -> Executor
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     if scheduler is None and workers == 1:
         return SerialExecutor()
+    if scheduler is None:
+        try:
+            return _local(int(workers))
+        except (ExecutorUnavailable, OSError, RuntimeError, TimeoutError) as err:
+            if not serial_fallback:
+                raise
+            if log:
+                log(f"{workers} local worker processes did not start ({err}); serial")
+            return SerialExecutor()
+    try:
+        from distributed import Client
+    except ImportError as err:
+        raise _no_dask(err) from err
+    try:
+        client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as err:
+        raise ExecutorUnavailable(
+            f"cannot reach the Dask scheduler at {scheduler!r}: {err}"
+        ) from err
+    return DaskExecutor(client, description=f"Dask at {scheduler}")
+
+
+def _no_dask(err: ImportError) -> ExecutorUnavailable:
+    return ExecutorUnavailable(
+        f"parallel runs need dask.distributed: pip install 'continuum_vs_network[sweep]' ({err})"
+    )
+
+
+def _local(workers: int) -> DaskExecutor:
+    """A LocalCluster of ``workers`` single-threaded worker processes and its executor."""
     try:
         from distributed import Client, LocalCluster
     except ImportError as err:
-        raise ExecutorUnavailable(
-            "parallel runs need dask.distributed: pip install 'continuum_vs_network[sweep]' "
-            f"({err})"
-        ) from err
-    if scheduler is not None:
-        try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
-        except (OSError, TimeoutError, ValueError) as err:
-            raise ExecutorUnavailable(
-                f"cannot reach the Dask scheduler at {scheduler!r}: {err}"
-            ) from err
-        return DaskExecutor(client, description=f"Dask at {scheduler}")
+        raise _no_dask(err) from err
     cluster = LocalCluster(
-        n_workers=int(workers),
+        n_workers=workers,
         threads_per_worker=1,
         processes=True,
         host="127.0.0.1",

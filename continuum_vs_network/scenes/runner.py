@@ -42,7 +42,7 @@ from .compute import KILL_ENV as KILL_ENV
 from .compute import SceneRunError, _Killer, _run_parallel, _run_serial
 from .compute import _compute as _compute
 from .compute import _worker as _worker
-from .executor import Executor, ExecutorUnavailable, SerialExecutor, open_executor
+from .executor import open_executor
 from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
 from .store import _clean, _is_done, _merged_history, _read_record, _read_unit, _units_dir
@@ -152,25 +152,6 @@ def run_scene(scene: Scene, directory: str | os.PathLike[str], **options: Any) -
         return _run_scene(scene, directory, **options)
 
 
-def _open(
-    workers: int,
-    scheduler: str | None,
-    serial_fallback: bool,
-    scene: Scene,
-    log: Callable[[str], None] | None,
-) -> Executor:
-    """:func:`.executor.open_executor`, or the serial executor when a local cluster
-    cannot be started and ``serial_fallback`` allows it."""
-    try:
-        return open_executor(workers=workers, scheduler=scheduler)
-    except (ExecutorUnavailable, OSError, RuntimeError, TimeoutError) as err:
-        if not serial_fallback or scheduler is not None:
-            raise
-        if log:
-            log(f"{scene.name}: {workers} local worker processes did not start ({err}); serial")
-        return SerialExecutor()
-
-
 def _run_scene(
     scene: Scene,
     directory: str | os.PathLike[str],
@@ -246,7 +227,12 @@ def _run_scene(
             serial = [u for u in todo if not (parallel and u.parallel)]
             pooled = [u for u in todo if parallel and u.parallel]
             if pooled:
-                executor = executor or _open(workers, scheduler, serial_fallback, scene, log)
+                executor = executor or open_executor(
+                    workers=workers,
+                    scheduler=scheduler,
+                    serial_fallback=serial_fallback,
+                    log=log and (lambda m: log(f"{scene.name}: {m}")),
+                )
                 _run_parallel(executor, scene, pooled, directory, bar)
             for unit in serial:
                 _run_serial(scene, unit, directory, bar, killer)

@@ -294,6 +294,7 @@ def _run_sweep(
     fresh: bool = False,
     dry_run: bool = False,
     log: Callable[[str], None] | None = None,
+    serial_fallback: bool = False,
 ) -> SweepResult | None:
     """Compute every grid point of ``scene`` not already in ``directory``; write the table.
 
@@ -315,6 +316,8 @@ def _run_sweep(
         Print the grid size and estimated cost (through ``log``) and return None.
     log : callable, optional
         Receives one-line messages: the grid and cost before anything runs, resumed points.
+    serial_fallback : bool
+        Run serially when the local cluster cannot start (:func:`.executor.open_executor`).
 
     Raises
     ------
@@ -356,7 +359,9 @@ def _run_sweep(
     (directory / "points").mkdir(parents=True, exist_ok=True)
     description, n_workers = "serial", 1
     if todo:
-        description, n_workers = _dispatch(scene, todo, directory, workers, scheduler, progress)
+        description, n_workers = _dispatch(
+            scene, todo, directory, workers, scheduler, progress, serial_fallback, say
+        )
     shutil.rmtree(directory / "work", ignore_errors=True)
     info = {
         "scene": scene.to_dict(),
@@ -387,7 +392,9 @@ def _require_table_libraries() -> None:
         ) from err
 
 
-def _dispatch(scene, todo, directory, workers, scheduler, progress) -> tuple[str, int]:
+def _dispatch(
+    scene, todo, directory, workers, scheduler, progress, serial_fallback, say
+) -> tuple[str, int]:
     from .runner import _Killer
 
     bar = _bar(progress, scene.name, len(todo))
@@ -400,7 +407,12 @@ def _dispatch(scene, todo, directory, workers, scheduler, progress) -> tuple[str
 
     args = [(p.scene, p.fingerprint, str(directory), scene.sweep.threshold) for p in todo]
     try:
-        with open_executor(workers=workers, scheduler=scheduler) as executor:
+        with open_executor(
+            workers=workers,
+            scheduler=scheduler,
+            serial_fallback=serial_fallback,
+            log=lambda m: say(f"{scene.name}: {m}"),
+        ) as executor:
             try:
                 executor.run(run_point, args, on_result=done, label=f"{scene.name}-point")
             except TaskError as err:
