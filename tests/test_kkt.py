@@ -5,8 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from numpy.typing import NDArray
 
 from continuum_vs_network.network import kkt as kkt_module
+from continuum_vs_network.network import spd as spd_module
 from continuum_vs_network.network.kkt import (
     Inertia,
     factor_kkt,
@@ -137,6 +139,56 @@ def test_uncertified_factor_solves_the_same_but_does_not_detect_indefiniteness(s
     W[0, 0] = -5.0  # one negative eigenvalue
     assert factor_spd(W.tocsr()) is None
     assert factor_spd(W.tocsr(), certify=False) is not None
+
+
+def test_a_rough_factor_is_float32_from_its_size_and_still_refuses_indefinite_w(
+    solver_choice, monkeypatch
+):
+    """``rough=True`` from ROUGH_MIN rows: SuperLU in float32, whose solution is off by
+    float32 round-off times the condition number (not float64's); below, the float64
+    factor. Like the float64 one it refuses a W with a negative eigenvalue."""
+    set_sparse_solver("superlu")
+    side = 40
+    rng = np.random.default_rng(0)
+    order = rng.permutation(side * side)
+    W = _laplacian_2d(side)[order][:, order].tocsr()  # a wide band: SuperLU, not banded
+    b = rng.standard_normal(W.shape[0])
+    exact = factor_spd(W).solve(b)
+    monkeypatch.setattr(spd_module, "ROUGH_MIN", W.shape[0] + 1)
+    np.testing.assert_array_equal(factor_spd(W, rough=True).solve(b), exact)
+    monkeypatch.setattr(spd_module, "ROUGH_MIN", W.shape[0])
+    rough = factor_spd(W, rough=True).solve(b)
+    assert rough.dtype == np.float64
+    error = np.linalg.norm(rough - exact) / np.linalg.norm(exact)
+    # eigenvalues of the 5-point Laplacian: 4 - 2 cos(i pi / (side + 1)) - 2 cos(j ...)
+    condition = (1 + np.cos(np.pi / (side + 1))) / (1 - np.cos(np.pi / (side + 1)))
+    assert 1e-12 < error < np.finfo(np.float32).eps * condition
+    bad = W.tolil()
+    bad[300, 300] = -3.0
+    assert factor_spd(bad.tocsr(), rough=True) is None
+    # springs over eight decades: too ill-conditioned for float32, the float64 factor serves
+    weights = 10.0 ** rng.uniform(0, 8, 2 * side * (side - 1))
+    stiff = _weighted_grid_laplacian(side, weights)[order][:, order].tocsr()
+    exact = factor_spd(stiff).solve(b)
+    np.testing.assert_allclose(factor_spd(stiff, rough=True).solve(b), exact, rtol=1e-12)
+
+
+def _weighted_grid_laplacian(side: int, weights: NDArray) -> sp.csr_matrix:
+    """Laplacian of a side x side grid with the given edge weights (2 side (side - 1),),
+    grounded at node 0: positive definite."""
+    ids = np.arange(side * side).reshape(side, side)
+    edges = np.concatenate(
+        [np.c_[ids[:, :-1].ravel(), ids[:, 1:].ravel()], np.c_[ids[:-1].ravel(), ids[1:].ravel()]]
+    )
+    n = side * side
+    D = sp.csr_matrix(
+        (
+            np.r_[np.ones(len(edges)), -np.ones(len(edges))],
+            (np.r_[np.arange(len(edges)), np.arange(len(edges))], np.r_[edges[:, 0], edges[:, 1]]),
+        ),
+        shape=(len(edges), n),
+    )
+    return (D.T @ sp.diags(weights) @ D + sp.csr_matrix(([1.0], ([0], [0])), shape=(n, n))).tocsr()
 
 
 def test_sparse_solver_choice_is_checked(solver_choice):

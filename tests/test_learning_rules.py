@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -138,6 +140,46 @@ def test_gpc_moves_the_target_rest_length_to_its_clamped_length(paper):
     # the target is clamped at its desired length, so dL_T = alpha k_T (l_T - L_T)
     assert step.clamped.positions is not None
     assert abs(net.rest_length[t] - desired) < 1e-2 * gap0
+
+
+def test_learning_steps_with_float32_factorisations_match_float64_relax(monkeypatch):
+    """The chord iteration and Newton need only an approximate W^-1: with every
+    factorisation rough (float32 SuperLU, as above ROUGH_MIN rows) the learning steps equal
+    those of relax with float64 factorisations to its tolerance, and the chord still
+    finds the states (no relax after the first step)."""
+    from continuum_vs_network.learning.stern import stern_network, stern_rules
+    from continuum_vs_network.learning.tasks import stern_task
+    from continuum_vs_network.network import spd
+
+    monkeypatch.setattr(spd, "BAND_MAX_WORK", 0)  # SuperLU, not the banded Cholesky
+    made = []
+    float32 = spd._float32_factor
+    monkeypatch.setattr(spd, "_float32_factor", lambda *a: made.append(1) or float32(*a))
+    previous = spd.set_sparse_solver("superlu")
+    try:
+        rng = np.random.default_rng(2)
+        net = stern_network(400, rng)
+        task = stern_task(net, 4, 2, rng, candidates=np.ones(net.n_springs, dtype=bool))
+        rule = stern_rules(alpha=0.5, eta=0.1)["GCL"]
+        fast, slow = Tracker(rule.solver), Tracker(replace(rule.solver, reuse=False))
+
+        def update(tracker, rough_min, **kw):
+            monkeypatch.setattr(spd, "ROUGH_MIN", rough_min)
+            return rule.update(net, task, tracker=tracker, **kw)
+
+        step_f, step_s = update(fast, 0), update(slow, 10**9)
+        relaxed = fast.stats.relax_calls
+        for _ in range(6):
+            # both states to relax's tolerance: 3e-7 of the largest change at most here
+            gap = np.max(np.abs(step_f.delta - step_s.delta))
+            assert gap <= 1e-6 * np.max(np.abs(step_s.delta))
+            net = step_s.apply(net)
+            step_f = update(fast, 0, warm=step_f.warm)
+            step_s = update(slow, 10**9, warm=step_s.warm)
+        assert fast.stats.relax_calls == relaxed
+        assert len(made) >= fast.stats.factorisations >= 1
+    finally:
+        spd.set_sparse_solver(previous)
 
 
 def test_masks_and_floors():

@@ -13,7 +13,10 @@ a *chord* (modified Newton) SQP iteration on the equilibrium equations::
 with a factorisation of the augmented Lagrangian Hessian ``W = H_E + sum mu_c d2r_c +
 rho A^T A`` taken at an earlier *linearisation point* and the clamp directions
 ``Z_c = W^{-1} a_c`` cached per clamped spring. One iteration costs one pair of triangular
-solves. Because learning changes the network little per step, the same factorisation
+solves (an approximate ``W^-1`` serves: above :data:`~..network.spd.ROUGH_MIN` rows the
+factorisation is float32, :func:`~..network.spd.factor_spd` ``rough``; one per key is
+alive, the old one released before the next is made). Because learning changes the network
+little per step, the same factorisation
 serves the free state, the nudged state (its extra target clamps need one cached column
 each: the Schur-complement reuse) and many following learning steps; it is refreshed when
 the iteration contracts slowly (ratio > ``refactor_ratio``) and, if that fails too, the
@@ -277,11 +280,11 @@ class Tracker:
         key: str,
     ) -> Equilibrium:
         first = self.solver.ramp if x0 is None else 1
+        self._lin.pop(key, None)  # stale after relax: released before (memory at 1e6)
         try:
             eq = self._relax_once(net, pinned, clamped, x0, first)
         except EquilibriumError as err:
             eq = self._recover(net, pinned, clamped, x0, first, err)
-        self._lin.pop(key, None)
         return eq
 
     def _relax_once(
@@ -366,8 +369,9 @@ class Tracker:
     def _linearise(
         self, problem: Problem, frame: Frame, x: NDArray, mu: NDArray, key: str
     ) -> _Linearisation | None:
+        self._lin.pop(key, None)  # released before the next one is made (memory at 1e6)
         W = lagrangian_hessian(problem, x, mu, frame=frame)
-        factor = frame.factor(W)
+        factor = frame.factor(W, rough=True)  # the chord needs only an approximate W^-1
         self.stats.factorisations += 1
         if factor is None:
             self._lin.pop(key, None)
@@ -436,6 +440,7 @@ class Tracker:
                     if measure >= previous:
                         return None  # Newton steps do not contract here: relax instead
                 else:
+                    lin = None  # the caller's reference too: one factorisation alive
                     lin = self._linearise(problem, frame, x, mu, key)
                     refactors += 1
                     xs.clear()

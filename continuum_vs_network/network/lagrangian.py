@@ -186,9 +186,10 @@ class Frame:
         t = (net.stiffness * (r - net.rest_length) / np.maximum(r, 1e-300))[:, None] * d
         return (Dt @ t).reshape(-1)[self.coords], r
 
-    def factor(self, W: sp.csr_matrix):
-        """Positive-definite factorisation of ``W`` (None when it is not)."""
-        return factor_spd(W, ordered=self.ordered)
+    def factor(self, W: sp.csr_matrix, *, rough: bool = False):
+        """Positive-definite factorisation of ``W`` (None when it is not); ``rough``: an
+        approximate one may serve (:func:`~.spd.factor_spd`)."""
+        return factor_spd(W, ordered=self.ordered, rough=rough)
 
 
 def lagrangian_hessian(

@@ -46,7 +46,10 @@ Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger on
 unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
 diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
 ``W > 0``; up to a few thousand nodes, where its band is narrow, LAPACK's banded Cholesky
-in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``).
+in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``). From
+:data:`~.spd.ROUGH_MIN` rows SuperLU factorises ``W`` rounded to float32 when that solves
+to 1e-2 (``rough``: half the memory and 1.7x faster at 1e6 nodes); a step is then off by up
+to that, which the line search and the next step's projected CG absorb.
 """
 
 from __future__ import annotations
@@ -163,6 +166,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             except (SolveFailed, np.linalg.LinAlgError):
                 step = None
         if step is None:
+            factor = reusable = None  # released first: one factorisation alive at a time
             factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
                 problem, pattern, x, lam_ls[:m], rho, shift, skip_rung=skip_rung
             )
@@ -250,7 +254,9 @@ def _clamp_predictor(
     A = problem.clamp_jacobian(x, coords, dense=dense_jacobian)
     lam = clamp_tensions(A, grad, problem.scale[coords])
     factor = factor_pd(
-        _assemble(pattern, lagrangian_blocks(problem, x, lam, rho)), ordered=pattern.ordered
+        _assemble(pattern, lagrangian_blocks(problem, x, lam, rho)),
+        ordered=pattern.ordered,
+        rough=True,
     )
     if factor is None:
         return x, None
@@ -334,7 +340,7 @@ def _factor_lagrangian_hessian(
             )
             rho = new_rho
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
-            factor = None if futile else factor_pd(W, ordered=pattern.ordered)
+            factor = None if futile else factor_pd(W, ordered=pattern.ordered, rough=True)
             if factor is not None:
                 return factor, rho, 0.0, True
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
@@ -353,7 +359,7 @@ def _factor_lagrangian_hessian(
     if skip_rung and directions is None:
         shift *= growth
     while shift <= 1e8:
-        factor = factor_pd(W + shift * scaling, ordered=pattern.ordered)
+        factor = factor_pd(W + shift * scaling, ordered=pattern.ordered, rough=True)
         if factor is not None:
             return factor, rho, shift, False
         shift *= growth
@@ -380,8 +386,8 @@ def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDA
         return factor_pd(W, ordered=pattern.ordered), None
     rows = getattr(pattern, "nested_rows", None)
     if rows is None:
-        return factor_spd_or_curvature(W, ordered=pattern.ordered)
-    factor = factor_pd(W, ordered=True)
+        return factor_spd_or_curvature(W, ordered=pattern.ordered, rough=True)
+    factor = factor_pd(W, ordered=True, rough=True)
     if factor is not None:
         return factor, None
     _, nested = factor_spd_or_curvature(W[rows][:, rows], ordered=True)
