@@ -165,7 +165,17 @@ def test_a_rough_factor_is_float32_from_its_size_and_still_refuses_indefinite_w(
     assert 1e-12 < error < np.finfo(np.float32).eps * condition
     bad = W.tolil()
     bad[300, 300] = -3.0
-    assert factor_spd(bad.tocsr(), rough=True) is None
+    bad = bad.tocsr()
+    assert factor_spd(bad, rough=True) is None
+    # a direction of negative curvature off the float32 factor proves it: no float64 one
+    dtypes = []
+    superlu = spd_module.sparse_lu
+    monkeypatch.setattr(
+        spd_module, "sparse_lu", lambda M, **kw: dtypes.append(M.dtype) or superlu(M, **kw)
+    )
+    factor, directions = factor_spd_or_curvature(bad, rough=True)
+    assert factor is None and dtypes == [np.float32]
+    assert np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
     # springs over eight decades: too ill-conditioned for float32, the float64 factor serves
     weights = 10.0 ** rng.uniform(0, 8, 2 * side * (side - 1))
     stiff = _weighted_grid_laplacian(side, weights)[order][:, order].tocsr()

@@ -17,6 +17,7 @@ up to ~5e3 nodes), LAPACK's banded Cholesky, which is 2-3x faster there.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable
 
@@ -25,6 +26,8 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
+
+from .fpenv import flushing_subnormals
 
 __all__ = [
     "BAND_MAX_WORK",
@@ -243,30 +246,6 @@ def factor_spd(
     return Factor(lu.solve, n) if np.array_equal(lu.perm_r, lu.perm_c) else None
 
 
-def _float32_factor(W: sp.spmatrix, ordered: bool) -> Factor | None:
-    """SuperLU of ``W`` rounded to float32 with diagonal pivots (solves take and return
-    float64); None unless its pivots are positive and it solves a fixed random right-hand
-    side to a relative residual of ``ROUGH_RESIDUAL`` (a stiffness contrast or a condition
-    number too large for float32 fails it)."""
-    rounded = sp.csc_matrix(W, dtype=np.float32)
-    if not np.all(np.isfinite(rounded.data)):
-        return None
-    try:
-        lu = sparse_lu(rounded, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
-    except RuntimeError:  # exactly singular in float32
-        return None
-    if not (np.array_equal(lu.perm_r, lu.perm_c) and np.all(lu.U.diagonal() > 0)):
-        return None
-
-    def solve(b: NDArray) -> NDArray:
-        return lu.solve(np.asarray(b, dtype=np.float32)).astype(np.float64)
-
-    b = np.random.default_rng(0).standard_normal(W.shape[0])
-    if not np.linalg.norm(W @ solve(b) - b) <= ROUGH_RESIDUAL * np.linalg.norm(b):
-        return None
-    return Factor(solve, W.shape[0])
-
-
 def factor_spd_or_curvature(
     W: sp.spmatrix, *, ordered: bool = False, count: int = 2, rough: bool = False
 ) -> tuple[Factor | None, NDArray | None]:
@@ -282,10 +261,11 @@ def factor_spd_or_curvature(
     runs only when that fails.
 
     ``rough`` and at least ``ROUGH_MIN`` rows: first SuperLU of ``W`` rounded to float32
-    (:func:`_float32_factor`; solutions off by up to ~1e-7 times the condition number:
-    3e-4 on a 1e6-node lattice). Its positive pivots certify ``W > 0`` up to float32
-    round-off: a negative eigenvalue above ~-1e-7 of the largest may pass. When it fails,
-    the float64 factorisation decides.
+    (solutions off by up to ~1e-7 times the condition number: 3e-4 on a 1e6-node lattice).
+    Its positive pivots certify ``W > 0`` up to float32 round-off (a negative eigenvalue
+    above ~-1e-7 of the largest may pass) when it also solves a fixed random right-hand
+    side to ``ROUGH_RESIDUAL``; a direction of negative curvature it finds (checked in
+    float64) proves ``W`` indefinite. Otherwise the float64 factorisation decides.
     """
     n = W.shape[0]
     if n <= DENSE_MAX or sparse_solver() == "pardiso":
@@ -294,18 +274,52 @@ def factor_spd_or_curvature(
     if isinstance(banded, Factor):
         return banded, None
     if rough and n >= ROUGH_MIN:
-        factor = _float32_factor(W, ordered)
-        if factor is not None:
-            return factor, None  # else float64 decides (and finds the directions)
+        factor, directions = _superlu(W, ordered, count, np.float32)
+        if factor is not None or directions is not None:
+            return factor, directions  # positive and accurate, or proven indefinite
+    return _superlu(W, ordered, count, np.float64)
+
+
+def _accurate(W: sp.spmatrix, solve: Callable[[NDArray], NDArray]) -> bool:
+    """True when ``solve`` solves ``W s = b`` for a fixed random ``b`` to ``ROUGH_RESIDUAL``."""
+    b = np.random.default_rng(0).standard_normal(W.shape[0])
+    return bool(np.linalg.norm(W @ solve(b) - b) <= ROUGH_RESIDUAL * np.linalg.norm(b))
+
+
+def _superlu(
+    W: sp.spmatrix, ordered: bool, count: int, dtype: type
+) -> tuple[Factor | None, NDArray | None]:
+    """SuperLU with diagonal pivots of ``W`` in ``dtype`` (float32: rounded, solves taking and
+    returning float64): :func:`factor_spd_or_curvature`'s ``(factor, directions)``. A
+    float32 factor is returned only when it is :func:`_accurate`."""
+    n = W.shape[0]
+    values = W
+    if dtype == np.float32:
+        values = sp.csc_matrix(W, dtype=np.float32)
+        if not np.all(np.isfinite(values.data)):
+            return None, None
+    # float32 elimination can reach subnormal numbers, up to 4.5x slower in SuperLU here
+    flush = flushing_subnormals if dtype == np.float32 else contextlib.nullcontext
     try:
-        lu = sparse_lu(W, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
+        with flush():
+            lu = sparse_lu(values, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
     except RuntimeError:  # exactly singular
         return None, None
     if not np.array_equal(lu.perm_r, lu.perm_c):
         return None, None
+    solve = lu.solve
+    if dtype == np.float32:
+
+        def solve(b: NDArray) -> NDArray:
+            with flushing_subnormals():
+                x = lu.solve(np.asarray(b, dtype=np.float32))
+            return x.astype(np.float64)
+
     d = lu.U.diagonal()  # a copy of U: dropped before directions are sought
     if np.all(d > 0):
-        return Factor(lu.solve, n), None
+        if dtype == np.float32 and not _accurate(W, solve):
+            return None, None
+        return Factor(solve, n), None
     # W^-1 P^T L e_i = P U^-1 e_i = P L^-T e_i / d_i (U = D L^T): a solve with lu itself
     L = lu.L
     directions = []
@@ -313,7 +327,7 @@ def factor_spd_or_curvature(
         if d[i] >= 0:
             break
         column = L[:, [i]].toarray().ravel()
-        v = lu.solve(column[lu.perm_r])
+        v = solve(column[lu.perm_r])
         if np.all(np.isfinite(v)) and float(v @ (W @ v)) < 0:
             directions.append(v)
     return None, (np.column_stack(directions) if directions else None)
