@@ -12,18 +12,16 @@ a *chord* (modified Newton) SQP iteration on the equilibrium equations::
 
 with a factorisation of the augmented Lagrangian Hessian ``W = H_E + sum mu_c d2r_c +
 rho A^T A`` taken at an earlier *linearisation point* and the clamp directions
-``Z_c = W^{-1} a_c`` cached per clamped spring. One iteration costs one pair of triangular
-solves (an approximate ``W^-1`` serves: above :data:`~..network.spd.ROUGH_MIN` rows the
-factorisation is float32, :func:`~..network.spd.factor_spd` ``rough``; one per key is
-alive, the old one released before the next is made). Because learning changes the network
-little per step, the same factorisation
-serves the free state, the nudged state (its extra target clamps need one cached column
-each: the Schur-complement reuse) and many following learning steps; it is refreshed when
-the iteration contracts slowly (ratio > ``refactor_ratio``) and, if that fails too, the
-state is found by :func:`~continuum_vs_network.relax`. The chord iteration is accelerated
-by Anderson mixing (GMRES-like on its linear error) and starts from a guess extrapolated
-from the previous steps (the free state linearly, the nudged state by last step's nudge
-displacement). Convergence is judged by ``relax``'s own local stop rule
+``Z_c = W^{-1} a_c`` cached per clamped spring (an approximate ``W^-1`` serves: ``rough``,
+float32 from :data:`~..network.spd.ROUGH_MIN` rows; one alive per key). One iteration costs
+one pair of triangular solves. Because learning changes the network little per step, the
+same factorisation serves the free state, the nudged state (its extra target clamps need
+one cached column each: the Schur-complement reuse) and many following learning steps; it
+is refreshed when the iteration contracts slowly (ratio > ``refactor_ratio``) and, if that
+fails too, the state is found by :func:`~continuum_vs_network.relax`. The chord iteration
+is accelerated by Anderson mixing (GMRES-like on its linear error) and starts from a guess
+extrapolated from the previous steps (the free state linearly, the nudged state by last
+step's nudge displacement). Convergence is judged by ``relax``'s own local stop rule
 (:mod:`~continuum_vs_network.network.stopping`), so reuse changes the cost, never the
 tolerance. The Lagrangian Hessian, the row order and the trust region are the engine's
 (:mod:`~continuum_vs_network.network.lagrangian`); this module keeps only what is reused.
@@ -282,10 +280,9 @@ class Tracker:
         first = self.solver.ramp if x0 is None else 1
         self._lin.pop(key, None)  # stale after relax: released before (memory at 1e6)
         try:
-            eq = self._relax_once(net, pinned, clamped, x0, first)
+            return self._relax_once(net, pinned, clamped, x0, first)
         except EquilibriumError as err:
-            eq = self._recover(net, pinned, clamped, x0, first, err)
-        return eq
+            return self._recover(net, pinned, clamped, x0, first, err)
 
     def _relax_once(
         self,
