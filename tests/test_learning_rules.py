@@ -187,6 +187,25 @@ def test_learning_steps_with_float32_factorisations_match_float64_relax(monkeypa
         spd.set_sparse_solver(previous)
 
 
+def test_the_tracker_keeps_one_factorisation_alive_per_key(superlu_lifetimes):
+    """A key's old factorisation is released before its next is made: GCL steps that
+    refactorise at every chance (refactor_ratio 0.01) never hold two."""
+    from continuum_vs_network.learning.stern import stern_network, stern_rules
+    from continuum_vs_network.learning.tasks import stern_task
+
+    rng = np.random.default_rng(2)
+    net = stern_network(400, rng)
+    task = stern_task(net, 4, 2, rng, candidates=np.ones(net.n_springs, dtype=bool))
+    rule = stern_rules(alpha=5.0, eta=0.1)["GCL"]
+    tracker = Tracker(replace(rule.solver, refactor_ratio=0.01))
+    step = rule.update(net, task, tracker=tracker)
+    for _ in range(10):
+        net = step.apply(net)
+        step = rule.update(net, task, warm=step.warm, tracker=tracker)
+    assert tracker.stats.factorisations >= 5 and list(tracker._lin) == ["free"]
+    assert superlu_lifetimes.most == 1
+
+
 def test_masks_and_floors():
     net, task = _paper(1)
     s, t = task.sources[0], task.targets[0]

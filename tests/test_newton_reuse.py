@@ -150,6 +150,19 @@ def test_band_order_and_banded_cholesky_follow_superlus_path(monkeypatch):
     np.testing.assert_allclose(banded.positions, superlu.positions, atol=1e-9)
 
 
+def test_the_newton_loop_keeps_one_factorisation_alive(superlu_lifetimes):
+    """Each SuperLU factorisation of a relax is made after the one before it is released
+    (at 1e6 nodes one takes 3-5 GB): a lattice pulled to strain 2 refactorises often."""
+    import continuum_vs_network as cvn
+
+    rng = np.random.default_rng(0)
+    net = triangular_lattice(24, 24, noise=0.1, rng=rng)
+    net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
+    eq = cvn.relax(net, clamped={700: float(net.clamp_length(700, 2.0))})
+    assert eq.converged and superlu_lifetimes.made > 3
+    assert superlu_lifetimes.most == 1
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_start_that_needs_a_shift_ends_certified_by_the_loops_own_factorisation(
     seed, monkeypatch
