@@ -34,6 +34,7 @@ __all__ = [
     "DENSE_MAX",
     "ROUGH_MIN",
     "ROUGH_RESIDUAL",
+    "ROUGH_SPREAD",
     "SPARSE_SOLVERS",
     "Factor",
     "banded_pays",
@@ -58,6 +59,10 @@ SPARSE_SOLVERS = ("auto", "pardiso", "superlu")
 # which coupled learning on a million-node lattice needs to stay under 12 GB
 ROUGH_MIN = 100_000
 ROUGH_RESIDUAL = 1e-2  # a float32 factor must solve a random right-hand side to this
+# nor is float32 tried where the diagonal spans more (rods, stiffness over many decades):
+# at 1e10-1e12 (rod clamps on a lattice of k in 0.1..10) 11 of 23 float32 factorisations
+# missed ROUGH_RESIDUAL, each then made again in float64
+ROUGH_SPREAD = 1e6
 _SOLVER = {"name": os.environ.get("CVN_SPARSE_SOLVER", "auto"), "pardiso": None}
 
 
@@ -260,7 +265,8 @@ def factor_spd_or_curvature(
     narrow-band ``W`` (:func:`banded_pays`) is first given to the banded Cholesky; SuperLU
     runs only when that fails.
 
-    ``rough`` and at least ``ROUGH_MIN`` rows: first SuperLU of ``W`` rounded to float32
+    ``rough``, at least ``ROUGH_MIN`` rows and a diagonal spanning at most ``ROUGH_SPREAD``
+    (max / min): first SuperLU of ``W`` rounded to float32
     (solutions off by up to ~1e-7 times the condition number: 3e-4 on a 1e6-node lattice).
     Its positive pivots certify ``W > 0`` up to float32 round-off (a negative eigenvalue
     above ~-1e-7 of the largest may pass) when it also solves a fixed random right-hand
@@ -273,11 +279,17 @@ def factor_spd_or_curvature(
     banded = _banded_cholesky(W)
     if isinstance(banded, Factor):
         return banded, None
-    if rough and n >= ROUGH_MIN:
+    if rough and n >= ROUGH_MIN and _diagonal_spread(W) <= ROUGH_SPREAD:
         factor, directions = _superlu(W, ordered, count, np.float32)
         if factor is not None or directions is not None:
             return factor, directions  # positive and accurate, or proven indefinite
     return _superlu(W, ordered, count, np.float64)
+
+
+def _diagonal_spread(W: sp.spmatrix) -> float:
+    """``max |W_ii| / min |W_ii|`` (inf with a zero on the diagonal)."""
+    d = np.abs(W.diagonal())
+    return float(d.max() / d.min()) if d.min() > 0 else np.inf
 
 
 def _accurate(W: sp.spmatrix, solve: Callable[[NDArray], NDArray]) -> bool:
