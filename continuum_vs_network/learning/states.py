@@ -371,7 +371,6 @@ class Tracker:
         factor = frame.factor(W, rough=True)  # the chord needs only an approximate W^-1
         self.stats.factorisations += 1
         if factor is None:
-            self._lin.pop(key, None)
             return None
         lin = _Linearisation(factor, x, frame)
         self._lin[key] = lin
