@@ -108,7 +108,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     # a few clamps: a dense Jacobian, whose products cost less than scipy.sparse's overhead
     dense_jacobian = dense_jacobian_pays(problem.n_clamps, pattern.size)
     x = np.array(x, dtype=np.float64)
-    reusable = None
+    reusable, factor_shift = None, 0.0  # factor_shift: the shift reusable was made with
     if m:
         x, reusable = _clamp_predictor(problem, pattern, x, rho, stop, dense_jacobian)
     x = problem.start(x)  # the clamped springs set to their lengths
@@ -140,7 +140,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             return Outcome(x, it, False, f"time budget of {stop.max_seconds:g} s exceeded")
 
         step = lam = None
-        skip_rung = False
+        indefinite = None  # (shift, direction): W + shift D met negative curvature along it
         # a shifted factorisation is not reused once the shift is 0: the exact Hessian is
         # factorised instead, which gives a pure Newton step and certifies the minimum in
         # the loop (else the second-order check of relax factorises it after convergence)
@@ -155,21 +155,30 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             eta = max(min(1e-1, np.sqrt(residual)), enough)
             budget = reuse_budget(pattern.size)
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
-            if shift > 0.0:  # the damped model a refactorisation would solve now
-                W = W + shift * _marquardt_scaling(W)
-            try:
-                step, lam = projected_pcg(
-                    W, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
-                )
-            except NegativeCurvature:
-                # W + shift D is indefinite: its factorisation would fail, start one rung up
-                skip_rung = shift > 0.0
-            except (SolveFailed, np.linalg.LinAlgError):
-                step = None
+            # the damped model a refactorisation would solve now; when that (a shift decayed
+            # after full steps) is indefinite, the model the factor was made for, before
+            # any refactorisation (bench_relax at 1e5 nodes, strain 2: 4 iterations
+            # decayed 0.2 -> 0.02, met negative curvature and refactorised at 0.2)
+            for trial in (shift, factor_shift) if factor_shift > shift else (shift,):
+                model = W + trial * _marquardt_scaling(W) if trial > 0.0 else W
+                try:
+                    step, lam = projected_pcg(
+                        model, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
+                    )
+                except NegativeCurvature as negative:
+                    indefinite = (trial, negative.direction)
+                    continue
+                except (SolveFailed, np.linalg.LinAlgError):
+                    pass
+                break
+            if step is not None:
+                shift = max(shift, trial)
         if step is None:
             factor = reusable = None  # released first: one factorisation alive at a time
+            if indefinite is not None:
+                shift = indefinite[0]
             factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
-                problem, pattern, x, lam_ls[:m], rho, shift, skip_rung=skip_rung
+                problem, pattern, x, lam_ls[:m], rho, shift, indefinite=indefinite
             )
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
@@ -188,6 +197,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             # preconditions the exact Hessian (negative curvature makes CG fail: refactorise)
             reuse = pattern.size > DENSE_MAX and problem.clamp == "exact"
             reusable = factor if reuse else None
+            factor_shift = shift
         x, alpha = _line_search(
             problem,
             x,
@@ -300,7 +310,7 @@ def _factor_lagrangian_hessian(
     rho: float,
     shift: float,
     *,
-    skip_rung: bool = False,
+    indefinite: tuple[float, NDArray] | None = None,
 ) -> tuple[Factor | None, float, float, bool]:
     """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
@@ -317,19 +327,23 @@ def _factor_lagrangian_hessian(
     instead crept for hundreds of iterations on the paper's network under strain
     continuation.
 
-    ``skip_rung``: ``W + shift D`` is known to be indefinite (conjugate gradients met
-    negative curvature on it), so the ladder starts one rung above ``shift`` (the same
-    factorisations as without, less the one bound to fail).
+    ``indefinite``: ``(shift, d)`` when conjugate gradients met negative curvature along
+    ``d`` (n,) on ``W + shift D`` (``A d = 0``). No factorisation bound to fail is made:
+    the ladder starts one rung above ``shift``, or at the estimate from ``d``; at
+    ``shift = 0`` the exact Hessian is not factorised, nor with a larger ``rho``
+    (``rho A^T A`` adds nothing along ``d``). At 1e5 nodes, strain 2 (bench_relax) that
+    skipped 3.8 s of 9.4 s in the first indefinite iteration.
 
     Returns ``(factor, rho, shift, exact_used)``. The exact Hessian is used whenever it is
     positive definite, so the last iterations are pure Newton steps.
     """
     W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
-    directions = None
+    directions = None if indefinite is None else indefinite[1][:, None]
     if shift == 0.0:
-        factor, directions = _factor_or_curvature(W, pattern)
-        if factor is not None:
-            return factor, rho, 0.0, True
+        if directions is None:
+            factor, directions = _factor_or_curvature(W, pattern)
+            if factor is not None:
+                return factor, rho, 0.0, True
         if lam.size:
             d = np.maximum(problem.net.lengths(x, problem.clamp_springs), 1e-300)
             new_rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
@@ -353,12 +367,12 @@ def _factor_lagrangian_hessian(
     scaling = _marquardt_scaling(W)
     shift = max(shift, DAMP_MIN)
     growth = 10.0 if shift > DAMP_MIN else 100.0
+    if indefinite is not None and indefinite[0] > 0.0:
+        shift *= growth
     if directions is not None:
         estimate = _shift_estimate(W, directions, scaling.diagonal())
         if estimate > shift:
             shift, growth = estimate, 10.0
-    if skip_rung and directions is None:
-        shift *= growth
     while shift <= 1e8:
         factor = factor_pd(W + shift * scaling, ordered=pattern.ordered, rough=True)
         if factor is not None:

@@ -21,7 +21,14 @@ class SolveFailed(RuntimeError):
 
 
 class NegativeCurvature(SolveFailed):
-    """Conjugate gradients met a direction ``d`` with ``d^T W d <= 0``: ``W`` is not > 0."""
+    """Conjugate gradients met a direction ``d`` (n,) with ``d^T W d <= 0``: ``W`` is not > 0.
+
+    ``direction`` is ``d``; from :func:`projected_pcg` it lies in the null space of ``A``.
+    """
+
+    def __init__(self, direction: NDArray) -> None:
+        super().__init__("negative curvature")
+        self.direction = direction
 
 
 def reuse_budget(size: int) -> int:
@@ -64,7 +71,7 @@ def pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int)
             Wp = W @ p
             curvature = p @ Wp
             if curvature <= 0:
-                raise NegativeCurvature("negative curvature")
+                raise NegativeCurvature(p)
             a = rz / curvature
             x += a * p
             r -= a * Wp
@@ -149,7 +156,7 @@ def projected_pcg(
         Wd = W @ d
         curvature = float(d @ Wd)
         if curvature <= 0:
-            raise NegativeCurvature("negative curvature")
+            raise NegativeCurvature(d)
         alpha = rg / curvature
         x = x + alpha * d
         r = r + alpha * Wd
