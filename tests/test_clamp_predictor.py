@@ -48,11 +48,17 @@ def test_the_predictor_is_the_first_order_response():
 
 def test_a_predictor_that_turns_a_spring_over_is_refused():
     """At strain 5 the linear response crosses springs over: the start is the clamped
-    springs set to their lengths alone (Problem.start), and no factorisation is kept."""
+    springs set to their lengths alone (Problem.start). The factorisation made for the
+    step is kept (Newton preconditions with it), and Newton reaches the same equilibrium
+    as from Problem.start."""
     net, clamped = _lattice_and_clamp(5.0)
-    problem, _, (start, factor) = _predict(net, clamped)
-    assert factor is None
+    problem, stop, (start, factor) = _predict(net, clamped)
+    assert factor is not None and factor.n == problem.free_flat.size
     np.testing.assert_array_equal(start, problem.start(net.positions))
+    predicted = nw.newton(problem, net.positions, stop, Trace())
+    plain = nw.newton(problem, start, stop, Trace())
+    assert predicted.converged and plain.converged
+    np.testing.assert_allclose(predicted.x, plain.x, atol=1e-8)
 
 
 def test_the_predicted_start_reaches_the_same_equilibrium():

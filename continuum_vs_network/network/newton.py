@@ -110,9 +110,12 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     x = np.array(x, dtype=np.float64)
     reusable, factor_shift = None, 0.0  # factor_shift: the shift reusable was made with
     if m:
-        x, reusable = _clamp_predictor(problem, pattern, x, rho, stop, dense_jacobian)
+        y, reusable = _clamp_predictor(problem, pattern, x, rho, stop, dense_jacobian)
+        first = 0 if y is x else 1  # the predictor is a Newton step: counted when taken
+        x = y
+    else:
+        first = 0
     x = problem.start(x)  # the clamped springs set to their lengths
-    first = 0 if reusable is None else 1  # the predictor is a Newton step: counted
     stiff = StiffSprings.find(problem, coords)
 
     for it in range(first, stop.max_iter + 1):
@@ -251,8 +254,11 @@ def _clamp_predictor(
     is taken first; the caller then sets the clamped springs to their lengths. The step is
     refused when it turns any other spring by more than 90 degrees (the linearisation of
     the rotations has failed: at strain 5 it crossed springs over and cost 6 -> 10
-    iterations at N = 1e4). Returns the positions after the step and the factorisation,
-    which the next iterations reuse, or ``(x, None)`` when the step was not taken.
+    iterations at N = 1e4). Returns the positions after the step (``x`` itself when it
+    was not taken) and the factorisation (None when none was made). The next iterations
+    reuse it, also after a refused step: conjugate gradients preconditioned by it either
+    solve the start's Newton step or meet negative curvature along a direction that
+    spares the factorisations bound to fail (:func:`_factor_lagrangian_hessian`).
 
     ``benchmarks/bench_relax.py`` (N = 1024 / 1e4, one clamp at strains 0.05-2, stress-free
     and random rest lengths, and two clamps of k in U(0.5, 50)): iterations 3-18 -> 2-12.
@@ -281,7 +287,7 @@ def _clamp_predictor(
     turned = np.einsum("ij,ij->i", spring_vectors(x, springs), spring_vectors(y, springs)) <= 0.0
     turned[problem.clamp_springs] = False
     if not np.all(np.isfinite(y)) or turned.any():
-        return x, None
+        return x, factor
     return y, factor
 
 
