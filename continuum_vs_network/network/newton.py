@@ -60,7 +60,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions, dense_jacobian_pays
-from .energy import HessianPattern, spring_energy_change, spring_gradient
+from .energy import HessianPattern, spring_gradient
 from .kkt import (
     DENSE_MAX,
     Factor,
@@ -69,6 +69,7 @@ from .kkt import (
     range_space_solve,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
+from .line_search import line_search
 from .model import spring_vectors
 from .reuse import NegativeCurvature, SolveFailed, projected_pcg, reuse_budget
 from .stiff_springs import StiffSprings
@@ -207,7 +208,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             reuse = pattern.size > DENSE_MAX and problem.clamp == "exact"
             reusable = factor if reuse else None
             factor_shift = shift
-        x, alpha = _line_search(
+        x, alpha = line_search(
             problem,
             x,
             coords,
@@ -447,68 +448,3 @@ def _still_negative(W, directions, problem, x, pattern, extra_rho) -> bool:
     curv = np.einsum("ij,ij->j", directions, W @ directions)
     Av = A @ directions
     return bool(np.any(curv + extra_rho * np.einsum("ij,ij->j", Av, Av) < 0))
-
-
-def _line_search(
-    problem: Problem,
-    x: NDArray,
-    coords: NDArray,
-    step: NDArray,
-    grad: NDArray,
-    A: sp.csr_matrix | None,
-    viol: NDArray,
-    lam: NDArray,
-    rho: float,
-    residual: float,
-    stiff: StiffSprings | None = None,
-) -> tuple[NDArray, float]:
-    """Armijo backtracking on the augmented Lagrangian; accepts any step halving the residual.
-
-    With clamps, the full step is also tried with a second-order correction: the minimum-norm
-    move back onto the clamp lengths, which keeps the curvature of ``r_c`` along the step
-    from blocking full steps (the Maratos effect; Nocedal & Wright, Sec. 18.3).
-
-    Returns the new positions and the step length taken (0 when none was accepted).
-    """
-    all_springs = problem.all_springs()
-    lam_c = lam if A is not None else None
-
-    def merit(y: NDArray) -> float:
-        """Merit at ``y`` minus its value at ``x``, free of cancellation (stiff springs
-        make ``E`` itself many orders larger than the changes that matter)."""
-        e = spring_energy_change(y, x, *all_springs)
-        if lam_c is None:
-            return e
-        c = problem.clamp_violation(y)
-        return e + float(lam_c @ (c - viol)) + 0.5 * rho * float(c @ c - viol @ viol)
-
-    slope_vec = grad if A is None else grad + A.T @ (lam + rho * viol)
-    slope = float(slope_vec @ step)
-    phi0 = 0.0
-    alpha = 1.0
-    for _ in range(60):
-        y = x.copy()
-        y.ravel()[coords] += alpha * step
-        if np.all(np.isfinite(y)):
-            phi = merit(y)
-            if phi <= phi0 + 1e-4 * alpha * min(slope, 0.0) and (slope < 0 or phi < phi0):
-                return y, alpha
-            if alpha == 1.0:
-                if A is not None:
-                    z = problem.toward_clamps(y, coords, A)
-                    if merit(z) <= phi0 + 1e-4 * min(slope, 0.0):
-                        return z, alpha
-                if problem.residual(y).imbalance < 0.5 * residual:
-                    return y, alpha
-            if stiff is not None and alpha >= 1.0 / 64:
-                # the linear step lengthens a rotating spring by |rotation|^2 r / 2; at a
-                # stiffness contrast up to 1e12 that alone cuts the step to a crawl, so stiff
-                # springs are first put back to the lengths the linear model predicted
-                z = stiff.restore(y, x, alpha * step)
-                if z is not None and merit(z) <= phi0 + 1e-4 * alpha * min(slope, 0.0):
-                    return z, alpha
-                if z is not None and alpha == 1.0:
-                    if problem.residual(z).imbalance < 0.5 * residual:
-                        return z, alpha
-        alpha *= 0.5
-    return x, 0.0
