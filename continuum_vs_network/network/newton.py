@@ -169,8 +169,10 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             # decayed 0.2 -> 0.02, met negative curvature and refactorised at 0.2). On 60
             # networks of bench_family --medium, 1012 of 1302 such retries solved; without
             # them the most iterations were 1242, with them 710
-            for trial in (shift, factor_shift) if factor_shift > shift else (shift,):
-                model = W + trial * _marquardt_scaling(W) if trial > 0.0 else W
+            trials = (shift, factor_shift) if factor_shift > shift else (shift,)
+            scaling = _marquardt_scaling(W) if trials[-1] > 0.0 else None
+            for trial in trials:
+                model = W + trial * scaling if trial > 0.0 else W
                 try:
                     step, lam = projected_pcg(
                         model, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
@@ -182,11 +184,9 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                     pass
                 break
             if step is not None:
-                shift = max(shift, trial)
+                shift = trial  # the model solved (trials never go below shift)
         if step is None:
             factor = reusable = None  # released first: one factorisation alive at a time
-            if indefinite is not None:
-                shift = indefinite[0]
             factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
                 problem, pattern, x, lam_ls[:m], rho, shift, indefinite=indefinite
             )
@@ -340,10 +340,10 @@ def _factor_lagrangian_hessian(
     instead crept for hundreds of iterations on the paper's network under strain
     continuation.
 
-    ``indefinite``: ``(shift, d)`` when conjugate gradients met negative curvature along
-    ``d`` (n,) on ``W + shift D`` (``A d = 0``). No factorisation bound to fail is made:
-    the ladder starts one rung above ``shift``, or at the estimate from ``d``; at
-    ``shift = 0`` the exact Hessian is not factorised, nor with a larger ``rho``
+    ``indefinite``: ``(s, d)`` when conjugate gradients met negative curvature along
+    ``d`` (n,) on ``W + s D`` (``A d = 0``); ``s`` replaces ``shift``. No factorisation
+    bound to fail is made: the ladder starts one rung above ``s``, or at the estimate from ``d``; at
+    ``s = 0`` the exact Hessian is not factorised, nor with a larger ``rho``
     (``rho A^T A`` adds nothing along ``d``). At 1e5 nodes, strain 2 (bench_relax) that
     skipped 3.8 s of 9.4 s in the first indefinite iteration.
 
@@ -351,7 +351,9 @@ def _factor_lagrangian_hessian(
     positive definite, so the last iterations are pure Newton steps.
     """
     W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
-    directions = None if indefinite is None else indefinite[1][:, None]
+    directions = None
+    if indefinite is not None:  # the shift CG failed at, and its direction
+        shift, directions = indefinite[0], indefinite[1][:, None]
     if shift == 0.0:
         if directions is None:
             factor, directions = _factor_or_curvature(W, pattern)
