@@ -135,8 +135,13 @@ def _dense_rank(R: sp.spmatrix | NDArray, rtol: float) -> int:
 def _sparse_nullity(R: sp.spmatrix, rtol: float) -> int:
     """Dimension of the null space of ``R`` from the smallest eigenvalues of ``R^T R``.
 
-    Shift-invert Lanczos around a small negative shift finds the ``k`` smallest eigenvalues;
-    ``k`` doubles until one of them is above the threshold ``(rtol * sigma_max)^2``.
+    Block shift-invert subspace iteration around a small negative shift
+    (:func:`_count_smallest`) counts how many of the ``k`` smallest eigenvalues are below
+    the threshold ``(rtol * sigma_max)^2``; ``k`` doubles until one is above it. A block,
+    not single-vector Lanczos: Lanczos finds one vector of an eigenvalue per start vector
+    and the rest only through round-off, and scipy's ``eigsh`` (shift-invert ARPACK)
+    counted 7 of 9, 28 of 31 or 62 of 63 zero modes on 4 of 120 diluted lattices (5-11 per
+    side), differently from run to run.
     """
     n = R.shape[1]
     K = (R.T @ R).tocsc()
@@ -145,15 +150,46 @@ def _sparse_nullity(R: sp.spmatrix, rtol: float) -> int:
         return n
     threshold = (rtol**2) * lam_max
     shift = 1e-6 * lam_max
+    solve = spla.splu((K + shift * sp.identity(n, format="csc")).tocsc()).solve
+    rng = np.random.default_rng(0)  # a seeded block: counts reproducible bit for bit
     k = 8
     while True:
-        if k >= n - 1:  # too many zero modes for Lanczos: count them densely
+        if k >= n - 1:  # too many zero modes for a block this wide: count them densely
             return n - _dense_rank(R, rtol)
-        lam = spla.eigsh(K, k=k, sigma=-shift, which="LM", return_eigenvectors=False, tol=0)
-        n_zero = int(np.sum(lam <= threshold))
+        n_zero = _count_smallest(solve, n, k, shift, threshold, rng)
         if n_zero < k:
             return n_zero
         k *= 2
+
+
+def _count_smallest(solve, n: int, k: int, shift: float, threshold: float, rng) -> int:
+    """How many of the ``k`` smallest eigenvalues of ``K`` are ``<= threshold``, given
+    ``solve = (K + shift I)^-1`` for symmetric positive semi-definite ``K`` (n, n).
+
+    Subspace iteration on ``(K + shift I)^-1`` with a random block of ``k + 8`` columns and
+    Rayleigh-Ritz each iteration. A Ritz value of the inverse never exceeds the eigenvalue
+    of its rank, so the count never exceeds the true one; a random block of more columns
+    than zero eigenvalues holds all of their directions, which the iteration amplifies by
+    ``(lambda + shift) / shift`` each step. Stops when the count has not changed for two
+    iterations and the smallest eigenvalue above the threshold has settled to 1e-3.
+    """
+    X = np.linalg.qr(rng.standard_normal((n, k + 8)))[0]
+    counts: list[int] = []
+    above = np.inf
+    for _ in range(200):
+        Y = solve(X)
+        H = X.T @ Y
+        theta = np.linalg.eigvalsh(0.5 * (H + H.T))[::-1][:k]  # largest first
+        lam = 1.0 / theta - shift  # the Ritz estimates of the k smallest eigenvalues
+        count = int(np.sum(lam <= threshold))
+        rest = lam[count] if count < k else 0.0
+        settled = abs(rest - above) <= 1e-3 * rest
+        counts.append(count)
+        if len(counts) >= 3 and counts[-1] == counts[-2] == counts[-3] and settled:
+            return count
+        above = rest
+        X = np.linalg.qr(Y)[0]
+    return counts[-1]
 
 
 def zero_modes(
