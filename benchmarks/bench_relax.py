@@ -8,9 +8,11 @@ Methods: ``newton``, ``fire``, ``lbfgs`` (time to ``tol = 1e-10``; capped by
 ``--max-seconds``), ``paper`` (the residual it reaches in 10x Newton's time), and the
 limit "one Hessian assembly + one sparse factorisation" of the same problem (float64;
 the ratio in parentheses is against the ``rough`` factorisation Newton itself makes,
-float32 where that is accurate), measured in the same run; Newton and the limit are each the best of ``--repeat`` (default 3) runs, the
-others are timed once. With PARDISO (``--sparse-solvers``) the kept symbolic analysis is
-dropped before the limit and before every timed run, so each pays one.
+float32 where that is accurate; in brackets, where the limit is the banded Cholesky,
+against SuperLU), measured in the same run; Newton and the limit are each the best of
+``--repeat`` (default 3) runs, the others are timed once. With PARDISO
+(``--sparse-solvers``) the kept symbolic analysis is dropped before the limit and before
+every timed run, so each pays one.
 
     python benchmarks/bench_relax.py                 # N ~ 10, 1e3, 1e4
     python benchmarks/bench_relax.py --sizes 10,1024
@@ -85,6 +87,7 @@ def main() -> None:
     from continuum_vs_network.network.energy import spring_hessian_blocks
     from continuum_vs_network.network.kkt import set_sparse_solver, sparse_solver
     from continuum_vs_network.network.newton import factor_pd, pattern_for
+    from continuum_vs_network.network.spd import sparse_lu
 
     sizes = [int(s) for s in args.sizes.split(",") if s]
     if args.big and 100_000 not in sizes:
@@ -123,13 +126,13 @@ def main() -> None:
 
             pardiso.forget()
 
-    def limit(net: cvn.SpringNetwork, clamp: dict) -> tuple[float, float, float, str]:
-        """Best of --repeat: (assembly seconds, factorisation seconds, seconds of the
-        ``rough`` factorisation Newton makes, the factorisation used).
-
-        The limit is the float64 factorisation; the rough one (float32 where it is accurate,
-        :func:`~continuum_vs_network.network.spd.factor_spd`) is timed beside it, for a
-        second ratio against the cheapest factorisation Newton itself makes.
+    def limit(net: cvn.SpringNetwork, clamp: dict) -> tuple[dict[str, float], str]:
+        """Best of --repeat seconds: ``assembly``, ``factor`` (the limit's factorisation,
+        float64), ``rough`` (the factorisation Newton itself makes: float32 where accurate,
+        :func:`~continuum_vs_network.network.spd.factor_spd`) and, where the limit is the
+        banded Cholesky, ``superlu`` (SuperLU in nested-dissection order, the package's
+        factorisation above the band sizes and the issue's limit when it was written);
+        and the name of the factorisation used.
 
         The Hessian of the start (clamped springs set to their lengths); when that is
         indefinite, the network's own positions': a failed Cholesky stops at its first
@@ -138,6 +141,8 @@ def main() -> None:
         problem = Problem.build(net, clamped=clamp)
         pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
         ordered = bool(getattr(pattern, "ordered", False))
+        # band-ordered rows (lagrangian.pattern_for) mean kkt's banded Cholesky is used
+        rows = getattr(pattern, "nested_rows", None)
 
         def hessian(x):
             return pattern.assemble(
@@ -147,27 +152,24 @@ def main() -> None:
         x, where = problem.start(net.positions), "start"
         if factor_pd(hessian(x), ordered=ordered) is None:
             x, where = net.positions, "indefinite start: at the positions"
-        best_a = best_f = best_r = np.inf
-        for _ in range(args.repeat):
+        best: dict[str, float] = {}
+
+        def timed(name: str, work) -> object:
             forget()
             t0 = time.perf_counter()
-            W = hessian(x)
-            t1 = time.perf_counter()
-            factor_pd(W, ordered=ordered)
-            t2 = time.perf_counter()
-            forget()
-            t3 = time.perf_counter()
-            factor_pd(W, ordered=ordered, rough=True)
-            t4 = time.perf_counter()
-            best_a, best_f, best_r = (
-                min(best_a, t1 - t0),
-                min(best_f, t2 - t1),
-                min(best_r, t4 - t3),
-            )
-        # band-ordered rows (lagrangian.pattern_for) mean kkt's banded Cholesky was used
-        banded = getattr(pattern, "nested_rows", None) is not None
-        used = ("banded Cholesky" if banded else sparse_solver()) + ", " + where
-        return best_a, best_f, best_r, used
+            out = work()
+            best[name] = min(best.get(name, np.inf), time.perf_counter() - t0)
+            return out
+
+        for _ in range(args.repeat):
+            W = timed("assembly", lambda: hessian(x))
+            timed("factor", lambda W=W: factor_pd(W, ordered=ordered))
+            timed("rough", lambda W=W: factor_pd(W, ordered=ordered, rough=True))
+            if rows is not None:
+                nested = W[rows][:, rows]
+                timed("superlu", lambda M=nested: sparse_lu(M, ordering="NATURAL"))
+        used = ("banded Cholesky" if rows is not None else sparse_solver()) + ", " + where
+        return best, used
 
     def run(net, clamp: dict, strain: float, todo: list[str], tag: str, times: dict) -> None:
         for method in todo:
@@ -236,14 +238,17 @@ def main() -> None:
             times: dict[str, float] = {}
             for which, (solver, tag) in enumerate(zip(solvers, tags, strict=True)):
                 set_sparse_solver(solver)
-                t_assemble, t_factor, t_rough, factorisation = limit(net, clamp)
-                times["limit" + tag] = t_assemble + t_factor
-                times["rough" + tag] = t_assemble + t_rough
+                best, factorisation = limit(net, clamp)
+                for name in ("factor", "rough", "superlu"):
+                    if name in best:
+                        key = "limit" if name == "factor" else name
+                        times[key + tag] = best["assembly"] + best[name]
+                superlu = f"; SuperLU {best['superlu']:.4f} s" if "superlu" in best else ""
                 print(
                     f"{net.n_nodes:>7} {strain:>5g} {'limit' + tag:>16} "
                     f"{times['limit' + tag]:>9.4f} {'':>7} {'':>11}  assembly "
-                    f"{t_assemble:.4f} s + factorisation {t_factor:.4f} s ({factorisation}; "
-                    f"rough: {t_rough:.4f} s)"
+                    f"{best['assembly']:.4f} s + factorisation {best['factor']:.4f} s "
+                    f"({factorisation}; rough {best['rough']:.4f} s{superlu})"
                 )
                 todo = [m for m in methods if m == "newton" or not which]
                 run(net, clamp, strain, todo, tag, times)
@@ -251,18 +256,21 @@ def main() -> None:
             summary.append((net.n_nodes, strain, times))
 
     print(
-        "\n# ratios (same run): newton/limit per sparse solver (newton/rough limit), "
-        "fire/newton, lbfgs/newton"
+        "\n# ratios (same run): newton/limit per sparse solver (against the rough limit; "
+        "[against SuperLU where the limit is banded]), fire/newton, lbfgs/newton"
     )
     for n_nodes, strain, times in summary:
 
         def ratio(a: str, b: str, times=times) -> str:
             return f"{times[a] / times[b]:8.1f}" if a in times and b in times else f"{'-':>8}"
 
-        per_solver = " ".join(
-            f"{ratio('newton' + t, 'limit' + t)} ({ratio('newton' + t, 'rough' + t).strip()})"
-            for t in tags
-        )
+        def against(t: str, times=times) -> str:
+            out = f"{ratio('newton' + t, 'limit' + t)} ({ratio('newton' + t, 'rough' + t).strip()})"
+            if "superlu" + t in times:
+                out += f" [{ratio('newton' + t, 'superlu' + t).strip()}]"
+            return out
+
+        per_solver = " ".join(against(t) for t in tags)
         print(
             f"{n_nodes:>7} {strain:>5g} {per_solver} {ratio('fire', 'newton' + tags[0])} "
             f"{ratio('lbfgs', 'newton' + tags[0])}"
