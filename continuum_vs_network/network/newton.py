@@ -46,12 +46,11 @@ Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger on
 unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
 diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
 ``W > 0``; up to a few thousand nodes, where its band is narrow, LAPACK's banded Cholesky
-in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``). Where
-``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`, the banded Cholesky, and from
-:data:`~.spd.ROUGH_MIN` rows SuperLU, factorise ``W`` rounded to float32 when that solves
-to 1e-2 (``rough``: SuperLU's takes half the memory and is 1.8x faster at 1e6 nodes; the
-banded one cut relax at 4096 nodes by 10-22 %); a step is then off by up to that, which
-the line search and the next step's projected CG absorb.
+in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``). From
+:data:`~.spd.ROUGH_MIN` rows, where ``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`,
+SuperLU factorises ``W`` rounded to float32 when that solves to 1e-2 (``rough``: half the
+memory and 1.8x faster at 1e6 nodes); a step is then off by up to that, which the line
+search and the next step's projected CG absorb.
 """
 
 from __future__ import annotations
