@@ -277,6 +277,45 @@ def test_banded_cholesky_matches_superlu_and_refuses_an_indefinite_band(solver_c
     assert np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
 
 
+def test_a_rough_banded_factor_is_float32_and_still_refuses_indefinite_w(
+    solver_choice, monkeypatch
+):
+    """``rough=True`` on a narrow band: LAPACK's Cholesky in float32, its solution off by
+    float32 round-off times the condition number; a negative eigenvalue is refused and its
+    direction still found. A diagonal over eight decades, or a condition number float32
+    cannot solve to ROUGH_RESIDUAL (a grid grounded by 1e-9), gets the float64 factor."""
+    set_sparse_solver("superlu")
+    side = 24
+    W = _laplacian_2d(side)  # natural order: lower bandwidth 24
+    b = np.sin(np.arange(W.shape[0], dtype=float))
+    exact = factor_spd(W).solve(b)
+    rough = factor_spd(W, rough=True)
+    solution = rough.solve(b)
+    assert solution.dtype == np.float64
+    np.testing.assert_array_equal(rough.precondition(b), solution)
+    error = np.linalg.norm(solution - exact) / np.linalg.norm(exact)
+    condition = (1 + np.cos(np.pi / (side + 1))) / (1 - np.cos(np.pi / (side + 1)))
+    assert 1e-12 < error < np.finfo(np.float32).eps * condition
+    bad = W.tolil()
+    bad[300, 300] = -3.0
+    bad = bad.tocsr()
+    assert factor_spd(bad, rough=True) is None
+    factor, directions = factor_spd_or_curvature(bad, rough=True)
+    assert factor is None and np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
+    calls = []
+    float32 = spd_module._banded_float32
+    monkeypatch.setattr(
+        spd_module, "_banded_float32", lambda *a: calls.append(float32(*a)) or calls[-1]
+    )
+    decades = 10.0 ** np.random.default_rng(0).uniform(0, 8, 2 * side * (side - 1))
+    for weights, ground, tried in ((decades, 1.0, 0), (np.ones_like(decades), 1e-9, 1)):
+        calls.clear()
+        M = _weighted_grid_laplacian(side, weights, ground)
+        factor = factor_spd(M, rough=True)
+        assert len(calls) == tried and not any(calls)  # not tried, or tried and refused
+        np.testing.assert_array_equal(factor.solve(b), factor_spd(M).solve(b))
+
+
 def test_band_order_reports_the_assembled_bandwidth():
     """The Hessian pattern of a lattice in band_order's row order has exactly the lower
     bandwidth band_order reports, about 2 sqrt(n) (a 2D lattice's band)."""

@@ -53,6 +53,37 @@ def test_projected_cg_step_equals_the_exact_kkt_step():
     np.testing.assert_allclose(mult, exact_mult, rtol=1e-7)
 
 
+def test_a_float32_factors_newton_step_is_refined_to_the_forcing_tolerance():
+    """A rough banded factor is float32 (``approximate``): on a lattice of stiffness over
+    four decades its direct KKT step misses the force balance by more than 1e-6 of the
+    force, while Newton's step from it (projected CG on the factorised matrix, preconditioned
+    by it) meets the forcing tolerance 1e-8 and the clamps to round-off."""
+    rng = np.random.default_rng(3)
+    net = triangular_lattice(18, 18, noise=0.1, rng=rng)
+    net = net.with_stiffness(10.0 ** rng.uniform(-2, 2, net.n_springs))
+    clamped = {40: float(net.clamp_length(40, 0.3)), 200: float(net.clamp_length(200, -0.2))}
+    problem = Problem.build(net, clamped=clamped)
+    pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
+    x = net.positions  # stress-free: W > 0
+    coords = pattern.coords
+    W = _w(problem, pattern, x, np.zeros(2))
+    rough = factor_spd(W, ordered=pattern.ordered, rough=True)
+    assert rough.approximate and not factor_spd(W, ordered=pattern.ordered).approximate
+    grad = rng.standard_normal(W.shape[0])  # any force: the step is linear in it
+    A = problem.clamp_jacobian(x, coords)
+    viol = problem.clamp_violation(x)
+    force = np.linalg.norm(grad)
+
+    def imbalance(step, lam):
+        return np.linalg.norm(grad + W @ step + A.T @ lam) / force
+
+    direct = nw._kkt_step(rough, grad, A, viol, 2)
+    step, lam = nw._fresh_step(rough, W, grad, A, viol, 1e-8, True)
+    assert imbalance(*direct) > 1e-6
+    assert imbalance(step, lam) <= 1e-8
+    np.testing.assert_allclose(A @ step, -viol, atol=1e-12 * np.abs(viol).max())
+
+
 def test_a_banded_factor_preconditions_in_float32_and_the_step_stays_exact():
     """The banded Cholesky's preconditioner is the factor rounded to float32: it differs
     from the float64 solve by 1e-9..1e-5 relative (so it is rounded, and close); projected

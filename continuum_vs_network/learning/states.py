@@ -13,7 +13,7 @@ a *chord* (modified Newton) SQP iteration on the equilibrium equations::
 with a factorisation of the augmented Lagrangian Hessian ``W = H_E + sum mu_c d2r_c +
 rho A^T A`` taken at an earlier *linearisation point* and the clamp directions
 ``Z_c = W^{-1} a_c`` cached per clamped spring (an approximate ``W^-1`` serves: ``rough``,
-float32 from :data:`~..network.spd.ROUGH_MIN` rows; one alive per key). One iteration costs
+float32 where accurate: :func:`~..network.spd.factor_spd`; one alive per key). One iteration costs
 one pair of triangular solves. Because learning changes the network little per step, the
 same factorisation serves the free state, the nudged state (its extra target clamps need
 one cached column each: the Schur-complement reuse) and many following learning steps; it

@@ -46,11 +46,13 @@ Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger on
 unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
 diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
 ``W > 0``; up to a few thousand nodes, where its band is narrow, LAPACK's banded Cholesky
-in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``). From
-:data:`~.spd.ROUGH_MIN` rows, where ``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`,
-SuperLU factorises ``W`` rounded to float32 when that solves to 1e-2 (``rough``: half the
-memory and 1.8x faster at 1e6 nodes); a step is then off by up to that, which the line
-search and the next step's projected CG absorb.
+in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``). Where
+``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`, the banded Cholesky, and from
+:data:`~.spd.ROUGH_MIN` rows SuperLU, factorise ``W`` rounded to float32 when that solves
+to 1e-2 (``rough``: SuperLU's takes half the memory and is 1.8x faster at 1e6 nodes; the
+banded one is 1.5-1.9x faster than float64 at 2e3-8e3 rows). Newton's step from such a
+factor is projected CG on the matrix factorised, preconditioned by it, to the forcing
+tolerance (:func:`_fresh_step`); the clamp predictor's step is taken as it is.
 """
 
 from __future__ import annotations
@@ -149,18 +151,18 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
 
         step = lam = None
         indefinite = None  # (shift, direction): W + shift D met negative curvature along it
+        # inexact Newton (Eisenstat-Walker-like forcing term): a relative solve error eta
+        # leaves a residual ~ eta * residual, superlinear with eta = sqrt(residual); at
+        # N = 1e4 it needed 31-41 solves against 45-63 with eta = residual, same iterations.
+        # Not below 0.5 tol / residual (Kelley's safeguard against oversolving): a last
+        # step from just above the tolerance needs no accurate solve (at N = 4096, strain 1
+        # one from 1.2e-10 took 14 preconditioner solves for eta = sqrt(residual))
+        enough = min(0.5, 0.5 * stop.tol / max(residual, 1e-300))  # residual 0: clamps only
+        eta = max(min(1e-1, np.sqrt(residual)), enough)
         # a shifted factorisation is not reused once the shift is 0: the exact Hessian is
         # factorised instead, which gives a pure Newton step and certifies the minimum in
         # the loop (else the second-order check of relax factorises it after convergence)
         if reusable is not None and not (shift == 0.0 and not exact_ok):
-            # inexact Newton (Eisenstat-Walker-like forcing term): a relative solve error eta
-            # leaves a residual ~ eta * residual, superlinear with eta = sqrt(residual); at
-            # N = 1e4 it needed 31-41 solves against 45-63 with eta = residual, same iterations.
-            # Not below 0.5 tol / residual (Kelley's safeguard against oversolving): a last
-            # step from just above the tolerance needs no accurate solve (at N = 4096, strain 1
-            # one from 1.2e-10 took 14 preconditioner solves for eta = sqrt(residual))
-            enough = min(0.5, 0.5 * stop.tol / max(residual, 1e-300))  # residual 0: clamps only
-            eta = max(min(1e-1, np.sqrt(residual)), enough)
             budget = reuse_budget(pattern.size)
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             # the damped model a refactorisation would solve now; when that (a shift decayed
@@ -187,13 +189,17 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                 shift = trial  # the model solved (trials never go below shift)
         if step is None:
             factor = reusable = None  # released first: one factorisation alive at a time
-            factor, rho, shift, exact_ok = _factor_lagrangian_hessian(
+            factor, rho, shift, exact_ok, model = _factor_lagrangian_hessian(
                 problem, pattern, x, lam_ls[:m], rho, shift, indefinite=indefinite
             )
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
+            # reuse only pays above the dense size; with rods the gradient's huge axial part
+            # makes CG's relative tolerance meaningless for the rest. A shifted factor also
+            # preconditions the exact Hessian (negative curvature makes CG fail: refactorise)
+            reuse = pattern.size > DENSE_MAX and problem.clamp == "exact"
             try:
-                step, lam = _kkt_step(factor, grad, A if m else None, viol, m)
+                step, lam = _fresh_step(factor, model, grad, A if m else None, viol, eta, reuse)
             except np.linalg.LinAlgError:
                 return Outcome(
                     x,
@@ -202,10 +208,6 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                     "clamp constraints are degenerate (singular Schur "
                     "complement): two clamps fix the same length?",
                 )
-            # reuse only pays above the dense size; with rods the gradient's huge axial part
-            # makes CG's relative tolerance meaningless for the rest. A shifted factor also
-            # preconditions the exact Hessian (negative curvature makes CG fail: refactorise)
-            reuse = pattern.size > DENSE_MAX and problem.clamp == "exact"
             reusable = factor if reuse else None
             factor_shift = shift
         x, alpha = line_search(
@@ -298,6 +300,34 @@ def _clamp_predictor(
     return y, factor
 
 
+def _fresh_step(
+    factor: Factor,
+    model: sp.csr_matrix | NDArray,
+    grad: NDArray,
+    A: sp.csr_matrix | None,
+    viol: NDArray,
+    eta: float,
+    refine: bool,
+) -> tuple[NDArray, NDArray]:
+    """The Newton step of ``model`` (the matrix just factorised) from its ``factor``.
+
+    A float32 factor (``factor.approximate``) solves only to ~1e-7 times the condition
+    number: where ``refine`` (the projected CG pays), conjugate gradients on ``model``
+    preconditioned by it take the step to the forcing tolerance ``eta``, usually in no
+    iteration beyond its first solve. Unrefined, its direct steps stalled at 3.9e-10 on a
+    prestressed lattice of stiffness over six decades (``bench_family.py --large``,
+    network 11: 'line search found no decrease'). Otherwise the direct KKT step.
+    """
+    if refine and factor.approximate:
+        try:
+            return projected_pcg(
+                model, factor, grad, A, viol, rtol=eta, max_iter=reuse_budget(model.shape[0])
+            )
+        except (SolveFailed, NegativeCurvature, np.linalg.LinAlgError):
+            pass  # float32 round-off beyond CG's reach: the direct step
+    return _kkt_step(factor, grad, A, viol, 0 if A is None else A.shape[0])
+
+
 def _kkt_step(
     solver: Factor, grad: NDArray, A: sp.csr_matrix | None, viol: NDArray, m: int
 ) -> tuple[NDArray, NDArray]:
@@ -324,7 +354,7 @@ def _factor_lagrangian_hessian(
     shift: float,
     *,
     indefinite: tuple[float, NDArray] | None = None,
-) -> tuple[Factor | None, float, float, bool]:
+) -> tuple[Factor | None, float, float, bool, sp.csr_matrix | NDArray | None]:
     """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
     Order: the exact Hessian (when ``try_exact``), also with a larger augmentation ``rho``
@@ -347,8 +377,9 @@ def _factor_lagrangian_hessian(
     (``rho A^T A`` adds nothing along ``d``). At 1e5 nodes, strain 2 (bench_relax) that
     skipped 3.8 s of 9.4 s in the first indefinite iteration.
 
-    Returns ``(factor, rho, shift, exact_used)``. The exact Hessian is used whenever it is
-    positive definite, so the last iterations are pure Newton steps.
+    Returns ``(factor, rho, shift, exact_used, model)``, ``model`` the matrix factorised.
+    The exact Hessian is used whenever it is positive definite, so the last iterations are
+    pure Newton steps.
     """
     W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
     directions = None
@@ -358,7 +389,7 @@ def _factor_lagrangian_hessian(
         if directions is None:
             factor, directions = _factor_or_curvature(W, pattern)
             if factor is not None:
-                return factor, rho, 0.0, True
+                return factor, rho, 0.0, True, W
         if lam.size:
             d = np.maximum(problem.net.lengths(x, problem.clamp_springs), 1e-300)
             new_rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
@@ -372,7 +403,7 @@ def _factor_lagrangian_hessian(
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
             factor = None if futile else factor_pd(W, ordered=pattern.ordered, rough=True)
             if factor is not None:
-                return factor, rho, 0.0, True
+                return factor, rho, 0.0, True, W
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
     # not freeze soft springs (stiffness ratios up to 1e12 are supported). Without a known
     # direction of negative curvature the shift grows by 100s from DAMP_MIN; with one, from
@@ -389,11 +420,12 @@ def _factor_lagrangian_hessian(
         if estimate > shift:
             shift, growth = estimate, 10.0
     while shift <= 1e8:
-        factor = factor_pd(W + shift * scaling, ordered=pattern.ordered, rough=True)
+        model = W + shift * scaling
+        factor = factor_pd(model, ordered=pattern.ordered, rough=True)
         if factor is not None:
-            return factor, rho, shift, False
+            return factor, rho, shift, False, model
         shift *= growth
-    return None, rho, shift, False
+    return None, rho, shift, False, None
 
 
 def _marquardt_scaling(W: sp.spmatrix | NDArray) -> sp.spmatrix | NDArray:

@@ -176,7 +176,7 @@ def _hopeless(first: float, best: float, tol: float, done: int, max_iter: int) -
     """
     if done < 4:
         return False
-    if best >= first:
+    if best >= first or tol <= 0.0:  # tol 0 (no force at step 0): no iteration meets it
         return True
     rate = np.log(best / first) / done
     return bool(np.log(tol / first) / rate > 3 * max_iter)

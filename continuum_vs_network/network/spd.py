@@ -12,7 +12,10 @@ with half the memory (``benchmarks/bench_solvers_sparse.py``); it certifies ``W 
 completing. Otherwise, or with :func:`set_sparse_solver` ``("superlu")`` or the
 environment variable ``CVN_SPARSE_SOLVER=superlu``, SuperLU; or, for a matrix whose rows
 are in a narrow-band order (:func:`banded_pays`, e.g. reverse Cuthill-McKee on a network of
-up to ~5e3 nodes), LAPACK's banded Cholesky, which is 2-3x faster there.
+up to ~5e3 nodes), LAPACK's banded Cholesky, which is 2-3x faster there. A ``rough``
+factorisation (an approximate ``W^-1`` serves: a Newton step judged by the true residual,
+a preconditioner) is made in float32 where that is accurate: the banded Cholesky at any
+size, SuperLU from ``ROUGH_MIN`` rows.
 """
 
 from __future__ import annotations
@@ -123,6 +126,9 @@ class Factor:
         the banded Cholesky, the same factor rounded to float32 (relative error ~1e-7;
         1.3x / 1.7x / 2x faster than float64 at 2e3 / 8e3 / 2e4 rows, where the solve is
         limited by reading the band from memory).
+    approximate : bool
+        ``solve`` itself is only float32-accurate (a ``rough`` factor of ``W`` rounded to
+        float32): a caller that needs more refines it (Newton: projected CG).
     """
 
     def __init__(
@@ -130,10 +136,13 @@ class Factor:
         solve: Callable[[NDArray], NDArray],
         n: int,
         precondition: Callable[[NDArray], NDArray] | None = None,
+        *,
+        approximate: bool = False,
     ) -> None:
         self.solve = solve
         self.n = n
         self.precondition = solve if precondition is None else precondition
+        self.approximate = approximate
 
 
 def _dense(M) -> NDArray:
@@ -163,10 +172,14 @@ def banded_pays(n: int, bandwidth: int) -> bool:
     return n * width**2 <= BAND_MAX_WORK and width <= 3.0 * np.sqrt(n)
 
 
-def _banded_cholesky(W: sp.spmatrix) -> Factor | bool | None:
+def _banded_cholesky(W: sp.spmatrix, *, rough: bool = False) -> Factor | bool | None:
     """LAPACK banded Cholesky of sparse symmetric ``W`` when :func:`banded_pays` for its
     lower bandwidth: a Factor, or None when ``W`` is not positive definite (pbtrf met a
-    non-positive pivot, or ``W`` is not finite); False when the band is too wide."""
+    non-positive pivot, or ``W`` is not finite); False when the band is too wide.
+
+    ``rough`` (the diagonal spanning at most ``ROUGH_SPREAD``): first the band rounded to
+    float32 (:func:`_banded_float32`); where that fails or is not accurate, float64 decides.
+    """
     W = sp.csr_matrix(W)
     if not W.has_canonical_format:  # duplicates summed on a copy, the caller's W kept
         W = W.copy()
@@ -181,6 +194,10 @@ def _banded_cholesky(W: sp.spmatrix) -> Factor | bool | None:
     lower = offset >= 0
     band = np.zeros((width + 1, n), order="F")  # LAPACK's layout: factorised in place
     band[offset[lower], W.indices[lower]] = W.data[lower]
+    if rough and _diagonal_spread(W) <= ROUGH_SPREAD:
+        factor = _banded_float32(W, band)
+        if factor is not None:
+            return factor
     try:
         c = sla.cholesky_banded(band, overwrite_ab=True, lower=True, check_finite=False)
     except sla.LinAlgError:
@@ -207,6 +224,32 @@ def _banded_cholesky(W: sp.spmatrix) -> Factor | bool | None:
     return Factor(solve, n, precondition)
 
 
+def _banded_float32(W: sp.csr_matrix, band: NDArray) -> Factor | None:
+    """The banded Cholesky of ``W`` (its lower ``band`` in LAPACK's layout, float64, left
+    as it is) rounded to float32, solves taking and returning float64; None when it fails
+    (``W`` indefinite, or positive definite only beyond float32's reach) or does not solve
+    to ``ROUGH_RESIDUAL`` (:func:`_accurate`).
+
+    LAPACK's spbtrf runs 1.9-3x faster than dpbtrf on lattice Hessians of 2e3-8e3 rows
+    (its blocks vectorise twice as wide), as the float32 SuperLU of ``ROUGH_MIN`` rows.
+    """
+    rounded = np.asfortranarray(band, dtype=np.float32)
+    if not np.all(np.isfinite(rounded)):  # beyond float32's range
+        return None
+    with flushing_subnormals():
+        c, info = sla.lapack.spbtrf(rounded, lower=1, overwrite_ab=1)
+    if info:
+        return None
+
+    def solve(b: NDArray) -> NDArray:
+        x, info = sla.lapack.spbtrs(c, np.asarray(b, dtype=np.float32), lower=1)
+        if info:
+            raise ValueError(f"spbtrs: illegal argument {-info}")
+        return x.astype(np.float64)
+
+    return Factor(solve, W.shape[0], approximate=True) if _accurate(W, solve) else None
+
+
 def factor_spd(
     W: sp.spmatrix | NDArray,
     *,
@@ -227,8 +270,9 @@ def factor_spd(
     ``U``: 3-4 % of the factorisation at 1e4-1e5 unknowns) for a ``W`` positive definite by
     construction (a stiffness with rigid motion removed); only exact singularity then
     returns None. ``rough``: an approximate ``W^-1`` serves the caller (a Newton or chord
-    step judged by the true residual, a preconditioner): from ``ROUGH_MIN`` rows SuperLU
-    then factorises ``W`` rounded to float32 (:func:`factor_spd_or_curvature`).
+    step judged by the true residual, a preconditioner): the banded Cholesky, and from
+    ``ROUGH_MIN`` rows SuperLU, then factorise ``W`` rounded to float32 where it solves to
+    ``ROUGH_RESIDUAL`` (:func:`_banded_float32`, :func:`factor_spd_or_curvature`).
     """
     n = W.shape[0]
     if n <= DENSE_MAX:
@@ -240,7 +284,7 @@ def factor_spd(
     if sparse_solver() == "pardiso":
         return _pardiso_spd(W)
     if certify:
-        banded = _banded_cholesky(W)  # a failed one needs no SuperLU: W is not > 0
+        banded = _banded_cholesky(W, rough=rough)  # a failed one needs no SuperLU: W is not > 0
         if banded is not False:
             return banded
         return factor_spd_or_curvature(W, ordered=ordered, rough=rough)[0]
@@ -265,8 +309,9 @@ def factor_spd_or_curvature(
     narrow-band ``W`` (:func:`banded_pays`) is first given to the banded Cholesky; SuperLU
     runs only when that fails.
 
-    ``rough``, at least ``ROUGH_MIN`` rows and a diagonal spanning at most ``ROUGH_SPREAD``
-    (max / min): first SuperLU of ``W`` rounded to float32
+    ``rough``, a diagonal spanning at most ``ROUGH_SPREAD`` (max / min): a banded
+    Cholesky in float32 (:func:`_banded_float32`); else, from ``ROUGH_MIN`` rows, first
+    SuperLU of ``W`` rounded to float32
     (solutions off by up to ~1e-7 times the condition number: 3e-4 on a 1e6-node lattice).
     Its positive pivots certify ``W > 0`` up to float32 round-off (a negative eigenvalue
     above ~-1e-7 of the largest may pass) when it also solves a fixed random right-hand
@@ -276,7 +321,7 @@ def factor_spd_or_curvature(
     n = W.shape[0]
     if n <= DENSE_MAX or sparse_solver() == "pardiso":
         return factor_spd(W, ordered=ordered), None
-    banded = _banded_cholesky(W)
+    banded = _banded_cholesky(W, rough=rough)
     if isinstance(banded, Factor):
         return banded, None
     if rough and n >= ROUGH_MIN and _diagonal_spread(W) <= ROUGH_SPREAD:
@@ -331,7 +376,7 @@ def _superlu(
     if np.all(d > 0):
         if dtype == np.float32 and not _accurate(W, solve):
             return None, None
-        return Factor(solve, n), None
+        return Factor(solve, n, approximate=dtype == np.float32), None
     # W^-1 P^T L e_i = P U^-1 e_i = P L^-T e_i / d_i (U = D L^T): a solve with lu itself
     L = lu.L
     directions = []
