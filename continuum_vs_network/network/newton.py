@@ -50,7 +50,7 @@ in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``
 ``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`, the banded Cholesky, and from
 :data:`~.spd.ROUGH_MIN` rows SuperLU, factorise ``W`` rounded to float32 when that solves
 to 1e-2 (``rough``: SuperLU's takes half the memory and is 1.8x faster at 1e6 nodes; the
-banded one is 1.5-1.9x faster than float64 at 2e3-8e3 rows). Newton's step from such a
+banded one is 1.3-1.8x faster than float64 at 2e3-8e3 rows). Newton's step from such a
 factor is projected CG on the matrix factorised, preconditioned by it, to the forcing
 tolerance (:func:`_fresh_step`); the clamp predictor's step is taken as it is.
 """

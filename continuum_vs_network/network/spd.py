@@ -230,7 +230,7 @@ def _banded_float32(W: sp.csr_matrix, band: NDArray) -> Factor | None:
     (``W`` indefinite, or positive definite only beyond float32's reach) or does not solve
     to ``ROUGH_RESIDUAL`` (:func:`_accurate`).
 
-    LAPACK's spbtrf runs 1.9-3x faster than dpbtrf on lattice Hessians of 2e3-8e3 rows
+    LAPACK's spbtrf runs 1.3-1.8x faster than dpbtrf on lattice Hessians of 2e3-8e3 rows
     (its blocks vectorise twice as wide), as the float32 SuperLU of ``ROUGH_MIN`` rows.
     """
     rounded = np.asfortranarray(band, dtype=np.float32)
