@@ -84,6 +84,7 @@ class DampedStepper:
         self.dt = dt
         self.factorisations = 0
         self._key = None
+        self._load_key = None
 
     def rest_arm(self, u: ArrayLike) -> NDArray | None:
         """Internal strains (3 n_q,) of arms relaxed at ``u`` (``B u``); None without arms."""
@@ -112,6 +113,18 @@ class DampedStepper:
             self.factorisations += 1
         return self._sys
 
+    def _load(self, medium, factor) -> tuple[NDArray, NDArray | None]:
+        """The load on the free DOFs, and at equilibrium (no damping, no arm: the right-hand
+        side is the load) its solve; kept per eigenstrain and modulus field (the copies of
+        a step share them)."""
+        key = (medium.eigenstrain, medium.modulus)  # read-only: a new field is a new array
+        if self._load_key is None or any(a is not b for a, b in zip(self._load_key, key)):
+            f = medium.load()[self.free]
+            alone = self.C_dt is None and self.arm is None
+            self._load_key = key
+            self._load_value = (f, np.asarray(factor.solve(f)) if alone else None)
+        return self._load_value
+
     def step(
         self,
         medium,
@@ -126,7 +139,7 @@ class DampedStepper:
         (:meth:`rest_arm` for arms relaxed at a state)."""
         factor, Z, S = self._system(medium)
         u = np.asarray(u, float)
-        rhs = medium.load()[self.free]
+        rhs, z = self._load(medium, factor)
         if self.C_dt is not None:
             rhs = rhs + self.C_dt @ u[self.free]
         if self.arm is not None:
@@ -139,7 +152,8 @@ class DampedStepper:
                 )
             arm = np.asarray(arm, float)
             rhs = rhs + self._arm_pull @ arm
-        z = np.asarray(factor.solve(rhs))
+        if z is None:
+            z = np.asarray(factor.solve(rhs))
         ns = self.n_sources
         if target_strain is None:
             rows, values = np.arange(ns), self.source_strain

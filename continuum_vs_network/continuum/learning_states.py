@@ -43,6 +43,7 @@ __all__ = [
     "cost_gradient",
     "effective_stiffness",
     "free_state",
+    "free_target_strain",
 ]
 
 
@@ -108,6 +109,7 @@ class _System:
         self.S = self.G @ self.Z
         self.n_sources = task.n_sources
         self._u0: tuple[NDArray, tuple] | None = None
+        self._const: tuple[NDArray, float] | None = None
         self._rows: dict[bytes, tuple] = {}
         if tracker is not None:
             tracker.stats.factorisations += 1
@@ -127,15 +129,22 @@ class _System:
             )
         return hit
 
-    def u0(self, medium) -> tuple[NDArray, NDArray, float]:
-        """``K^-1 f``, the load ``f`` on the free DOFs and the energy constant
-        ``sum_e s_e A_e m0 . C m0 / 2`` of the medium's eigenstrain (cached)."""
+    def u0(self, medium) -> tuple[NDArray, NDArray]:
+        """``K^-1 f`` and the load ``f`` on the free DOFs of the medium's eigenstrain
+        (cached)."""
         key = medium.eigenstrain  # read-only; a new field is a new array
         if self._u0 is None or self._u0[0] is not key:
             f = medium.load()[self.free]
             u0 = self.factor.solve(f) if np.any(f) else np.zeros_like(f)
-            self._u0 = (key, (u0, f, medium.eigenstrain_energy()))
+            self._u0 = (key, (u0, f))
         return self._u0[1]
+
+    def energy_constant(self, medium) -> float:
+        """``sum_e s_e A_e m0 . C m0 / 2`` of the medium's eigenstrain (cached)."""
+        key = medium.eigenstrain
+        if self._const is None or self._const[0] is not key:
+            self._const = (key, medium.eigenstrain_energy())
+        return self._const[1]
 
 
 def _key(task) -> str:
@@ -156,14 +165,14 @@ def _system(medium, task, tracker) -> _System:
 
 def _solve(medium, task, clamped: NDArray, values: NDArray, tracker) -> MaterialState:
     sys_ = _system(medium, task, tracker)
-    u0, f, const = sys_.u0(medium)
+    u0, f = sys_.u0(medium)
     Gc, Zc, Sc = sys_.held(clamped)
     uf, lam = schur_solve(u0, Gc, Zc, Sc, values)
     u = np.zeros(medium.n_dofs)
     u[sys_.free] = uf
     Ku = sys_.K @ uf
     residual = float(np.max(np.abs(Ku + Gc.T @ lam - f), initial=0.0))
-    energy = float(0.5 * uf @ Ku - f @ uf + const)
+    energy = float(0.5 * uf @ Ku - f @ uf + sys_.energy_constant(medium))
     strains = sys_.G @ uf
     if tracker is not None:
         tracker.stats.solves += 1
@@ -184,6 +193,17 @@ def _solve(medium, task, clamped: NDArray, values: NDArray, tracker) -> Material
 def free_state(medium, task, *, tracker=None) -> MaterialState:
     """Sources clamped at ``task.source_strain``; targets free."""
     return _solve(medium, task, np.arange(task.n_sources), task.source_strain, tracker)
+
+
+def free_target_strain(medium, task) -> NDArray[np.float64]:
+    """``free_state(medium, task).target_strain`` alone (the same numbers), without the
+    state's energy, residual and positions: what learning in time records at every step."""
+    sys_ = _system(medium, task, None)
+    Gc, Zc, Sc = sys_.held(np.arange(task.n_sources))
+    uf, lam = schur_solve(sys_.u0(medium)[0], Gc, Zc, Sc, task.source_strain)
+    if not (np.all(np.isfinite(uf)) and np.all(np.isfinite(lam))):
+        raise FloatingPointError("the clamped solve returned non-finite values")
+    return (sys_.G @ uf)[task.n_sources :]
 
 
 def clamped_state(medium, task, target_strain: ArrayLike, *, tracker=None) -> MaterialState:

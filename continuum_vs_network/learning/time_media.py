@@ -149,8 +149,10 @@ class NetworkTime:
             self._free_eq = self.copy(net, None)
             self._free_eq.stepper = _equilibrium_stepper(net, self._free_eq.free, self.tol)
         eq = self._free_eq
-        held = _boundary(net, task.pinned, None, self._clamps(net, None), eq.x)[0]
-        eq.step(net, held if ref == "current" else None)
+        held = None  # "initial": the clamps stay where they were set
+        if ref == "current":
+            held = _boundary(net, task.pinned, None, self._clamps(net, None), eq.x)[0]
+        eq.step(net, held)
         return task.error(net, eq.x, ref)
 
     def positions(self, net, copy: _Copy) -> NDArray:
@@ -227,7 +229,9 @@ class BodyTime:
         return rule.alpha * float(np.max(medium.modulus * c))
 
     def error(self, medium) -> float:
-        return self.task.error(medium.free_state(self.task).target_strain)
+        from ..continuum.learning_states import free_target_strain
+
+        return self.task.error(free_target_strain(medium, self.task))
 
     def positions(self, medium, copy) -> NDArray:
         return medium.vertex_positions(copy.u)
