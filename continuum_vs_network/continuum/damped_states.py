@@ -85,6 +85,7 @@ class DampedStepper:
         self.factorisations = 0
         self._key = None
         self._load_key = None
+        self._task = None if math.isfinite(dt) else task  # equilibrium: the free states' K
 
     def rest_arm(self, u: ArrayLike) -> NDArray | None:
         """Internal strains (3 n_q,) of arms relaxed at ``u`` (``B u``); None without arms."""
@@ -95,6 +96,15 @@ class DampedStepper:
     def _system(self, medium):
         from ..network.kkt import factor_spd
 
+        if self._key is not medium.modulus and self._task is not None:
+            # equilibrium: A = K, the free states' factorisation (the same numbers), whose
+            # load solve the error of learning in time makes for the same eigenstrain
+            from .learning_states import _system
+
+            sys_ = _system(medium, self._task, None)
+            self._sys = (sys_.factor, sys_.Z, np.asarray(sys_.S))
+            self._key = medium.modulus
+            self.factorisations += 1
         if self._key is not medium.modulus:
             A = medium.stiffness()[self.free][:, self.free]
             if self.C_dt is not None:
@@ -117,6 +127,11 @@ class DampedStepper:
         """The load on the free DOFs, and at equilibrium (no damping, no arm: the right-hand
         side is the load) its solve; kept per eigenstrain and modulus field (the copies of
         a step share them)."""
+        if self._task is not None:
+            from .learning_states import _system
+
+            u0, f = _system(medium, self._task, None).u0(medium)
+            return f, u0
         key = (medium.eigenstrain, medium.modulus)  # read-only: a new field is a new array
         if self._load_key is None or any(a is not b for a, b in zip(self._load_key, key)):
             f = medium.load()[self.free]
