@@ -157,15 +157,8 @@ def test_a_rough_factor_is_float32_from_its_size_and_still_refuses_indefinite_w(
     monkeypatch.setattr(spd_module, "ROUGH_MIN", W.shape[0] + 1)
     np.testing.assert_array_equal(factor_spd(W, rough=True).solve(b), exact)
     monkeypatch.setattr(spd_module, "ROUGH_MIN", W.shape[0])
-    rough = factor_spd(W, rough=True).solve(b)
-    assert rough.dtype == np.float64
-    error = np.linalg.norm(rough - exact) / np.linalg.norm(exact)
-    # eigenvalues of the 5-point Laplacian: 4 - 2 cos(i pi / (side + 1)) - 2 cos(j ...)
-    condition = (1 + np.cos(np.pi / (side + 1))) / (1 - np.cos(np.pi / (side + 1)))
-    assert 1e-12 < error < np.finfo(np.float32).eps * condition
-    bad = W.tolil()
-    bad[300, 300] = -3.0
-    bad = bad.tocsr()
+    _assert_float32_solution(factor_spd(W, rough=True).solve(b), exact, side)
+    bad = _with_a_negative_pivot(W)
     assert factor_spd(bad, rough=True) is None
     # a direction of negative curvature off the float32 factor proves it: no float64 one
     dtypes = []
@@ -185,6 +178,23 @@ def test_a_rough_factor_is_float32_from_its_size_and_still_refuses_indefinite_w(
         factor = factor_spd(M, rough=True)
         assert dtypes[-1] == np.float64 and len(dtypes) == (1 if ground == 1.0 else 2)
         np.testing.assert_array_equal(factor.solve(b), factor_spd(M).solve(b))
+
+
+def _assert_float32_solution(solution: NDArray, exact: NDArray, side: int) -> None:
+    """``solution`` (float64) is off ``exact`` by float32 round-off times the condition of
+    the side x side 5-point Laplacian (eigenvalues 4 - 2 cos(i pi / (side + 1)) - 2 cos(j
+    ...)), not by float64's."""
+    assert solution.dtype == np.float64
+    error = np.linalg.norm(solution - exact) / np.linalg.norm(exact)
+    condition = (1 + np.cos(np.pi / (side + 1))) / (1 - np.cos(np.pi / (side + 1)))
+    assert 1e-12 < error < np.finfo(np.float32).eps * condition
+
+
+def _with_a_negative_pivot(W: sp.csr_matrix) -> sp.csr_matrix:
+    """``W`` with its diagonal entry 300 set to -3: a negative eigenvalue."""
+    bad = W.tolil()
+    bad[300, 300] = -3.0
+    return bad.tocsr()
 
 
 def _weighted_grid_laplacian(side: int, weights: NDArray, ground: float) -> sp.csr_matrix:
@@ -290,15 +300,9 @@ def test_a_rough_banded_factor_is_float32_and_still_refuses_indefinite_w(
     b = np.sin(np.arange(W.shape[0], dtype=float))
     exact = factor_spd(W).solve(b)
     rough = factor_spd(W, rough=True)
-    solution = rough.solve(b)
-    assert solution.dtype == np.float64
-    np.testing.assert_array_equal(rough.precondition(b), solution)
-    error = np.linalg.norm(solution - exact) / np.linalg.norm(exact)
-    condition = (1 + np.cos(np.pi / (side + 1))) / (1 - np.cos(np.pi / (side + 1)))
-    assert 1e-12 < error < np.finfo(np.float32).eps * condition
-    bad = W.tolil()
-    bad[300, 300] = -3.0
-    bad = bad.tocsr()
+    _assert_float32_solution(rough.solve(b), exact, side)
+    np.testing.assert_array_equal(rough.precondition(b), rough.solve(b))
+    bad = _with_a_negative_pivot(W)
     assert factor_spd(bad, rough=True) is None
     factor, directions = factor_spd_or_curvature(bad, rough=True)
     assert factor is None and np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
