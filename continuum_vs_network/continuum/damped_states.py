@@ -94,43 +94,49 @@ class DampedStepper:
         return self.arm.operators.strain @ np.asarray(u, float)
 
     def _system(self, medium):
-        from ..network.kkt import factor_spd
-
-        if self._key is not medium.modulus and self._task is not None:
-            # equilibrium: A = K, the free states' factorisation (the same numbers), whose
-            # load solve the error of learning in time makes for the same eigenstrain
-            from .learning_states import _system
-
-            sys_ = _system(medium, self._task, None)
-            self._sys = (sys_.factor, sys_.Z, np.asarray(sys_.S))
-            self._key = medium.modulus
-            self.factorisations += 1
+        """``(factor, Z, S)`` of the step matrix at the medium's modulus field (kept)."""
         if self._key is not medium.modulus:
-            A = medium.stiffness()[self.free][:, self.free]
-            if self.C_dt is not None:
-                A = A + self.C_dt
-            if self._arm_matrix is not None:
-                A = A + self._arm_matrix
-            factor = factor_spd(A.tocsr(), certify=False)
-            if factor is None:
-                raise ValueError(
-                    "the step matrix is not positive definite: fix enough DOFs to stop rigid "
-                    "motion or add drag"
-                )
-            Z = np.asarray(factor.solve(self.G.T.toarray()))
-            self._sys = (factor, Z, np.asarray(self.G @ Z))
+            if self._task is not None:
+                # equilibrium: A = K, the free states' factorisation (the same numbers),
+                # whose load solve the error of learning in time makes for the eigenstrain
+                shared = self._shared(medium)
+                self._sys = (shared.factor, shared.Z, np.asarray(shared.S))
+            else:
+                self._sys = self._factorise(medium)
             self._key = medium.modulus
             self.factorisations += 1
         return self._sys
+
+    def _factorise(self, medium):
+        """``(factor, Z, S)`` of ``A = K + C / dt (+ arm)`` on the free DOFs."""
+        from ..network.kkt import factor_spd
+
+        A = medium.stiffness()[self.free][:, self.free]
+        if self.C_dt is not None:
+            A = A + self.C_dt
+        if self._arm_matrix is not None:
+            A = A + self._arm_matrix
+        factor = factor_spd(A.tocsr(), certify=False)
+        if factor is None:
+            raise ValueError(
+                "the step matrix is not positive definite: fix enough DOFs to stop rigid "
+                "motion or add drag"
+            )
+        Z = np.asarray(factor.solve(self.G.T.toarray()))
+        return factor, Z, np.asarray(self.G @ Z)
+
+    def _shared(self, medium):
+        """At equilibrium: the free states' cached system of the medium and task."""
+        from .learning_states import _system
+
+        return _system(medium, self._task, None)
 
     def _load(self, medium, factor) -> tuple[NDArray, NDArray | None]:
         """The load on the free DOFs, and at equilibrium (no damping, no arm: the right-hand
         side is the load) its solve; kept per eigenstrain and modulus field (the copies of
         a step share them)."""
         if self._task is not None:
-            from .learning_states import _system
-
-            u0, f = _system(medium, self._task, None).u0(medium)
+            u0, f = self._shared(medium).u0(medium)
             return f, u0
         key = (medium.eigenstrain, medium.modulus)  # read-only: a new field is a new array
         if self._load_key is None or any(a is not b for a, b in zip(self._load_key, key)):
