@@ -357,7 +357,7 @@ def _factor_lagrangian_hessian(
 ) -> tuple[Factor | None, float, float, bool, sp.csr_matrix | NDArray | None]:
     """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
-    Order: the exact Hessian (when ``try_exact``), also with a larger augmentation ``rho``
+    Order: the exact Hessian (when ``shift`` is 0), also with a larger augmentation ``rho``
     when there are clamps (at a stable constrained minimum a large enough ``rho`` makes it
     positive definite, Finsler's lemma, and the step does not depend on ``rho``; that second
     factorisation is skipped when a direction of negative curvature read off the first,
