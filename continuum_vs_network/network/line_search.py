@@ -1,11 +1,15 @@
-"""The sparse Newton's line search: Armijo backtracking on the augmented Lagrangian.
+"""The sparse Newton's line searches on the augmented Lagrangian merit.
 
-Used by :func:`~.newton.newton`. Besides the plain step it tries the step with a
-second-order correction onto the clamp lengths and with stiff springs put back to the
-lengths the linear model predicted (:class:`~.stiff_springs.StiffSprings`).
+Used by :func:`~.newton.newton`. :func:`line_search` backtracks along the Newton step;
+besides the plain step it tries the step with a second-order correction onto the clamp
+lengths and with stiff springs put back to the lengths the linear model predicted
+(:class:`~.stiff_springs.StiffSprings`). :func:`curvature_search` moves along a direction
+of negative curvature.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -15,7 +19,34 @@ from .constraints import Problem
 from .energy import spring_energy_change
 from .stiff_springs import StiffSprings
 
-__all__ = ["line_search"]
+__all__ = ["curvature_search", "follow_curvature", "line_search", "merit_change"]
+
+Merit = Callable[[NDArray], float]
+
+
+def merit_change(
+    problem: Problem,
+    x: NDArray,
+    A: sp.csr_matrix | NDArray | None,
+    viol: NDArray,
+    lam: NDArray,
+    rho: float,
+) -> Merit:
+    """The change of the merit ``E + lam.(r - l) + rho |r - l|^2 / 2`` from ``x`` (n_nodes,
+    2) to ``y``, as a function of ``y``, free of cancellation (stiff springs make ``E``
+    itself many orders larger than the changes that matter). ``A`` None: no clamps (``E``).
+    """
+    all_springs = problem.all_springs()
+    lam_c = lam if A is not None else None
+
+    def merit(y: NDArray) -> float:
+        e = spring_energy_change(y, x, *all_springs)
+        if lam_c is None:
+            return e
+        c = problem.clamp_violation(y)
+        return e + float(lam_c @ (c - viol)) + 0.5 * rho * float(c @ c - viol @ viol)
+
+    return merit
 
 
 def line_search(
@@ -39,18 +70,7 @@ def line_search(
 
     Returns the new positions and the step length taken (0 when none was accepted).
     """
-    all_springs = problem.all_springs()
-    lam_c = lam if A is not None else None
-
-    def merit(y: NDArray) -> float:
-        """Merit at ``y`` minus its value at ``x``, free of cancellation (stiff springs
-        make ``E`` itself many orders larger than the changes that matter)."""
-        e = spring_energy_change(y, x, *all_springs)
-        if lam_c is None:
-            return e
-        c = problem.clamp_violation(y)
-        return e + float(lam_c @ (c - viol)) + 0.5 * rho * float(c @ c - viol @ viol)
-
+    merit = merit_change(problem, x, A, viol, lam, rho)
     slope_vec = grad if A is None else grad + A.T @ (lam + rho * viol)
     slope = float(slope_vec @ step)
     phi0 = 0.0
@@ -81,3 +101,80 @@ def line_search(
                         return z, alpha
         alpha *= 0.5
     return x, 0.0
+
+
+def curvature_search(
+    problem: Problem,
+    x: NDArray,
+    coords: NDArray,
+    direction: NDArray,
+    grad: NDArray,
+    merit: Merit,
+    length: float,
+    clamps: bool,
+) -> tuple[NDArray, float] | None:
+    """The move from ``x`` (n_nodes, 2) along ``direction`` (n_free,; of negative curvature,
+    in the clamps' tangent space), signed to descend along ``grad``, that lowers ``merit``
+    most: the largest coordinate move starts at ``length``, is halved while the merit does
+    not fall (at most 30 times) and doubled while it keeps falling; with ``clamps`` each
+    trial is put back onto the clamp lengths (one Gauss-Newton step). Returns ``(y,
+    merit(y))``, or None when no length lowers the merit.
+
+    Near a saddle whose negative curvature is weak, a Levenberg-Marquardt shift large
+    enough to make the Hessian positive definite damps the escape to a creep; a move along
+    the direction itself, as long as the energy keeps falling, escapes in one iteration.
+    """
+    peak = float(np.max(np.abs(direction), initial=0.0))
+    if not (peak > 0.0 and np.isfinite(peak)):
+        return None
+    d = direction * ((-length if float(grad @ direction) > 0.0 else length) / peak)
+    best: tuple[NDArray, float] | None = None
+    t = 1.0
+    for _ in range(30):
+        y = x.copy()
+        y.ravel()[coords] += t * d
+        if clamps:
+            y = problem.toward_clamps(y, coords)
+        phi = merit(y) if np.all(np.isfinite(y)) else np.inf
+        if best is not None and not phi < best[1]:
+            break  # the merit rose again: the last length was the best
+        if phi < 0.0:
+            best, t = (y, float(phi)), 2.0 * t
+        elif best is None:
+            t *= 0.5
+    return best
+
+
+def follow_curvature(
+    problem: Problem,
+    coords: NDArray,
+    start: NDArray,
+    searched: tuple[NDArray, float],
+    direction: NDArray,
+    step: NDArray,
+    grad: NDArray,
+    A: sp.csr_matrix | NDArray | None,
+    viol: NDArray,
+    lam: NDArray,
+    rho: float,
+) -> tuple[NDArray, float]:
+    """``searched``, the line search's ``(x, alpha)`` along ``step`` from ``start``, or the
+    move along ``direction`` (negative curvature that conjugate gradients met; ``coords``
+    the free coordinates in the order of ``direction`` and ``step``) when its merit is lower
+    (:func:`curvature_search`, from the largest coordinate move the line
+    search took, or a thousandth of the step's when it took none); that move counts as a
+    full step (the shift decays).
+
+    Without it a prestressed 17 x 17 lattice (``bench_family.py --medium --seed 1``,
+    network 41) crept past 2000 iterations at a saddle of scaled curvature -5e-7.
+    """
+    x, alpha = searched
+    merit = merit_change(problem, start, A, viol, lam, rho)
+    mean_rest = float(np.mean(problem.net.rest_length))
+    length = max(float(np.max(np.abs(step))) * max(alpha, 1e-3), 1e-6 * mean_rest)
+    moved = curvature_search(
+        problem, start, coords, direction, grad, merit, length, clamps=A is not None
+    )
+    if moved is not None and moved[1] < min(merit(x), 0.0):
+        return moved[0], max(alpha, 1.0)
+    return x, alpha

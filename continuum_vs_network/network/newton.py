@@ -71,7 +71,7 @@ from .kkt import (
     range_space_solve,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
-from .line_search import line_search
+from .line_search import follow_curvature, line_search
 from .model import spring_vectors
 from .reuse import NegativeCurvature, SolveFailed, projected_pcg, reuse_budget
 from .stiff_springs import StiffSprings
@@ -210,6 +210,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                 )
             reusable = factor if reuse else None
             factor_shift = shift
+        start = x
         x, alpha = line_search(
             problem,
             x,
@@ -223,6 +224,11 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             residual,
             stiff=stiff,
         )
+        if indefinite is not None:  # negative curvature known: follow it if that goes lower
+            x, alpha = follow_curvature(
+                problem, coords, start, (x, alpha), indefinite[1], step, grad,
+                A if m else None, viol, lam, rho,
+            )  # fmt: skip
         if alpha == 0.0:
             # no decrease along the step: damp 100x harder and refactorise (Levenberg-
             # Marquardt as a trust region); only no decrease at DAMP_GIVE_UP gives up
@@ -462,18 +468,21 @@ def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDA
 
 def _shift_estimate(W: sp.spmatrix, directions: NDArray, scale: NDArray) -> float:
     """A first Levenberg-Marquardt shift from directions ``v`` (n, k) of negative curvature:
-    the largest ``-v^T W v / (scale_j v_j^2)``, ``j`` the largest entry of ``v`` (the shift
-    that would cancel ``v``'s negative curvature on that coordinate alone).
+    twice the largest ``-v^T W v / (v^T diag(scale) v)``, the shift that would just cancel
+    ``v``'s negative curvature in the shift's metric.
 
     A heuristic start, not a bound: too small, the ladder grows it; too large, it damps the
-    step more than needed. On the random-rest lattices of ``benchmarks/bench_relax.py``
-    (N = 1e3 at strains 1-8, seeds 0-2; N = 1e4 at strains 1, 2) it cut factorisations
-    from 144 to 122 and from 17 to 12 against the ladder from ``DAMP_MIN`` by 100s.
+    step more than needed. It replaced ``-v^T W v / (scale_j v_j^2)`` (``j`` the largest
+    entry of ``v``), which for a direction spread over many nodes asked for a shift 100x
+    too large: on a prestressed 17 x 17 lattice (``bench_family.py --medium --seed 1``,
+    network 41) the shift jumped 5e-6 -> 5e-4 after each decay, and Newton crept at a
+    saddle past 2000 iterations. Against the ladder from ``DAMP_MIN`` by 100s, the old
+    estimate had cut factorisations on the random-rest lattices of ``bench_relax.py`` (N = 1e3 at
+    strains 1-8, seeds 0-2) from 144 to 122.
     """
     curv = np.einsum("ij,ij->j", directions, W @ directions)
-    j = np.argmax(np.abs(directions), axis=0)
-    peak = directions[j, np.arange(directions.shape[1])]
-    return float(np.max(-curv / (scale[j] * peak**2)))
+    quad = np.einsum("ij,ij->j", directions, scale[:, None] * directions)
+    return 2.0 * float(np.max(-curv / np.maximum(quad, 1e-300)))
 
 
 def _still_negative(W, directions, problem, x, pattern, extra_rho) -> bool:
