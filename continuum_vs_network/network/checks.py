@@ -152,8 +152,9 @@ def roundoff_floor(problem: Problem, x: NDArray, copies: int = 4) -> float:
     """The relative imbalance that rounding alone makes at ``x`` (n_nodes, 2): the largest
     change of ``|F_ic| / f_i`` (:meth:`~.constraints.Problem.residual`'s measure) over
     ``copies`` copies of ``x`` with every coordinate moved by about one rounding unit
-    (relative ``2^-52``, fixed pseudo-random signs). A residual at or below it cannot be
-    reduced in float64: two nearly parallel clamped springs at a soft node fix their
+    (relative ``2^-52``, fixed pseudo-random signs). A residual within a few times it
+    cannot be reduced in float64 (a solver's iterates carry several rounding units): two
+    nearly parallel clamped springs at a soft node fix their
     tensions only through an angle of 6e-7 rad, and there one rounding unit moved the
     residual by up to 7e-10 (``benchmarks/bench_family.py --seed 4``, network 406)."""
     coords = problem.free_flat

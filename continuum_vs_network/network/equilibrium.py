@@ -498,11 +498,11 @@ def _finish(
         reason = outcome.message or "did not reach the requested residual"
         if not finite:
             reason = "iterate became non-finite; " + reason
-        elif relative > stop.tol and relative <= (floor := roundoff_floor(problem, x)):
+        elif stop.tol < relative <= 10.0 * (floor := roundoff_floor(problem, x)):
             reason += (
                 f"; tol is below float64's reach at this state: moving every coordinate by "
                 f"one rounding unit changes the relative residual by up to {floor:.1e}"
-            )
+            )  # 10x: the solver's own iterates carry several rounding units
         raise EquilibriumError(
             f"{method}: {reason} (wanted every net force <= {stop.tol:.1e} of its node's "
             f"sum k L, got {relative:.3e}; relative clamp error {clamp_relative:.3e})",
