@@ -163,20 +163,29 @@ def _system(medium, task, tracker) -> _System:
     return system
 
 
-def _solve(medium, task, clamped: NDArray, values: NDArray, tracker) -> MaterialState:
+def _clamped(medium, task, clamped: NDArray, values: NDArray, tracker):
+    """The clamped solve on the cached system: ``(system, f, Gc, uf, lam)``, with ``f`` the
+    load and ``Gc`` the rows of the clamped strains; FloatingPointError if not finite."""
     sys_ = _system(medium, task, tracker)
     u0, f = sys_.u0(medium)
     Gc, Zc, Sc = sys_.held(clamped)
     uf, lam = schur_solve(u0, Gc, Zc, Sc, values)
+    if tracker is not None:
+        tracker.stats.solves += 1
+    if not (np.all(np.isfinite(uf)) and np.all(np.isfinite(lam))):
+        raise FloatingPointError("the clamped solve returned non-finite values")
+    return sys_, f, Gc, uf, lam
+
+
+def _solve(medium, task, clamped: NDArray, values: NDArray, tracker) -> MaterialState:
+    sys_, f, Gc, uf, lam = _clamped(medium, task, clamped, values, tracker)
     u = np.zeros(medium.n_dofs)
     u[sys_.free] = uf
     Ku = sys_.K @ uf
     residual = float(np.max(np.abs(Ku + Gc.T @ lam - f), initial=0.0))
     energy = float(0.5 * uf @ Ku - f @ uf + sys_.energy_constant(medium))
     strains = sys_.G @ uf
-    if tracker is not None:
-        tracker.stats.solves += 1
-    if not (np.all(np.isfinite(u)) and np.isfinite(residual)):
+    if not np.isfinite(residual):
         raise FloatingPointError("the clamped solve returned non-finite values")
     ns = task.n_sources
     return MaterialState(
@@ -198,11 +207,7 @@ def free_state(medium, task, *, tracker=None) -> MaterialState:
 def free_target_strain(medium, task) -> NDArray[np.float64]:
     """``free_state(medium, task).target_strain`` alone (the same numbers), without the
     state's energy, residual and positions: what learning in time records at every step."""
-    sys_ = _system(medium, task, None)
-    Gc, Zc, Sc = sys_.held(np.arange(task.n_sources))
-    uf, lam = schur_solve(sys_.u0(medium)[0], Gc, Zc, Sc, task.source_strain)
-    if not (np.all(np.isfinite(uf)) and np.all(np.isfinite(lam))):
-        raise FloatingPointError("the clamped solve returned non-finite values")
+    sys_, _, _, uf, _ = _clamped(medium, task, np.arange(task.n_sources), task.source_strain, None)
     return (sys_.G @ uf)[task.n_sources :]
 
 
