@@ -1,13 +1,15 @@
-"""The sparse Newton follows negative curvature instead of creeping at a weak saddle."""
+"""The sparse Newton follows negative curvature instead of creeping at a weak saddle; a
+tolerance that rounding puts out of reach is named in the error."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import continuum_vs_network as cvn
-from continuum_vs_network.network.checks import lowest_curvature
+from continuum_vs_network.network.checks import lowest_curvature, roundoff_floor
 from continuum_vs_network.network.constraints import Problem
 from continuum_vs_network.network.line_search import curvature_search, merit_change
 
@@ -68,3 +70,49 @@ def test_a_prestressed_lattice_at_a_weak_saddle_converges_with_default_settings(
     assert eq.iterations <= 600
     problem = Problem.build(net, clamped=clamped)
     assert lowest_curvature(problem, eq.positions) >= -1e-8  # a minimum, not the saddle
+
+
+def _folded_clamps():
+    """An 8 x 8 prestressed lattice (``bench_family.py --seed 4``, network 406) whose two
+    clamped springs 24-32 and 32-40 end folded onto each other at a soft node."""
+    data = np.load(DATA / "folded_clamps_lattice.npz")
+    net = cvn.SpringNetwork(
+        data["positions"], data["springs"], data["stiffness"], data["rest_length"]
+    )
+    clamped = dict(zip(data["clamped_springs"].tolist(), data["clamped_lengths"].tolist()))
+    return net, clamped
+
+
+def test_a_tolerance_below_float64s_reach_is_named_in_the_error():
+    """Started where a full relax stalled (relative residual 1.5e-10; the path there,
+    ~700 iterations, depends on round-off, so the state is stored)."""
+    net, clamped = _folded_clamps()
+    stalled = np.load(DATA / "folded_clamps_lattice.npz")["stalled_positions"]
+    problem = Problem.build(net, clamped=clamped)
+    floor = roundoff_floor(problem, stalled)
+    assert floor > 1e-10  # one rounding unit moves the residual past tol
+    with pytest.raises(cvn.EquilibriumError, match="below float64's reach") as err:
+        cvn.relax(net, clamped=clamped, x0=stalled)
+    state = err.value.state
+    assert 1e-10 < state.relative_residual <= 10 * roundoff_floor(problem, state.positions)
+    # a well-conditioned equilibrium: rounding moves the residual by ~1e-16, not 1e-10
+    eq = cvn.relax(net.with_rest_length(net.lengths()))
+    assert roundoff_floor(Problem.build(net), np.asarray(eq.positions)) < 1e-13
+
+
+def test_a_solve_stopped_far_from_equilibrium_gets_no_round_off_note():
+    net, clamped = _folded_clamps()
+    with pytest.raises(cvn.EquilibriumError) as err:
+        cvn.relax(net, clamped=clamped, max_iter=3)
+    assert "below float64's reach" not in str(err.value)
+    assert err.value.state.relative_residual > 1e-6
+
+
+def test_a_budget_stop_near_the_round_off_floor_gets_no_round_off_note():
+    """The note names why a solve *stalled*; a solve stopped by its budget stopped for that."""
+    net, clamped = _folded_clamps()
+    stalled = np.load(DATA / "folded_clamps_lattice.npz")["stalled_positions"]
+    with pytest.raises(cvn.EquilibriumError, match="no convergence in 1 iterations") as err:
+        cvn.relax(net, clamped=clamped, x0=stalled, max_iter=1)
+    assert "below float64's reach" not in str(err.value)
+    assert err.value.state.relative_residual < 1e-8  # near the floor: only the budget differs

@@ -12,6 +12,9 @@
 * **No collapsed spring** (:func:`collapsed_springs`): a spring with ``k > 0`` at length
   ``<= 1e-9 L`` exerts a force whose direction is undefined (taken as zero), so a state
   with one is not an equilibrium however small its residual.
+
+And, for the message of a solve that stops short, :func:`roundoff_floor`: the residual that
+float64 cannot resolve at a state.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ __all__ = [
     "escape_direction",
     "floppy_modes",
     "lowest_curvature",
+    "roundoff_floor",
 ]
 
 RANK_MAX = 20_000  # free coordinates up to which rigidity is checked by rank
@@ -142,3 +146,26 @@ def escape_direction(problem: Problem, x: NDArray) -> NDArray | None:
     move = (Q @ vecs[:, 0]) * inv_root
     move /= max(float(np.max(np.abs(move))), 1e-300)
     return frame.put(move) * float(np.mean(problem.net.rest_length))
+
+
+def roundoff_floor(problem: Problem, x: NDArray, copies: int = 4) -> float:
+    """The relative imbalance that rounding alone makes at ``x`` (n_nodes, 2): the largest
+    change of ``|F_ic| / f_i`` (:meth:`~.constraints.Problem.residual`'s measure) over
+    ``copies`` copies of ``x`` with every coordinate moved by about one rounding unit
+    (relative ``2^-52``, fixed pseudo-random signs). A residual within a few times it
+    cannot be reduced in float64 (a solver's iterates carry several rounding units): two
+    nearly parallel clamped springs at a soft node fix their
+    tensions only through an angle of 6e-7 rad, and there one rounding unit moved the
+    residual by up to 7e-10 (``benchmarks/bench_family.py --seed 4``, network 406)."""
+    coords = problem.free_flat
+    if not coords.size:
+        return 0.0
+    scale = problem.scale[coords]
+    force = problem.unbalanced_force(x, coords)[0]
+    rng = np.random.default_rng(0)
+    worst = 0.0
+    for _ in range(copies):
+        y = x * (1.0 + np.finfo(np.float64).eps * rng.standard_normal(x.shape))
+        moved = problem.unbalanced_force(y, coords)[0]
+        worst = max(worst, float(np.max(np.abs(moved - force) / scale)))
+    return worst

@@ -18,7 +18,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
 from .arguments import lone_nodes, relax_arguments
-from .checks import collapsed_springs, escape_direction, floppy_modes, lowest_curvature
+from .checks import (
+    collapsed_springs,
+    escape_direction,
+    floppy_modes,
+    lowest_curvature,
+    roundoff_floor,
+)
 from .constraints import ClampMode, Pins, Problem, Residual, default_pins
 from .energy import spring_energy, spring_gradient
 from .memo import per_network
@@ -492,6 +498,13 @@ def _finish(
         reason = outcome.message or "did not reach the requested residual"
         if not finite:
             reason = "iterate became non-finite; " + reason
+        elif outcome.stalled and stop.tol < relative <= 10.0 * (
+            floor := roundoff_floor(problem, x)
+        ):  # 10x: the solver's own iterates carry several rounding units
+            reason += (
+                f"; tol is below float64's reach at this state: moving every coordinate by "
+                f"one rounding unit changes the relative residual by up to {floor:.1e}"
+            )
         raise EquilibriumError(
             f"{method}: {reason} (wanted every net force <= {stop.tol:.1e} of its node's "
             f"sum k L, got {relative:.3e}; relative clamp error {clamp_relative:.3e})",

@@ -103,7 +103,7 @@ def _lbfgs_inner(
                 test(y, False)
                 stalls = stalls + 1 if done["iterations"] - start_iterations <= 2 else 0
                 if stalls >= 3:
-                    done.update(status="failed", message=f"L-BFGS: stalled ({res.message})")
+                    done.update(status="stalled", message=f"L-BFGS: stalled ({res.message})")
                     raise _StopNow
         except _StopNow:
             pass

@@ -241,7 +241,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             # no decrease along the step: damp 100x harder and refactorise (Levenberg-
             # Marquardt as a trust region); only no decrease at DAMP_GIVE_UP gives up
             if shift >= DAMP_GIVE_UP:
-                return Outcome(x, it + 1, False, "line search found no decrease")
+                return Outcome(x, it + 1, False, "line search found no decrease", stalled=True)
             shift, reusable = max(100.0 * shift, DAMP_RETRY), None
             continue
         # Levenberg-Marquardt: a cut step asks for more damping next time, a full one less.

@@ -258,7 +258,7 @@ class InnerResult:
 
     x: NDArray
     iterations: int
-    status: str  # "stop" (stop rule met), "tol" (inner tolerance met), "budget", "failed"
+    status: str  # "stop" (rule met), "tol" (inner tol met), "budget", "stalled", "failed"
     message: str = ""
 
 
@@ -273,7 +273,8 @@ def minimise(
     x = problem.start(x)  # the clamped springs set to their lengths (a copy)
     if not obj.augmented:
         res = inner(obj, x, 0.0, stop, trace, stop.max_iter)
-        return Outcome(res.x, res.iterations, res.status == "stop", res.message)
+        stalled = res.status == "stalled"
+        return Outcome(res.x, res.iterations, res.status == "stop", res.message, stalled=stalled)
 
     kmax = float(np.max(problem.net.stiffness)) if problem.net.n_springs else 1.0
     kmax = kmax if kmax > 0 else 1.0
@@ -290,8 +291,9 @@ def minimise(
         x, iterations = res.x, iterations + res.iterations
         if res.status == "stop":
             return Outcome(x, iterations, True)
-        if res.status in ("budget", "failed"):
-            return Outcome(x, iterations, False, res.message)
+        if res.status in ("budget", "stalled", "failed"):
+            stalled = res.status == "stalled"
+            return Outcome(x, iterations, False, res.message, stalled=stalled)
         c = obj.violation(x)
         c_err = float(np.max(np.abs(c)))
         obj.lam = obj.lam + obj.rho * c

@@ -116,7 +116,9 @@ class Outcome:
 
     ``certified``: the method has already shown the reduced Hessian to be positive
     definite at the last iterates (a Newton step with an exact, positive-definite
-    factorisation), so :func:`relax` skips its own second-order check.
+    factorisation), so :func:`relax` skips its own second-order check. ``stalled``: it
+    stopped because no step lowered its merit (not on a budget), so :func:`relax` asks
+    whether rounding put ``tol`` out of reach.
     """
 
     x: NDArray[np.float64]
@@ -124,3 +126,4 @@ class Outcome:
     converged: bool
     message: str = ""
     certified: bool = False
+    stalled: bool = False

@@ -290,5 +290,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             if radius <= smallest:
                 break
         if not accepted:
-            return Outcome(x, it + 1, False, "trust region collapsed (no decrease possible)")
+            return Outcome(
+                x, it + 1, False, "trust region collapsed (no decrease possible)", stalled=True
+            )
     return Outcome(x, stop.max_iter, False, "no convergence")
