@@ -13,8 +13,9 @@
   ``<= 1e-9 L`` exerts a force whose direction is undefined (taken as zero), so a state
   with one is not an equilibrium however small its residual.
 
-And, for the message of a solve that stops short, :func:`roundoff_floor`: the residual that
-float64 cannot resolve at a state.
+:func:`refuse_floppy` raises before a solve when Maxwell's count or the rank finds a
+floppy problem. And, for the message of a solve that stops short, :func:`roundoff_floor`:
+the residual that float64 cannot resolve at a state.
 """
 
 from __future__ import annotations
@@ -22,10 +23,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .arguments import lone_nodes
 from .constraints import Problem, clamp_tensions
 from .kkt import factor_spd
 from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
-from .memo import per_array
+from .memo import per_array, per_network
 from .model import SpringNetwork
 from .rigidity import count_zero_modes
 from .trust_model import null_basis, rigid_motions
@@ -37,6 +39,7 @@ __all__ = [
     "escape_direction",
     "floppy_modes",
     "lowest_curvature",
+    "refuse_floppy",
     "roundoff_floor",
 ]
 
@@ -169,3 +172,45 @@ def roundoff_floor(problem: Problem, x: NDArray, copies: int = 4) -> float:
         moved = problem.unbalanced_force(y, coords)[0]
         worst = max(worst, float(np.max(np.abs(moved - force) / scale)))
     return worst
+
+
+def refuse_floppy(problem: Problem) -> None:
+    """Refuse a floppy problem (Maxwell's count, lone nodes, the rigidity rank); a pin mask
+    and clamp set that passed is remembered while the network lives (read-only arrays)."""
+    net = problem.net
+    passed = per_network(net, "rigid")  # the pin masks and clamp sets that passed
+    key = (problem.free.tobytes(), problem.clamp_springs.tobytes())
+    if key in passed:
+        return
+    floppy = problem.maxwell_zero_modes()
+    if floppy:
+        raise ValueError(
+            f"network is floppy: at least {floppy} zero modes beyond rigid motion "
+            f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
+            f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
+        )
+    lone_nodes(net, problem.free)
+    _refuse_by_rank(problem)
+    passed[key] = True
+
+
+def _refuse_by_rank(problem: Problem) -> None:
+    """Raise a clear error when the rigidity matrix is rank deficient (generic positions)."""
+    modes = floppy_modes(problem) - max(0, 3 - (problem.free.size - np.count_nonzero(problem.free)))
+    if modes <= 0:
+        return
+    net = problem.net
+    stiff = net.stiffness > 0
+    degree = np.bincount(net.springs[stiff].ravel(), minlength=net.n_nodes)
+    degree += np.bincount(net.springs[problem.clamp_springs].ravel(), minlength=net.n_nodes)
+    free_nodes = problem.free.any(axis=1)
+    dangling = np.flatnonzero(free_nodes & (degree < 2))
+    where = (
+        f"; nodes with fewer than two springs: {dangling[:8].tolist()}"
+        if dangling.size
+        else " (a hinge or a floppy region: rigid parts joined by fewer than three springs)"
+    )
+    raise ValueError(
+        f"network is floppy: {modes} zero modes beyond rigid motion by the rank of the "
+        f"rigidity matrix, though Maxwell's count passes{where}; add springs or pins"
+    )

@@ -17,17 +17,16 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
-from .arguments import lone_nodes, relax_arguments
+from .arguments import relax_arguments
 from .checks import (
     collapsed_springs,
     escape_direction,
-    floppy_modes,
     lowest_curvature,
+    refuse_floppy,
     roundoff_floor,
 )
 from .constraints import ClampMode, Pins, Problem, Residual, default_pins
 from .energy import spring_energy, spring_gradient
-from .memo import per_network
 from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
 from .newton import newton
@@ -218,7 +217,7 @@ def relax(
     problem = Problem.build(
         net, pinned=pinned, clamped=clamped, clamp=clamp, rod_stiffness=rod_stiffness
     )
-    _check_rigid(problem)
+    refuse_floppy(problem)
     stop = problem.stop_rule(
         tol, max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]), max_seconds=max_seconds
     )
@@ -280,48 +279,6 @@ def relax(
         outcome, extra = _second_order(problem, outcome, solve, stop, trace, iterations)
     res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
     return _finish(problem, outcome, iterations + extra, method, stop, trace, res)
-
-
-def _check_rigid(problem: Problem) -> None:
-    """Refuse a floppy problem (Maxwell's count, lone nodes, the rigidity rank); a pin mask
-    and clamp set that passed is remembered while the network lives (read-only arrays)."""
-    net = problem.net
-    passed = per_network(net, "rigid")  # the pin masks and clamp sets that passed
-    key = (problem.free.tobytes(), problem.clamp_springs.tobytes())
-    if key in passed:
-        return
-    floppy = problem.maxwell_zero_modes()
-    if floppy:
-        raise ValueError(
-            f"network is floppy: at least {floppy} zero modes beyond rigid motion "
-            f"({int(problem.free.sum())} free coordinates, {int((net.stiffness > 0).sum())} "
-            f"springs with k > 0, {problem.n_clamps} clamps); add springs or pins"
-        )
-    lone_nodes(net, problem.free)
-    _check_rank(problem)
-    passed[key] = True
-
-
-def _check_rank(problem: Problem) -> None:
-    """Raise a clear error when the rigidity matrix is rank deficient (generic positions)."""
-    modes = floppy_modes(problem) - max(0, 3 - (problem.free.size - np.count_nonzero(problem.free)))
-    if modes <= 0:
-        return
-    net = problem.net
-    stiff = net.stiffness > 0
-    degree = np.bincount(net.springs[stiff].ravel(), minlength=net.n_nodes)
-    degree += np.bincount(net.springs[problem.clamp_springs].ravel(), minlength=net.n_nodes)
-    free_nodes = problem.free.any(axis=1)
-    dangling = np.flatnonzero(free_nodes & (degree < 2))
-    where = (
-        f"; nodes with fewer than two springs: {dangling[:8].tolist()}"
-        if dangling.size
-        else " (a hinge or a floppy region: rigid parts joined by fewer than three springs)"
-    )
-    raise ValueError(
-        f"network is floppy: {modes} zero modes beyond rigid motion by the rank of the "
-        f"rigidity matrix, though Maxwell's count passes{where}; add springs or pins"
-    )
 
 
 _ESCAPES = 3
