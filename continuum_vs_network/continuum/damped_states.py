@@ -127,9 +127,9 @@ class DampedStepper:
 
     def _shared(self, medium):
         """At equilibrium: the free states' cached system of the medium and task."""
-        from .learning_states import _system
+        from .learning_states import cached_system
 
-        return _system(medium, self._task, None)
+        return cached_system(medium, self._task, None)
 
     def _load(self, medium, factor) -> tuple[NDArray, NDArray | None]:
         """The load on the free DOFs, and at equilibrium (no damping, no arm: the right-hand

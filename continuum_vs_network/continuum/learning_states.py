@@ -154,7 +154,10 @@ def _key(task) -> str:
     return h.hexdigest()
 
 
-def _system(medium, task, tracker) -> _System:
+def cached_system(medium, task, tracker) -> _System:
+    """The medium's factorised system for ``task`` (its sources and targets), built once
+    and kept in ``medium._cache`` until another task's is asked for; shared by the free
+    and clamped states here and the damped stepper at equilibrium."""
     key = _key(task)
     system = medium._cache.get(key)
     if system is None:
@@ -166,7 +169,7 @@ def _system(medium, task, tracker) -> _System:
 def _clamped(medium, task, clamped: NDArray, values: NDArray, tracker):
     """The clamped solve on the cached system: ``(system, f, Gc, uf, lam)``, with ``f`` the
     load and ``Gc`` the rows of the clamped strains; FloatingPointError if not finite."""
-    sys_ = _system(medium, task, tracker)
+    sys_ = cached_system(medium, task, tracker)
     u0, f = sys_.u0(medium)
     Gc, Zc, Sc = sys_.held(clamped)
     uf, lam = schur_solve(u0, Gc, Zc, Sc, values)
@@ -220,7 +223,7 @@ def clamped_state(medium, task, target_strain: ArrayLike, *, tracker=None) -> Ma
 def effective_stiffness(medium, task, *, tracker=None) -> NDArray[np.float64]:
     """Effective stiffness of the target strains with the sources clamped, (n_t, n_t):
     ``E^C - E^F = (v - S^F)^T K_T (v - S^F) / 2`` for targets clamped at ``v``."""
-    S = _system(medium, task, tracker).S
+    S = cached_system(medium, task, tracker).S
     ns = task.n_sources
     Q = S[ns:, ns:] - S[ns:, :ns] @ np.linalg.solve(S[:ns, :ns], S[:ns, ns:])
     return np.linalg.inv(0.5 * (Q + Q.T))
@@ -239,7 +242,7 @@ def cost_gradient(
 
     ``weight`` ``W`` is (n_targets, n_targets) (default the identity: Eq. 26).
     """
-    sys_ = _system(medium, task, tracker)
+    sys_ = cached_system(medium, task, tracker)
     ns = task.n_sources
     d = free.target_strain - task.target_strain
     w = d if weight is None else np.asarray(weight, float) @ d
