@@ -46,7 +46,8 @@ class StiffSprings:
 
     ``restore(y, x, dx)`` moves ``y = x + dx`` the least (Gauss-Newton, minimum norm) so
     that every such spring has the length the linear model predicted,
-    ``r(x) + u(x) . (dx_b - dx_a)``; None when that does not converge.
+    ``r(x) + u(x) . (dx_b - dx_a)``; None when that does not converge (:meth:`nearest`:
+    the iterate nearest those lengths instead, and whether they were met).
     """
 
     CONTRAST = 10.0
@@ -102,18 +103,30 @@ class StiffSprings:
         return np.bincount(self._cols.ravel(), values.ravel(), self.n + 1)[: self.n]
 
     def restore(self, y: NDArray, x: NDArray, dx: NDArray) -> NDArray | None:
-        """``y`` (n_nodes, 2) moved onto the predicted lengths, or None.
+        """``y`` (n_nodes, 2) moved onto the predicted lengths, or None (:meth:`nearest`
+        gave up)."""
+        z, met = self.nearest(y, x, dx)
+        return z if met else None
+
+    def nearest(self, y: NDArray, x: NDArray, dx: NDArray) -> tuple[NDArray | None, bool]:
+        """``(z, met)``: ``y`` (n_nodes, 2) moved onto the predicted lengths (``met``), or,
+        where that gives up, the iterate nearest them (None when that is ``y`` itself).
 
         ``dx`` (n,) is the linear step in the row order of ``index``. A chord iteration:
         ``J J^T`` is factorised at the first iterate and reused while each correction cuts
         the length error at least 10-fold (refactorised otherwise; a factorisation per
-        Gauss-Newton iteration was half of the sparse trust region's time). Gives up (None)
+        Gauss-Newton iteration was half of the sparse trust region's time). Gives up
         when a correction with a fresh factorisation does not cut it 10-fold either: near
         reachable lengths Gauss-Newton converges quadratically, so that mostly means they
         are not reachable (a review found 4 of 200 random reachable large steps given up;
         the caller then keeps the unprojected point). Giving up at 2-fold instead took 5
         factorisations a failed call and 6 % more time on ``benchmarks/bench_family.py``,
         for about the same iterations. Also gives up after 12 corrections.
+
+        The nearest iterate serves the trust region: most of its rejected trials were steps
+        whose projection gave up, leaving stiff springs stretched 1.4-3x; the partly
+        projected point is usually far better. (Pushing on to 2-fold cuts made that worse
+        again: the linear lengths of a long step are not worth meeting at any cost.)
 
         Not for threads sharing one network: the cached ``J J^T`` matrix is refilled in
         place (processes, as the package's own parallel runs use, are safe)."""
@@ -124,29 +137,32 @@ class StiffSprings:
         lu = None
         last = np.inf
         fresh = False  # the factorisation was made at the last iterate
+        nearest, nearest_error = None, np.inf  # the best iterate after y
         for _ in range(12):
             u, r = self.geometry(z)
             c = r - target
             error = float(np.max(np.abs(c)))
             if error <= tol:
-                return z
+                return z, True
+            if error < nearest_error:
+                nearest, nearest_error = (z if nearest_error < np.inf else None), error
             if error > 0.1 * last:
-                if fresh:
-                    return None  # Gauss-Newton itself is slow: the lengths are not reachable
+                if fresh:  # Gauss-Newton itself is slow: the lengths are not reachable
+                    return nearest, False
                 lu = None
             fresh = lu is None
             if lu is None:
                 try:
                     lu = spla.splu(self._gram.matrix(u))
                 except RuntimeError:
-                    return None
+                    return nearest, False
             last = error
             move = -self.spread(u, lu.solve(c))
             z = z.copy()
             z.ravel()[self.coords] += move[self.order]
             if not np.all(np.isfinite(z)):
-                return None
-        return None  # no convergence: the caller keeps the unprojected point
+                return nearest, False
+        return nearest, False  # no convergence
 
 
 class _GramPattern:

@@ -21,16 +21,32 @@ each iteration
    stiff spring swinging about soft ones) is corrected to second order; then moves back
    onto the clamp lengths (Gauss-Newton projection) and puts springs stiffer than
    :attr:`~.stiff_springs.StiffSprings.CONTRAST` times the median back to the lengths the
-   linear model predicted (:class:`~.stiff_springs.StiffSprings`);
+   linear model predicted (:class:`~.stiff_springs.StiffSprings`); where that projection
+   gives up (lengths a long step cannot reach), the iterate nearest them is taken, and the
+   trial is the lower in energy of the projected and the plain point;
 5. accepts the step when the energy falls by a fair share of the model's prediction
    (computed without cancellation), and grows or shrinks the radius by the ratio; while a
    step on the boundary keeps its promise, radii twice as large are tried at the same
-   Hessian (up to :data:`_GROW_TRIES` times), so a long descent takes few Hessians.
+   Hessian (up to :data:`_GROW_TRIES` times), then the radius between the last good one
+   and the first worse one, so a long descent takes few Hessians; an accepted step that
+   kept less than 3/4 of its promise is halved (up to :data:`_SHORTER_TRIES` times) while
+   the energy falls further.
 
 On the 500-network family of ``benchmarks/bench_family.py`` these took the median from 82
 to 25 iterations (p95 349 to 74). On its first 100 networks (median 71.5, p95 320 before):
 rigid motions removed 50 / 240; with the geodesic step 37.5 / 161; with the radius tries
 33.5 / 126; with stiff springs from 10x the median (not 1e3x) 23 / 75.
+
+Most of the iterations left on lattices and Delaunay meshes are spent between 1 % and
+1e-6 of the energy drop, at indefinite Hessians of prestressed networks (rest lengths
+0.3-3x), with half of the models' first trials rejected. Most rejected trials were steps
+whose stiff-spring projection gave up, leaving stiff springs stretched 1.4-3x; the rest
+turned or stretched a handful of springs by more than their length (the median spring
+barely moved). On the first 300 networks of seeds 0 and 1 (lattices and Delaunay meshes:
+median 34 / 36, p95 86 / 78, mean 39.2 / 40.5 before) taking the projection's nearest
+iterate gave 34 / 34, 72 / 72, 36.0 / 37.7; with the lower of the projected and plain
+points 33 / 33, 69 / 67, 35.5 / 36.6; with shorter tries after a poor step 31 / 33,
+70 / 66, 34.5 / 35.2; with the radius between doublings 30 / 33, 65 / 68, 33.0 / 35.2.
 
 Cost on small problems (the paper's N = 10 patch: ~10 models and ~16 trials, 20
 coordinates), where numpy's per-call overhead is the cost: the spring terms are dense
@@ -74,6 +90,8 @@ TR_DENSE_MAX = 400  # free coordinates; above, the sparse shifted Newton of newt
 _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
 _GROW = 2.0  # radius growth after a good step that reached the boundary
 _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model holds
+_MID = math.sqrt(2.0)  # the radius tried between the last good doubling and a worse one
+_SHORTER_TRIES = 4  # halvings tried at one Hessian after a step of ratio below 0.75
 _ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
 _ACCEL2 = _ACCEL_MAX**2
 _EMPTY = np.empty(0)
@@ -170,11 +188,29 @@ def _trial(
         y.ravel()[coords] += move
         move = None
     if stiff is not None:
-        z = stiff.restore(y, x, step)
-        y, move = (z, None) if z is not None else (y, move)
+        z, met = stiff.nearest(y, x, step)
+        if z is not None:
+            z = _onto_clamps(problem, z, coords) if exact else z
+            restored = terms.energy_change(z)
+            if met:
+                return z, length, predicted, restored
+            # the projection gave up: the trial is the lower of its nearest and the plain point
+            if exact:
+                y, move = _onto_clamps(problem, y, coords), None
+            plain = terms.energy_change(y, move)
+            if math.isfinite(plain) and (plain < restored or not math.isfinite(restored)):
+                return y, length, predicted, plain
+            return z, length, predicted, restored
     if exact:
         y, move = _onto_clamps(problem, y, coords), None
     return y, length, predicted, terms.energy_change(y, move)
+
+
+def _better(trial: tuple[NDArray, float, float, float], actual: float) -> bool:
+    """A wider trial (:func:`_trial`'s tuple) falls below ``actual`` and keeps a quarter
+    of its model's promise."""
+    predicted, change = trial[2], trial[3]
+    return change < actual and predicted < 0 and change / predicted > 0.25
 
 
 def _onto_clamps(problem: Problem, y: NDArray, coords: NDArray) -> NDArray:
@@ -267,16 +303,35 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         # same Hessian while the energy keeps falling
                         for _ in range(_GROW_TRIES):
                             wider = _trial(problem, model, 2 * radius, stiff, coords, full, m > 0)
-                            y2, length2, predicted2, actual2 = wider
-                            if not (actual2 < actual and actual2 / predicted2 > 0.25):
+                            if not _better(wider, actual):
+                                # between the two: the falling energy's turning point
+                                mid = _trial(
+                                    problem, model, _MID * radius, stiff, coords, full, m > 0
+                                )
+                                if _better(mid, actual):
+                                    y, length, actual = mid[0], mid[1], mid[3]
+                                    radius *= _MID
                                 break
-                            y, actual, radius, length = y2, actual2, 2 * radius, length2
+                            y, length, _, actual = wider
+                            radius *= 2
                             if length < 0.99 * radius:
                                 break
                         if length >= 0.99 * radius:
                             radius *= _GROW
-                    elif ratio < 0.25:
-                        radius = 0.25 * length
+                    elif ratio < 0.75:
+                        # a poor step: a shorter one along the same path may fall further
+                        shorter, r = None, length
+                        for _ in range(_SHORTER_TRIES):
+                            r *= 0.5
+                            trial = _trial(problem, model, r, stiff, coords, full, m > 0)
+                            if not trial[3] < actual:
+                                break
+                            y, length, predicted, actual = trial
+                            shorter = actual / predicted if predicted < 0 else 0.0
+                        if shorter is not None:
+                            radius = length * (_GROW if shorter > 0.75 else 1.0)
+                        elif ratio < 0.25:
+                            radius = 0.25 * length
                     x, accepted = y, True
                     break
                 # the energy change is at round-off: judge by the force instead
