@@ -43,10 +43,11 @@ Most of the iterations left on lattices and Delaunay meshes are spent between 1 
 whose stiff-spring projection gave up, leaving stiff springs stretched 1.4-3x; the rest
 turned or stretched a handful of springs by more than their length (the median spring
 barely moved). On the first 300 networks of seeds 0 and 1 (lattices and Delaunay meshes:
-median 34 / 36, p95 86 / 78, mean 39.2 / 40.5 before) taking the projection's nearest
-iterate gave 34 / 34, 72 / 72, 36.0 / 37.7; with the lower of the projected and plain
-points 33 / 33, 69 / 67, 35.5 / 36.6; with shorter tries after a poor step 31 / 33,
-70 / 66, 34.5 / 35.2; with the radius between doublings 30 / 33, 65 / 68, 33.0 / 35.2.
+median 34 / 36, p95 86 / 78 before) the projection's nearest iterate, the lower of it and
+the plain point, the shorter tries and the radius between doublings each took a share:
+30-33 / 65-68 with all four. On the full family (seeds 0-4) the overall median went from
+24-29 to 22-26 and the p95 from 71-83 to 58-64, with no new failure, in the same time;
+the N = 10 patch takes 10-15 % longer (more trials per Hessian).
 
 Cost on small problems (the paper's N = 10 patch: ~10 models and ~16 trials, 20
 coordinates), where numpy's per-call overhead is the cost: the spring terms are dense
