@@ -116,3 +116,16 @@ def test_a_budget_stop_near_the_round_off_floor_gets_no_round_off_note():
         cvn.relax(net, clamped=clamped, x0=stalled, max_iter=1)
     assert "below float64's reach" not in str(err.value)
     assert err.value.state.relative_residual < 1e-8  # near the floor: only the budget differs
+
+
+def test_energy_changes_at_round_off_do_not_pass_as_decrease():
+    """From the stalled state every energy change is round-off (|dE| ~ 1e-15 against
+    E = 44); a trial whose noise reads as a decrease 1e10 times the model's promise must be
+    judged by the force instead, so no accepted step raises the residual there."""
+    net, clamped = _folded_clamps()
+    stalled = np.load(DATA / "folded_clamps_lattice.npz")["stalled_positions"]
+    with pytest.raises(cvn.EquilibriumError) as err:
+        cvn.relax(net, clamped=clamped, x0=stalled)
+    trace = err.value.state.residual_trace
+    assert trace.size > 1
+    assert np.all(np.diff(trace) <= 0.0)

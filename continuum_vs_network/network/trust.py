@@ -93,6 +93,7 @@ _GROW = 2.0  # radius growth after a good step that reached the boundary
 _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model holds
 _MID = math.sqrt(2.0)  # the radius tried between the last good doubling and a worse one
 _SHORTER_TRIES = 4  # halvings tried at one Hessian after a step of ratio below 0.75
+_NOISY = 4.0  # a ratio above this is checked for an energy change at round-off
 _ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
 _ACCEL2 = _ACCEL_MAX**2
 _EMPTY = np.empty(0)
@@ -298,6 +299,11 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             )
             if math.isfinite(actual):
                 ratio = actual / predicted if predicted < 0 else -1.0
+                if ratio > _NOISY:  # far more than promised: is the change round-off?
+                    if level is None:
+                        level = 1e-13 * abs(problem.energy(x)) + 1e-300
+                    if abs(actual) <= level and abs(predicted) <= level:
+                        ratio = -1.0  # judged by the force below, not by the noise
                 if ratio > _ETA:
                     if ratio > 0.75 and length >= 0.99 * radius:
                         # the model holds to the boundary: look further along it at the
