@@ -291,7 +291,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         gr = basis.T @ g if basis is not None else g * inv_root
         model = Model(x, H, gr, basis, inv_root, terms)
 
-        accepted = False
+        accepted = newton_tried = False
         level = None  # the energy change at round-off (computed when first needed)
         for _ in range(40):
             y, length, predicted, actual = _trial(
@@ -348,6 +348,12 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                     if problem.residual(y).imbalance < residual:
                         x, accepted = y, True
                         break
+                    if model.certified and length < model.newton_length and not newton_tried:
+                        # the radius was shrunk by energies the noise decides: the Newton
+                        # step itself, whose residual the force can judge (a patch stalled
+                        # at 1.03e-10 on trials 1e3-1e6 times shorter than it)
+                        radius, newton_tried = model.newton_length, True
+                        continue
             radius = 0.25 * min(radius, length)
             if radius <= smallest:
                 break
