@@ -128,8 +128,8 @@ def projected_pcg(
     At = A.T  # formed once: scipy.sparse builds a new matrix at every .T
     gram = A @ At
     gram = gram.toarray() if sp.issparse(gram) else np.asarray(gram)
-    # inverted once: (m, m) with m a few clamps, where np.linalg.solve's ~15 us a call were
-    # 7 % of a relax at N = 1024 (two per CG iteration)
+    # inverted once: (m, m) with m a few clamps, where np.linalg.solve's 31-35 us a call
+    # (12 with the inverse) were ~7 % of a profiled relax at N = 1024 (two per CG iteration)
     gram_inverse = np.linalg.inv(gram)
     zero = np.zeros(m)
 

@@ -45,9 +45,9 @@ turned or stretched a handful of springs by more than their length (the median s
 barely moved). On the first 300 networks of seeds 0 and 1 (lattices and Delaunay meshes:
 median 34 / 36, p95 86 / 78 before) the projection's nearest iterate, the lower of it and
 the plain point, the shorter tries and the radius between doublings each took a share:
-30-33 / 65-68 with all four. On the full family (seeds 0-4) the overall median went from
+30-33 / 65-68 with all four. On the full family (seeds 0-5) the overall median went from
 24-29 to 22-26 and the p95 from 71-83 to 58-64, with no new failure, in the same time;
-the N = 10 patch takes 10-15 % longer (more trials per Hessian).
+the N = 10 patch takes 10-18 % longer (more trials per Hessian).
 
 Cost on small problems (the paper's N = 10 patch: ~10 models and ~16 trials, 20
 coordinates), where numpy's per-call overhead is the cost: the spring terms are dense
@@ -189,23 +189,21 @@ def _trial(
         y = x.copy()
         y.ravel()[coords] += move
         move = None
-    if stiff is not None:
-        z, met = stiff.nearest(y, x, step)
-        if z is not None:
-            z = _onto_clamps(problem, z, coords) if exact else z
-            restored = terms.energy_change(z)
-            if met:
-                return z, length, predicted, restored
-            # the projection gave up: the trial is the lower of its nearest and the plain point
-            if exact:
-                y, move = _onto_clamps(problem, y, coords), None
-            plain = terms.energy_change(y, move)
-            if math.isfinite(plain) and (plain < restored or not math.isfinite(restored)):
-                return y, length, predicted, plain
+    z, met = stiff.nearest(y, x, step) if stiff is not None else (None, False)
+    if z is not None:
+        z = _onto_clamps(problem, z, coords) if exact else z
+        restored = terms.energy_change(z)
+        if met:
             return z, length, predicted, restored
     if exact:
         y, move = _onto_clamps(problem, y, coords), None
-    return y, length, predicted, terms.energy_change(y, move)
+    plain = terms.energy_change(y, move)
+    # where the projection gave up, the trial is the lower of its nearest and the plain point
+    if z is not None and not (
+        math.isfinite(plain) and (plain < restored or not math.isfinite(restored))
+    ):
+        return z, length, predicted, restored
+    return y, length, predicted, plain
 
 
 def _better(trial: tuple[NDArray, float, float, float], actual: float) -> bool:
@@ -299,12 +297,12 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             )
             if math.isfinite(actual):
                 ratio = actual / predicted if predicted < 0 else -1.0
-                if ratio > _NOISY:  # far more than promised: is the change round-off?
-                    if level is None:
+                noise = False  # the energy change at round-off: judged by the force below
+                if ratio <= _ETA or ratio > _NOISY:  # no decrease, or far more than promised
+                    if level is None:  # |E(x)| once per model (x is fixed until a step)
                         level = 1e-13 * abs(problem.energy(x)) + 1e-300
-                    if abs(actual) <= level and abs(predicted) <= level:
-                        ratio = -1.0  # judged by the force below, not by the noise
-                if ratio > _ETA:
+                    noise = abs(actual) <= level and abs(predicted) <= level
+                if ratio > _ETA and not noise:
                     if ratio > 0.75 and length >= 0.99 * radius:
                         # the model holds to the boundary: look further along it at the
                         # same Hessian while the energy keeps falling
@@ -341,10 +339,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                             radius = 0.25 * length
                     x, accepted = y, True
                     break
-                # the energy change is at round-off: judge by the force instead
-                if level is None:  # |E(x)| once per model (x is fixed until a step is taken)
-                    level = 1e-13 * abs(problem.energy(x)) + 1e-300
-                if abs(actual) <= level and abs(predicted) <= level:
+                if noise:
                     if problem.residual(y).imbalance < residual:
                         x, accepted = y, True
                         break
