@@ -163,15 +163,17 @@ def clamp_tensions(A: sp.spmatrix | NDArray, g: NDArray, scale: NDArray) -> NDAr
     else:
         Aw = A * w2[None, :]
         G = Aw @ A.T
-    b = Aw @ g
     # normalise so that the Gram matrix has a unit diagonal where possible
     d = np.sqrt(np.maximum(np.abs(np.diag(G)), 1e-300))
-    Gn = G / d[:, None] / d[None, :]
     try:
-        y = np.linalg.solve(Gn, b / d)
+        inverse = np.linalg.inv(G / d[:, None] / d[None, :]) / d[:, None] / d[None, :]
     except np.linalg.LinAlgError:
-        y = np.linalg.lstsq(Gn, b / d, rcond=None)[0]
-    return -y / d
+        inverse = np.linalg.pinv(G)
+    # the normal equations square the condition of the clamp directions: nearly parallel
+    # ones (two clamped springs folded onto each other) lose digits, which one step of
+    # refinement on the unformed residual recovers
+    mu = -inverse @ (Aw @ g)
+    return mu - inverse @ (Aw @ (g + A.T @ mu))
 
 
 class Residual(NamedTuple):
