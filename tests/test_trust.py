@@ -130,3 +130,28 @@ def test_strongly_prestressed_patches_converge_in_few_iterations():
     its = [cvn.relax(_prestressed_patch(seed)).iterations for seed in range(12)]
     assert np.median(its) <= 30
     assert max(its) <= 80
+
+
+def test_trust_region_on_a_reordered_frame_agrees_with_the_sparse_newton():
+    """Above ``spd.DENSE_MAX`` free coordinates the frame puts rows in a fill-reducing
+    order; the trust region, called on such a problem, must still move each coordinate by
+    its own step (it once read the rows as natural order when every coordinate was free)."""
+    from continuum_vs_network.network.constraints import Problem
+    from continuum_vs_network.network.lagrangian import Frame
+    from continuum_vs_network.network.stopping import Trace
+    from continuum_vs_network.network.trust import trust_region_newton
+
+    rng = np.random.default_rng(3)
+    net = triangular_lattice(16, 16, noise=0.15, rng=rng)
+    net = net.with_rest_length(net.lengths() * rng.uniform(0.9, 1.1, net.n_springs))
+    free = np.ones((net.n_nodes, 2), dtype=bool)
+    problem = Problem.build(net).with_free(free)
+    coords = Frame(net, free).coords
+    assert coords.size == 2 * net.n_nodes and np.any(np.diff(coords) < 0)  # reordered
+    stop = problem.stop_rule(1e-10, max_iter=200, max_seconds=60.0)
+    outcome = trust_region_newton(problem, net.positions, stop, Trace())
+    assert outcome.converged
+    assert problem.residual(outcome.x).imbalance <= 1e-10
+    reference = cvn.relax(net)
+    energy = problem.energy(outcome.x)
+    assert abs(energy - reference.energy) <= 1e-8 * max(reference.energy, 1e-12)

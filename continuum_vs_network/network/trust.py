@@ -230,7 +230,8 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     frame, stiff, inv_root, mean_rest, kappa_median, kappa_sum = _setup(problem)
     coords = frame.coords
     n = coords.size
-    full = n == 2 * net.n_nodes  # every coordinate free, in natural order
+    # every coordinate free, in natural order (frames above spd.DENSE_MAX are reordered)
+    full = n == 2 * net.n_nodes and bool(np.all(coords[1:] > coords[:-1]))
     m = problem.n_clamps if problem.exact else 0
     terms = kernels(problem, frame, inv_root)
     x = _onto_clamps(problem, np.array(x, dtype=np.float64), coords)
