@@ -155,16 +155,14 @@ def roundoff_floor(problem: Problem, x: NDArray, copies: int = 8) -> float:
     """The relative imbalance that rounding alone makes at ``x`` (n_nodes, 2): the largest
     change of ``|F_ic| / f_i`` (:meth:`~.constraints.Problem.residual`'s measure) over
     ``copies`` pairs of copies of ``x`` with every coordinate moved by exactly one rounding
-    unit (``np.nextafter``), in fixed pseudo-random directions and in the opposite ones:
-    the change is not symmetric (at the state below, one coordinate moved up one unit
-    changes the residual by 7e-10, moved down by 9e-14). A residual within a few times it
-    cannot be reduced in float64 (a solver's iterates carry several rounding units): two
-    nearly parallel clamped springs at a soft node fix their tensions only through an
-    angle of 6e-7 rad, and there one rounding unit moved the residual by up to 1.4e-9
-    (``benchmarks/bench_family.py --seed 4``, network 406). (Random moves of every
-    coordinate, one direction each, gave estimates 30-100x apart at such states: what
-    moves the residual is the difference of two neighbours' coordinates, which moves only
-    where their directions differ; 8 pairs miss it with probability about 2^-8.)"""
+    unit (``np.nextafter``), in fixed pseudo-random directions and in the opposite ones.
+    A residual within a few times it cannot be reduced in float64 (a solver's iterates
+    carry several rounding units). Two clamped springs folded onto each other at a soft
+    node fix their tensions only through an angle of 6e-7 rad: there one rounding unit
+    moves the residual by up to 2.3e-13 (``benchmarks/bench_family.py --seed 4``, network
+    406), against 6e-15 at the same lattice relaxed at its rest lengths. What moves the residual is
+    the difference of two neighbours' coordinates, which moves only where their
+    directions differ: single random moves at that state gave 5e-14 to 2.1e-13."""
     coords = problem.free_flat
     if not coords.size:
         return 0.0
@@ -178,6 +176,31 @@ def roundoff_floor(problem: Problem, x: NDArray, copies: int = 8) -> float:
             moved = problem.unbalanced_force(np.nextafter(x, direction), coords)[0]
             worst = max(worst, float(np.max(np.abs(moved - force) / scale)))
     return worst
+
+
+def dependent_clamps(problem: Problem, x: NDArray, tol: float = 1e-6) -> NDArray[np.int64]:
+    """Clamped springs whose unit length gradients on the free coordinates are linearly
+    dependent at ``x`` (n_nodes, 2) to within ``tol`` (a singular value of the unit rows),
+    (k,) spring indices, empty if none: no finite clamp tensions balance a force across
+    them. Two clamped springs in a straight line between pinned nodes, their lengths
+    adding up to the distance, hold the middle node only to first order; met to the
+    solvers' 1e-14, their lengths leave it ~1e-7 off the line (singular value 1e-7)."""
+    none = np.empty(0, dtype=np.int64)
+    if problem.n_clamps < 2 or not problem.exact:
+        return none
+    A = problem.clamp_jacobian(x)  # sparse (m, n)
+    gram = (A @ A.T).toarray()
+    norms = np.sqrt(np.diag(gram))
+    keep = norms > 0
+    if np.count_nonzero(keep) < 2:
+        return none
+    unit = gram[np.ix_(keep, keep)] / np.outer(norms[keep], norms[keep])
+    values, vectors = np.linalg.eigh(unit)  # the unit rows' squared singular values
+    small = values < tol**2
+    if not small.any():
+        return none
+    involved = np.abs(vectors[:, small]).max(axis=1) > 0.1
+    return problem.clamp_springs[keep][involved].astype(np.int64)
 
 
 def refuse_floppy(problem: Problem) -> None:

@@ -398,7 +398,11 @@ class Problem:
         AAt = A @ A.T
         AAt = AAt.toarray() if sp.issparse(AAt) else AAt
         z = np.array(y, dtype=np.float64, copy=True)
-        z.ravel()[coords] -= A.T @ np.linalg.solve(AAt, self.clamp_violation(y))
+        violation = self.clamp_violation(y)
+        try:
+            z.ravel()[coords] -= A.T @ np.linalg.solve(AAt, violation)
+        except np.linalg.LinAlgError:  # dependent clamp directions: the least-squares move
+            z.ravel()[coords] -= A.T @ np.linalg.lstsq(AAt, violation, rcond=None)[0]
         return z
 
     # -- counting ---------------------------------------------------------------------

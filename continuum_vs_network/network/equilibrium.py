@@ -20,6 +20,7 @@ from .. import _validate as check
 from .arguments import relax_arguments
 from .checks import (
     collapsed_springs,
+    dependent_clamps,
     escape_direction,
     lowest_curvature,
     refuse_floppy,
@@ -455,6 +456,14 @@ def _finish(
         reason = outcome.message or "did not reach the requested residual"
         if not finite:
             reason = "iterate became non-finite; " + reason
+        elif (dependent := dependent_clamps(problem, x)).size:  # the cause, named first
+            reason += (
+                f"; the clamps on springs {dependent.tolist()} are degenerate here: their "
+                "directions are linearly dependent, so no finite clamp tensions balance "
+                "the forces across them (e.g. clamped springs in a straight line between "
+                "pinned nodes, their lengths adding up to the distance); rods "
+                "(clamp='rod') stretch instead"
+            )
         elif outcome.stalled and stop.tol < relative <= 10.0 * (
             floor := roundoff_floor(problem, x)
         ):  # 10x: the solver's own iterates carry several rounding units

@@ -213,6 +213,15 @@ def _better(trial: tuple[NDArray, float, float, float], actual: float) -> bool:
     return change < actual and predicted < 0 and change / predicted > 0.25
 
 
+def _nudged(problem: Problem, x: NDArray, length: float) -> NDArray:
+    """``x`` with the free coordinates of clamped springs' nodes moved by ``1e-6 length``
+    in fixed pseudo-random directions."""
+    ends = problem.net.springs[problem.clamp_springs].ravel()
+    move = np.zeros_like(x)
+    move[ends] = np.random.default_rng(0).uniform(-1.0, 1.0, (ends.size, 2))
+    return x + 1e-6 * length * move * problem.free
+
+
 def _onto_clamps(problem: Problem, y: NDArray, coords: NDArray) -> NDArray:
     if not problem.exact:
         return y
@@ -234,7 +243,12 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     full = n == 2 * net.n_nodes and bool(np.all(coords[1:] > coords[:-1]))
     m = problem.n_clamps if problem.exact else 0
     terms = kernels(problem, frame, inv_root)
-    x = _onto_clamps(problem, np.array(x, dtype=np.float64), coords)
+    start = np.array(x, dtype=np.float64)
+    x = _onto_clamps(problem, start, coords)
+    if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
+        # a start where the clamp directions are dependent (clamped springs in a line
+        # between pins) gives the projection no direction to lengthen them: off the line
+        x = _onto_clamps(problem, _nudged(problem, start, mean_rest), coords)
     if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
         return Outcome(
             x,

@@ -1,0 +1,62 @@
+"""Clamps whose directions are linearly dependent hold a node only to first order: no
+finite clamp tensions balance a force across them, and the error says so."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import continuum_vs_network as cvn
+from continuum_vs_network.network.checks import dependent_clamps
+from continuum_vs_network.network.constraints import Problem
+
+DATA = Path(__file__).parent / "data"
+
+
+def _taut_chain(lengths: tuple[float, float]) -> cvn.SpringNetwork:
+    """Nodes 0 - 1 - 2 on a line 2 apart (0 and 2 to be pinned), node 3 above node 1
+    pulling it sideways: springs 0-3 and 2-3 at 1.3 > their length 1.41 * 0.92."""
+    positions = np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0], [1.0, 1.0]])
+    springs = np.array([[0, 1], [1, 2], [0, 3], [1, 3], [2, 3]])
+    rest = np.array([lengths[0], lengths[1], 1.3, 0.8, 1.3])
+    return cvn.SpringNetwork(positions, springs, np.ones(5), rest)
+
+
+@pytest.mark.parametrize("lengths", [(1.0, 1.0), (0.9, 1.1)])
+def test_clamped_springs_in_a_straight_line_are_named_degenerate(lengths):
+    """Clamp lengths that add up to the pins' distance leave node 1 on the line: its
+    sideways load would need infinite tension (the two circles touch at one point)."""
+    net = _taut_chain(lengths)
+    clamped = {0: lengths[0], 1: lengths[1]}
+    with pytest.raises(cvn.EquilibriumError, match=r"clamps on springs \[0, 1\] are degenerate"):
+        cvn.relax(net, pinned=[0, 2], clamped=clamped)
+    # rods of finite stiffness stretch: node 1 leaves the line and the tension is finite
+    eq = cvn.relax(net, pinned=[0, 2], clamped=clamped, clamp="rod")
+    assert eq.converged and abs(eq.positions[1, 1]) > 1e-6
+    assert np.all(np.isfinite(eq.clamp_force)) and np.all(eq.clamp_force != 0)
+
+
+def test_clamps_with_room_to_bend_are_not_degenerate():
+    """Started on the line, where the clamp directions are dependent (the projection onto
+    the clamps once divided by their singular Gram matrix), with lengths that add up to
+    more than the distance: node 1 bends off the line and the equilibrium is found."""
+    net = _taut_chain((1.05, 1.05))
+    clamped = {0: 1.05, 1: 1.05}
+    eq = cvn.relax(net, pinned=[0, 2], clamped=clamped)
+    problem = Problem.build(net, pinned=[0, 2], clamped=clamped)
+    assert eq.converged and dependent_clamps(problem, np.asarray(eq.positions)).size == 0
+    assert dependent_clamps(problem, np.asarray(net.positions)).tolist() == [0, 1]
+
+
+def test_folded_clamps_with_free_ends_are_not_degenerate():
+    """Network 406's two clamped springs are folded onto each other (1e-7 rad) at a soft
+    node, but their far ends are free: their directions stay independent."""
+    data = np.load(DATA / "folded_clamps_lattice.npz")
+    net = cvn.SpringNetwork(
+        data["positions"], data["springs"], data["stiffness"], data["rest_length"]
+    )
+    clamped = dict(zip(data["clamped_springs"].tolist(), data["clamped_lengths"].tolist()))
+    problem = Problem.build(net, clamped=clamped)
+    assert dependent_clamps(problem, data["stalled_positions"]).size == 0
