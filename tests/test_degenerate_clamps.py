@@ -60,3 +60,15 @@ def test_folded_clamps_with_free_ends_are_not_degenerate():
     clamped = dict(zip(data["clamped_springs"].tolist(), data["clamped_lengths"].tolist()))
     problem = Problem.build(net, clamped=clamped)
     assert dependent_clamps(problem, data["stalled_positions"]).size == 0
+
+
+@pytest.mark.parametrize("clamp", ["exact", "rod"])
+def test_a_clamp_between_two_pinned_nodes_at_another_length_is_refused(clamp):
+    """No move can change that length: one ValueError naming the spring and the distance
+    (it was 'augmented Lagrangian: no convergence in 60 outer steps' or a projection
+    failure, and for rods a residual of 0 reported as not converged)."""
+    net = _taut_chain((1.0, 1.0))
+    with pytest.raises(ValueError, match=r"clamped: spring 0 has both end nodes pinned, 1 apart"):
+        cvn.relax(net, pinned=[0, 1], clamped={0: 1.5}, clamp=clamp)
+    eq = cvn.relax(net, pinned=[0, 1], clamped={0: 1.0}, clamp=clamp)  # its own length: met
+    assert eq.converged

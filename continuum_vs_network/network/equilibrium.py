@@ -188,10 +188,11 @@ def relax(
         500-network family of ``benchmarks/bench_family.py`` no converging case needs it).
 
     A converged state is also checked to second order: a saddle (the reduced Hessian of
-    the Lagrangian, scaled by node stiffness, with an eigenvalue below ``-1e-8``) or a
-    state with a collapsed spring (``k > 0``, length ``<= 1e-9 L``) is escaped (a step
-    along the lowest eigenvector, or the collapsed springs unfolded) and relaxed again, at
-    most three times, else :class:`EquilibriumError`. Networks whose rigidity matrix is
+    the Lagrangian, scaled by node stiffness, with an eigenvalue below ``-max(1e-8,
+    tol)``: a loose ``tol`` leaves curvature within it unresolved) or a state with a
+    collapsed spring (``k > 0``, length ``<= 1e-9 L``) is escaped (a step along the lowest
+    eigenvector, or the collapsed springs unfolded) and relaxed again, at most three
+    times, else :class:`EquilibriumError`. Networks whose rigidity matrix is
     rank deficient at a generic configuration (a dangling node, a hinge) are refused with a
     ``ValueError`` even when Maxwell's count passes.
 
@@ -223,6 +224,7 @@ def relax(
         tol, max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]), max_seconds=max_seconds
     )
     x = _start(problem, x0)
+    _refuse_pinned_clamps(problem, x)
     trace = Trace()
     solve = METHODS[method]
     start_lengths = net.lengths(x, problem.clamp_springs) if problem.n_clamps else None
@@ -294,8 +296,10 @@ def _second_order(
     A converged state with a spring of ``k > 0`` collapsed to (almost) zero length is
     unfolded (each collapsed spring's second node moved by 1e-3 of its rest length in a
     fixed direction) and relaxed again; one whose scaled reduced Hessian has an eigenvalue
-    below ``-1e-8`` is moved by 1 % of the mean rest length along that eigenvector (the
-    side of lower energy) and relaxed again. After three escapes the outcome is a failure.
+    ``lowest`` below ``-max(1e-8, tol)`` is moved by 1 % of the mean rest length along that
+    eigenvector (the side of lower energy) and relaxed again, to a tol of at most
+    ``-lowest / 10``: at a loose tol (1e-2) the moved state already met it, and every
+    escape stopped where it started. After three escapes the outcome is a failure.
     Returns the outcome and the iterations spent.
     """
     extra = 0
@@ -315,7 +319,7 @@ def _second_order(
             return outcome, extra
         else:
             lowest = lowest_curvature(problem, x)
-            if lowest is not None and lowest >= -_CURVATURE_TOL:
+            if lowest is not None and lowest >= -max(_CURVATURE_TOL, stop.tol):
                 return outcome, extra
             direction = escape_direction(problem, x)
             if direction is None:
@@ -324,6 +328,8 @@ def _second_order(
                 ), extra
             trials = [problem.start(x + s * 1e-2 * direction) for s in (1.0, -1.0)]
             y = min(trials, key=problem.energy)
+            if lowest is not None:  # a loose tol: relaxed until the curvature shows
+                stop = replace(stop, tol=min(stop.tol, 0.1 * -lowest))
         trace.base = done + extra
         outcome = solve(problem, y, stop, trace)
         extra += outcome.iterations
@@ -404,6 +410,23 @@ def _pin_reaction(problem: Problem, x: NDArray, force: NDArray | None = None) ->
     if force is None:
         force, _ = problem.unbalanced_force(x, np.arange(problem.free.size))
     return float(np.max(np.abs(force[pinned]) / problem.scale[pinned]))
+
+
+def _refuse_pinned_clamps(problem: Problem, x: NDArray) -> None:
+    """A clamp no move can meet: both ends of its spring pinned at another distance
+    (a rod there would only carry the pins' force, which no free coordinate measures)."""
+    if not problem.n_clamps:
+        return
+    ends = problem.net.springs[problem.clamp_springs]
+    held = ~problem.free[ends].any(axis=(1, 2))  # (m,): both end nodes fully pinned
+    r = np.linalg.norm(x[ends[:, 1]] - x[ends[:, 0]], axis=1)
+    wrong = held & (np.abs(r - problem.clamp_lengths) > 1e-12 * problem.clamp_lengths)
+    for c in np.flatnonzero(wrong)[:1].tolist():
+        raise ValueError(
+            f"clamped: spring {int(problem.clamp_springs[c])} has both end nodes pinned, "
+            f"{r[c]:.6g} apart, so its clamp length {problem.clamp_lengths[c]:.6g} cannot "
+            "be met; clamp it to that distance, or leave an end free"
+        )
 
 
 def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
