@@ -286,6 +286,7 @@ def relax(
 
 _ESCAPES = 3
 _CURVATURE_TOL = 1e-8  # smallest scaled reduced-Hessian eigenvalue accepted as >= 0
+_DEFAULT_TOL = 1e-10  # relax's default tol
 
 
 def _second_order(
@@ -298,12 +299,16 @@ def _second_order(
     fixed direction) and relaxed again; one whose scaled reduced Hessian has an eigenvalue
     ``lowest`` below ``-max(1e-8, tol)`` is moved by 1 % of the mean rest length along that
     eigenvector (the side of lower energy) and relaxed again, to a tol of at most
-    ``-lowest / 10``: at a loose tol (1e-2) the moved state already met it, and every
-    escape stopped where it started. After three escapes the outcome is a failure.
+    ``-lowest / 10`` (at a loose tol, 1e-2, the moved state already met it, and every
+    escape stopped where it started), and from the second escape on to at most the
+    default 1e-10 (a Delaunay mesh escaped to ever more negative curvature: -0.05, -0.1,
+    -0.16). Problems too large for eigenvectors, indefinite at a loose tol, are relaxed
+    on to 1e-10 (the sparse factorisation then certifies them). After three escapes the
+    outcome is a failure.
     Returns the outcome and the iterations spent.
     """
     extra = 0
-    for _ in range(_ESCAPES):
+    for escapes in range(_ESCAPES):
         if not outcome.converged:
             return outcome, extra
         x = outcome.x
@@ -322,14 +327,21 @@ def _second_order(
             if lowest is not None and lowest >= -max(_CURVATURE_TOL, stop.tol):
                 return outcome, extra
             direction = escape_direction(problem, x)
-            if direction is None:
+            if direction is None and stop.tol > _DEFAULT_TOL:
+                # too large for eigenvectors, and indefinite at a loose tol: far from any
+                # equilibrium, not necessarily at a saddle; relaxed on to the default tol
+                stop = replace(stop, tol=_DEFAULT_TOL)
+                y = x
+            elif direction is None:
                 return Outcome(
                     x, outcome.iterations, False, "saddle: the reduced Hessian is indefinite"
                 ), extra
-            trials = [problem.start(x + s * 1e-2 * direction) for s in (1.0, -1.0)]
-            y = min(trials, key=problem.energy)
-            if lowest is not None:  # a loose tol: relaxed until the curvature shows
-                stop = replace(stop, tol=min(stop.tol, 0.1 * -lowest))
+            else:
+                trials = [problem.start(x + s * 1e-2 * direction) for s in (1.0, -1.0)]
+                y = min(trials, key=problem.energy)
+                if lowest is not None:  # a loose tol: relaxed until the curvature shows
+                    tighter = 0.1 * -lowest if escapes == 0 else _DEFAULT_TOL
+                    stop = replace(stop, tol=min(stop.tol, tighter))
         trace.base = done + extra
         outcome = solve(problem, y, stop, trace)
         extra += outcome.iterations
