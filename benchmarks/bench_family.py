@@ -11,6 +11,8 @@ iterations, overall and for the strongly prestressed half (rest lengths 0.3-3x).
     python benchmarks/bench_family.py --count 100 --seed 1
     python benchmarks/bench_family.py --medium --count 100  # 170-530 nodes: just above dense
     python benchmarks/bench_family.py --large --count 60   # 500-1100 nodes: the sparse Newton
+    python benchmarks/bench_family.py --tol 1e-2           # a loose tolerance (no false saddles)
+    python benchmarks/bench_family.py --pinned             # two far nodes pinned fully
 
 Targets: 0 failures, median <= 30, p95 <= 120 iterations. Clamp sets that no network can
 meet (three clamped springs forming a triangle that violates the triangle inequality) are
@@ -30,6 +32,13 @@ def _parse() -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--method", default="newton")
     p.add_argument("--verbose", action="store_true", help="print every failure's reason")
+    p.add_argument("--tol", type=float, default=1e-10, help="relax's tol (default 1e-10)")
+    p.add_argument(
+        "--pinned",
+        action="store_true",
+        help="pin both nodes of the default pins fully (they then carry load) instead of "
+        "relaxing under the default pins",
+    )
     p.add_argument(
         "--large",
         action="store_true",
@@ -112,6 +121,7 @@ def main() -> None:
     import numpy as np
 
     import continuum_vs_network as cvn
+    from continuum_vs_network.network.constraints import default_pins
 
     rng = np.random.default_rng(args.seed)
     rows = []
@@ -120,8 +130,12 @@ def main() -> None:
         kind, prestressed, net, clamped = family_member(rng, large=args.large, medium=args.medium)
         if incompatible(net, clamped):
             kind = "incompatible"
+        pinned = None
+        if args.pinned:
+            pins = default_pins(net, list(clamped))
+            pinned = np.flatnonzero(pins.any(axis=1)).tolist()
         try:
-            eq = cvn.relax(net, clamped=clamped, method=args.method)
+            eq = cvn.relax(net, pinned, clamped, method=args.method, tol=args.tol)
             rows.append((kind, prestressed, eq.iterations, True, ""))
         except Exception as err:  # every failure counts, whatever it is
             its = getattr(getattr(err, "state", None), "iterations", -1)
@@ -147,7 +161,11 @@ def main() -> None:
             f"{np.median(its):5.1f} p95={np.percentile(its, 95):6.1f} max={its.max():5d}"
         )
 
-    print(f"family of {args.count} networks, seed {args.seed}, method {args.method}")
+    pins = "two far nodes pinned" if args.pinned else "default pins"
+    print(
+        f"family of {args.count} networks, seed {args.seed}, method {args.method}, "
+        f"tol {args.tol:g}, {pins}"
+    )
     print(line("all", rows))
     feasible = [r for r in rows if r[0] != "incompatible"]
     print(line("all with compatible clamps", feasible))
