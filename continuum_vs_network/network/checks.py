@@ -160,9 +160,9 @@ def roundoff_floor(problem: Problem, x: NDArray, copies: int = 8) -> float:
     carry several rounding units). Two clamped springs folded onto each other at a soft
     node fix their tensions only through an angle of 6e-7 rad: there one rounding unit
     moves the residual by up to 2.3e-13 (``benchmarks/bench_family.py --seed 4``, network
-    406), against 6e-15 at the same lattice relaxed at its rest lengths. What moves the residual is
-    the difference of two neighbours' coordinates, which moves only where their
-    directions differ: single random moves at that state gave 5e-14 to 2.1e-13."""
+    406), against 6e-15 at the same lattice relaxed at its rest lengths. What moves the
+    residual is the difference of two neighbours' coordinates, which moves only where
+    their directions differ: single random moves at that state gave 5e-14 to 2.1e-13."""
     coords = problem.free_flat
     if not coords.size:
         return 0.0

@@ -433,7 +433,8 @@ def _refuse_pinned_clamps(problem: Problem, x: NDArray) -> None:
     held = ~problem.free[ends].any(axis=(1, 2))  # (m,): both end nodes fully pinned
     r = np.linalg.norm(x[ends[:, 1]] - x[ends[:, 0]], axis=1)
     wrong = held & (np.abs(r - problem.clamp_lengths) > 1e-12 * problem.clamp_lengths)
-    for c in np.flatnonzero(wrong)[:1].tolist():
+    if wrong.any():
+        c = int(np.argmax(wrong))
         raise ValueError(
             f"clamped: spring {int(problem.clamp_springs[c])} has both end nodes pinned, "
             f"{r[c]:.6g} apart, so its clamp length {problem.clamp_lengths[c]:.6g} cannot "
