@@ -129,6 +129,7 @@ METHODS: dict[str, Method] = {
     "paper": paper_adagrad,
 }
 _DEFAULT_MAX_ITER = {"newton": 2000, "fire": 200_000, "lbfgs": 50_000, "paper": 20_000}
+_DEFAULT_TOL = 1e-10  # relax's tol; also where the second-order check relaxes loose ones
 
 
 def relax(
@@ -137,7 +138,7 @@ def relax(
     clamped: Mapping[int, float] | None = None,
     x0: ArrayLike | None = None,
     method: str = "newton",
-    tol: float = 1e-10,
+    tol: float = _DEFAULT_TOL,
     *,
     clamp: ClampMode = "exact",
     rod_stiffness: float = 1e10,
@@ -286,7 +287,6 @@ def relax(
 
 _ESCAPES = 3
 _CURVATURE_TOL = 1e-8  # smallest scaled reduced-Hessian eigenvalue accepted as >= 0
-_DEFAULT_TOL = 1e-10  # relax's default tol
 
 
 def _second_order(
@@ -337,11 +337,13 @@ def _second_order(
                     x, outcome.iterations, False, "saddle: the reduced Hessian is indefinite"
                 ), extra
             else:
+                assert lowest is not None  # dense: the eigenvalue came with its vector
                 trials = [problem.start(x + s * 1e-2 * direction) for s in (1.0, -1.0)]
                 y = min(trials, key=problem.energy)
-                if lowest is not None:  # a loose tol: relaxed until the curvature shows
-                    tighter = 0.1 * -lowest if escapes == 0 else _DEFAULT_TOL
-                    stop = replace(stop, tol=min(stop.tol, tighter))
+                # relaxed until the curvature shows (a loose tol met by the moved state
+                # would stop there)
+                tighter = 0.1 * -lowest if escapes == 0 else _DEFAULT_TOL
+                stop = replace(stop, tol=min(stop.tol, tighter))
         trace.base = done + extra
         outcome = solve(problem, y, stop, trace)
         extra += outcome.iterations
