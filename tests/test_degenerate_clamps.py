@@ -72,3 +72,34 @@ def test_a_clamp_between_two_pinned_nodes_at_another_length_is_refused(clamp):
         cvn.relax(net, pinned=[0, 1], clamped={0: 1.5}, clamp=clamp)
     eq = cvn.relax(net, pinned=[0, 1], clamped={0: 1.0}, clamp=clamp)  # its own length: met
     assert eq.converged
+
+
+def _straight_pair(side: int) -> tuple[cvn.SpringNetwork, int, int, int, int, int]:
+    """A noise-free ``side x side`` lattice and a straight line ``a - b - c`` of two springs
+    ``i = (a, b)``, ``j = (b, c)`` through its most central node ``b``."""
+    from continuum_vs_network.network.builders import triangular_lattice
+
+    net = triangular_lattice(side, side, noise=0.0)
+    x, springs = net.positions, net.springs
+    b = int(np.argmin(np.linalg.norm(x - x.mean(axis=0), axis=1)))
+    at_b = np.flatnonzero((springs == b).any(axis=1))
+    ends = np.array([s[0] if s[1] == b else s[1] for s in springs[at_b]])
+    unit = (x[ends] - x[b]) / np.linalg.norm(x[ends] - x[b], axis=1)[:, None]
+    i, j = np.unravel_index(np.argmin(unit @ unit.T), (ends.size, ends.size))
+    return net, int(ends[i]), b, int(ends[j]), int(at_b[i]), int(at_b[j])
+
+
+def test_the_sparse_newton_bends_clamps_started_in_a_line():
+    """The same start on the sparse Newton's path (a 16 x 16 lattice: 508 free
+    coordinates): it failed with 'singular Schur complement' at the first KKT step; it now
+    starts from a nudged point and node b leaves the line a - c."""
+    net, a, b, c, i, j = _straight_pair(16)
+    problem = Problem.build(net, pinned=[a, c], clamped={i: 1.05, j: 1.05})
+    assert problem.free_flat.size > 400  # above the dense trust region: the sparse Newton
+    assert dependent_clamps(problem, np.asarray(net.positions)).tolist() == sorted([i, j])
+    eq = cvn.relax(net, pinned=[a, c], clamped={i: 1.05, j: 1.05})
+    x = np.asarray(eq.positions)
+    (u, v), (p, q) = x[c] - x[a], x[b] - x[a]
+    off_line = abs(u * q - v * p) / np.hypot(u, v)
+    assert eq.converged and off_line > 0.1  # 1.05 + 1.05 over a distance of 2
+    assert np.allclose(net.lengths(x)[[i, j]], 1.05, rtol=1e-9)

@@ -405,6 +405,33 @@ class Problem:
             z.ravel()[coords] -= A.T @ np.linalg.lstsq(AAt, violation, rcond=None)[0]
         return z
 
+    def onto_clamps(self, y: NDArray, coords: NDArray | None = None) -> NDArray:
+        """``y`` (n_nodes, 2) moved onto the exact clamp lengths by Gauss-Newton steps
+        (:meth:`toward_clamps` over ``coords``, default ``free_flat``) until every
+        violation is within ``1e-14`` of the longest clamp length, at most 20 of them;
+        ``y`` itself with rod clamps."""
+        if not self.exact:
+            return y
+        coords = self.free_flat if coords is None else coords
+        target = 1e-14 * float(self.clamp_lengths.max())
+        for _ in range(20):
+            if np.abs(self.clamp_violation(y)).max() <= target:
+                break
+            y = self.toward_clamps(y, coords, self.clamp_jacobian(y, coords, dense=True))
+        return y
+
+    def nudged(self, x: NDArray) -> NDArray:
+        """``x`` (n_nodes, 2) with the free coordinates of the clamped springs' nodes moved
+        by ``1e-6`` of the mean rest length in fixed pseudo-random directions: off a start
+        where the clamp directions are dependent (clamped springs in a line), which gives
+        a projection onto the clamps no direction to lengthen them."""
+        net = self.net
+        ends = net.springs[self.clamp_springs].ravel()
+        move = np.zeros_like(x)
+        move[ends] = np.random.default_rng(0).uniform(-1.0, 1.0, (ends.size, 2))
+        length = float(np.add.reduce(net.rest_length)) / net.n_springs
+        return x + 1e-6 * length * move * self.free
+
     # -- counting ---------------------------------------------------------------------
     def maxwell_zero_modes(self) -> int:
         """Lower bound on internal zero modes from Maxwell counting.

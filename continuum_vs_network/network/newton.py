@@ -69,6 +69,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from .checks import dependent_clamps
 from .constraints import Problem, clamp_tensions, dense_jacobian_pays
 from .energy import HessianPattern, spring_gradient
 from .kkt import (
@@ -123,6 +124,10 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     # a few clamps: a dense Jacobian, whose products cost less than scipy.sparse's overhead
     dense_jacobian = dense_jacobian_pays(problem.n_clamps, pattern.size)
     x = np.array(x, dtype=np.float64)
+    if m > 1 and dependent_clamps(problem, x).size:
+        # clamped springs in a line, say: no KKT step lengthens them (singular Schur
+        # complement); off the line by a nudge, the projection onto the clamps can
+        x = problem.onto_clamps(problem.nudged(x), coords)
     reusable, factor_shift = None, 0.0  # factor_shift: the shift reusable was made with
     if m:
         y, reusable = _clamp_predictor(problem, pattern, x, rho, stop, dense_jacobian)
@@ -213,8 +218,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                     x,
                     it,
                     False,
-                    "clamp constraints are degenerate (singular Schur "
-                    "complement): two clamps fix the same length?",
+                    "clamp constraints are degenerate (singular Schur complement)",
                 )
             reusable = factor if reuse else None
             factor_shift = shift

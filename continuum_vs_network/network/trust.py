@@ -191,12 +191,12 @@ def _trial(
         move = None
     z, met = stiff.nearest(y, x, step) if stiff is not None else (None, False)
     if z is not None:
-        z = _onto_clamps(problem, z, coords) if exact else z
+        z = problem.onto_clamps(z, coords) if exact else z
         restored = terms.energy_change(z)
         if met:
             return z, length, predicted, restored
     if exact:
-        y, move = _onto_clamps(problem, y, coords), None
+        y, move = problem.onto_clamps(y, coords), None
     plain = terms.energy_change(y, move)
     # where the projection gave up, the trial is the lower of its nearest and the plain point
     if z is not None and not (
@@ -213,26 +213,6 @@ def _better(trial: tuple[NDArray, float, float, float], actual: float) -> bool:
     return change < actual and predicted < 0 and change / predicted > 0.25
 
 
-def _nudged(problem: Problem, x: NDArray, length: float) -> NDArray:
-    """``x`` with the free coordinates of clamped springs' nodes moved by ``1e-6 length``
-    in fixed pseudo-random directions."""
-    ends = problem.net.springs[problem.clamp_springs].ravel()
-    move = np.zeros_like(x)
-    move[ends] = np.random.default_rng(0).uniform(-1.0, 1.0, (ends.size, 2))
-    return x + 1e-6 * length * move * problem.free
-
-
-def _onto_clamps(problem: Problem, y: NDArray, coords: NDArray) -> NDArray:
-    if not problem.exact:
-        return y
-    target = 1e-14 * float(problem.clamp_lengths.max())
-    for _ in range(20):
-        if np.abs(problem.clamp_violation(y)).max() <= target:
-            break
-        y = problem.toward_clamps(y, coords, problem.clamp_jacobian(y, coords, dense=True))
-    return y
-
-
 def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
     """Minimise ``problem`` from ``x`` (n_nodes, 2) by the trust-region method of the module."""
     net = problem.net
@@ -244,11 +224,11 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     m = problem.n_clamps if problem.exact else 0
     terms = kernels(problem, frame, inv_root)
     start = np.array(x, dtype=np.float64)
-    x = _onto_clamps(problem, start, coords)
+    x = problem.onto_clamps(start, coords)
     if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
         # a start where the clamp directions are dependent (clamped springs in a line
         # between pins) gives the projection no direction to lengthen them: off the line
-        x = _onto_clamps(problem, _nudged(problem, start, mean_rest), coords)
+        x = problem.onto_clamps(problem.nudged(start), coords)
     if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
         return Outcome(
             x,
