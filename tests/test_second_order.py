@@ -41,6 +41,22 @@ def test_collinear_clamped_triangle_is_not_left_at_the_saddle(method):
 
 
 @pytest.mark.parametrize("method", ["newton", "fire", "lbfgs"])
+def test_a_clamp_that_collapses_a_collinear_triangle_is_unfolded_off_the_line(method):
+    """Nodes 0, 1, 2 at x = 0, 1, 2, all rest lengths 1, the long side 0-2 clamped to 1
+    under the default pins (node 1 fully, node 0's y): setting the clamp puts node 2 onto
+    node 1 (spring 1-2 collapsed, its force taken as 0). FIRE and L-BFGS failed with 'a
+    saddle or a collapsed spring persists after 3 escapes': every unfold moved node 2
+    along the x axis, the triangle's own line, which relaxing never leaves. The minimum is
+    the equilateral triangle, energy 0."""
+    net = cvn.SpringNetwork(
+        [[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]], [[0, 1], [1, 2], [0, 2]], np.ones(3), np.ones(3)
+    )
+    eq = cvn.relax(net, clamped={2: 1.0}, method=method)
+    assert eq.converged and eq.energy == pytest.approx(0.0, abs=1e-15)
+    assert net.lengths(eq.positions) == pytest.approx(np.ones(3), rel=1e-8)
+
+
+@pytest.mark.parametrize("method", ["newton", "fire", "lbfgs"])
 def test_all_nodes_at_one_point_is_not_an_equilibrium(method):
     net = triangular_lattice(4, 4)
     start = np.zeros((net.n_nodes, 2)) + 0.5

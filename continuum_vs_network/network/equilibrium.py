@@ -296,15 +296,15 @@ def _second_order(
 
     A converged state with a spring of ``k > 0`` collapsed to (almost) zero length is
     unfolded (each collapsed spring's second node moved by 1e-3 of its rest length in a
-    fixed direction) and relaxed again; one whose scaled reduced Hessian has an eigenvalue
-    ``lowest`` below ``-max(1e-8, tol)`` is moved by 1 % of the mean rest length along that
-    eigenvector (the side of lower energy) and relaxed again, to a tol of at most
-    ``-lowest / 10`` (at a loose tol, 1e-2, the moved state already met it, and every
-    escape stopped where it started), and from the second escape on to at most the
-    default 1e-10 (a Delaunay mesh escaped to ever more negative curvature: -0.05, -0.1,
-    -0.16). Problems too large for eigenvectors, indefinite at a loose tol, are relaxed
-    on to 1e-10 (the sparse factorisation then certifies them). After three escapes the
-    outcome is a failure.
+    direction turned by the golden angle at each escape) and relaxed again; one whose scaled
+    reduced Hessian has an eigenvalue ``lowest`` below ``-max(1e-8, tol)`` is moved by 1 %
+    of the mean rest length along that eigenvector (the side of lower energy) and relaxed
+    again, to a tol of at most ``-lowest / 10`` (at a loose tol, 1e-2, the moved state
+    already met it, and every escape stopped where it started), and from the second escape
+    on to at most the default 1e-10 (a Delaunay mesh escaped to ever more negative
+    curvature: -0.05, -0.1, -0.16). Problems too large for eigenvectors, indefinite at a
+    loose tol, are relaxed on to 1e-10 (the sparse factorisation then certifies them). After
+    three escapes the outcome is a failure.
     Returns the outcome and the iterations spent.
     """
     extra = 0
@@ -315,7 +315,10 @@ def _second_order(
         collapsed = collapsed_springs(problem, x)
         if collapsed.size:
             y = np.array(x, dtype=np.float64, copy=True)
-            angle = 2.399963229728653 * np.arange(collapsed.size)
+            # a new direction at each escape: the first (the x axis for the first spring)
+            # may lie on a line of symmetry that relaxing never leaves (a clamped triangle
+            # started collinear, collapsed by its clamp, unfolded along its own line)
+            angle = 2.399963229728653 * (np.arange(collapsed.size) + escapes)
             b = problem.net.springs[collapsed, 1]
             move = 1e-3 * problem.net.rest_length[collapsed, None]
             move = move * np.stack([np.cos(angle), np.sin(angle)], axis=1)
