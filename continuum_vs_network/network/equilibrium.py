@@ -303,11 +303,13 @@ def _second_order(
     already met it, and every escape stopped where it started), and from the second escape
     on to at most the default 1e-10 (a Delaunay mesh escaped to ever more negative
     curvature: -0.05, -0.1, -0.16). Problems too large for eigenvectors, indefinite at a
-    loose tol, are relaxed on to 1e-10 (the sparse factorisation then certifies them). After
-    three escapes the outcome is a failure.
+    loose tol, are relaxed on to 1e-10 (the sparse factorisation then certifies them). A
+    tighter solve that stops short of its own tol where the asked one is met (round-off, far
+    from the origin) is judged again there. After three escapes the outcome is a failure.
     Returns the outcome and the iterations spent.
     """
     extra = 0
+    asked = stop
     for escapes in range(_ESCAPES):
         if not outcome.converged:
             return outcome, extra
@@ -326,8 +328,9 @@ def _second_order(
         elif outcome.certified:
             return outcome, extra
         else:
-            lowest = lowest_curvature(problem, x)
-            if lowest is not None and lowest >= -max(_CURVATURE_TOL, stop.tol):
+            threshold = max(_CURVATURE_TOL, stop.tol)
+            lowest = lowest_curvature(problem, x, threshold)
+            if lowest is not None and lowest >= -threshold:
                 return outcome, extra
             direction = escape_direction(problem, x)
             if direction is None and stop.tol > _DEFAULT_TOL:
@@ -350,6 +353,12 @@ def _second_order(
         trace.base = done + extra
         outcome = solve(problem, y, stop, trace)
         extra += outcome.iterations
+        if not outcome.converged and stop.tol < asked.tol:
+            # the tighter solve stopped short of its own tol (at round-off: a network far
+            # from the origin), perhaps where the asked one is met: judged again there
+            found = problem.residual(outcome.x)
+            if asked.met(found.imbalance, found.clamp):
+                outcome = Outcome(outcome.x, outcome.iterations, True)
     if outcome.converged:
         reason = "a saddle or a collapsed spring persists after 3 escapes"
         return Outcome(outcome.x, outcome.iterations, False, reason), extra

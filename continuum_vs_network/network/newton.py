@@ -95,6 +95,15 @@ DAMP_UP_MILD = 2.0  # after a step cut to a quarter or more (Nielsen's gentler g
 DAMP_RETRY = 1e-4  # least shift after a line search that found no decrease
 DAMP_GIVE_UP = 1e6  # no decrease even at this shift: the solve fails
 DAMP_MIN = 1e-6
+# In-loop second-order certificate (relax then skips its check, a float64 factorisation):
+# the converging step came from an exact, positive-definite factorisation made one step
+# before and moved no coordinate more than _CERTIFY_MOVE mean rest lengths. Below
+# _FRESH_NEAR times tol the Hessian is factorised afresh, not reused, to make it so. The
+# last factorisation however far back (the rule before) certified a 530-node mesh at a
+# saddle of scaled curvature -62 (4 clamps at strains up to 20, started at 1e6 times its
+# size, tol 1e-4), from 6 iterations and several rest lengths away.
+_FRESH_NEAR = 1e4
+_CERTIFY_MOVE = 1e-6
 
 
 def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcome:
@@ -121,6 +130,8 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
     rho = rho_base = float(np.max(k)) if m else 0.0
     shift = 0.0
     exact_ok = True
+    certifying = certified = False  # see _CERTIFY_MOVE
+    mean_rest = float(np.add.reduce(net.rest_length)) / net.n_springs
     # a few clamps: a dense Jacobian, whose products cost less than scipy.sparse's overhead
     dense_jacobian = dense_jacobian_pays(problem.n_clamps, pattern.size)
     x = np.array(x, dtype=np.float64)
@@ -156,7 +167,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
             clamp_error = stop.clamp_error(viol)
         trace.record(residual, it)
         if stop.met(residual, clamp_error):
-            return Outcome(x, it, True, certified=it > 0 and exact_ok and shift == 0.0)
+            return Outcome(x, it, True, certified=certified)
         if it == stop.max_iter:
             return Outcome(x, it, False, f"no convergence in {stop.max_iter} iterations")
         if trace.elapsed() > stop.max_seconds:
@@ -173,9 +184,12 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
         enough = min(0.5, 0.5 * stop.tol / max(residual, 1e-300))  # residual 0: clamps only
         eta = max(min(1e-1, np.sqrt(residual)), enough)
         # a shifted factorisation is not reused once the shift is 0: the exact Hessian is
-        # factorised instead, which gives a pure Newton step and certifies the minimum in
-        # the loop (else the second-order check of relax factorises it after convergence)
-        if reusable is not None and not (shift == 0.0 and not exact_ok):
+        # factorised instead, which gives a pure Newton step; near convergence an exact
+        # one is not reused either, so that the last step certifies the minimum in the
+        # loop (_CERTIFY_MOVE; else the second-order check of relax factorises it)
+        near = residual <= _FRESH_NEAR * stop.tol and shift == 0.0
+        certifying = False
+        if reusable is not None and not (shift == 0.0 and not exact_ok) and not near:
             budget = reuse_budget(pattern.size)
             W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             # the damped model a refactorisation would solve now; when that (a shift decayed
@@ -222,6 +236,7 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                 )
             reusable = factor if reuse else None
             factor_shift = shift
+            certifying = exact_ok and shift == 0.0
         start = x
         x, alpha = line_search(
             problem,
@@ -241,6 +256,8 @@ def newton(problem: Problem, x: NDArray, stop: StopRule, trace: Trace) -> Outcom
                 problem, coords, start, (x, alpha), indefinite[1], step, grad,
                 A if m else None, viol, lam, rho,
             )  # fmt: skip
+        move = float(np.max(np.abs(x - start), initial=0.0))
+        certified = certifying and alpha > 0.0 and move <= _CERTIFY_MOVE * mean_rest
         if alpha == 0.0:
             # no decrease along the step: damp 100x harder and refactorise (Levenberg-
             # Marquardt as a trust region); only no decrease at DAMP_GIVE_UP gives up
