@@ -226,6 +226,9 @@ def relax(
     )
     x = _start(problem, x0)
     _refuse_pinned_clamps(problem, x)
+    collapsed = collapsed_springs(problem, x)
+    if collapsed.size:  # coincident nodes: no force direction, unfolded before any solve
+        x = _unfold(problem, x, collapsed, 0)
     trace = Trace()
     solve = METHODS[method]
     start_lengths = net.lengths(x, problem.clamp_springs) if problem.n_clamps else None
@@ -316,15 +319,10 @@ def _second_order(
         x = outcome.x
         collapsed = collapsed_springs(problem, x)
         if collapsed.size:
-            y = np.array(x, dtype=np.float64, copy=True)
             # a new direction at each escape: the first (the x axis for the first spring)
             # may lie on a line of symmetry that relaxing never leaves (a clamped triangle
             # started collinear, collapsed by its clamp, unfolded along its own line)
-            angle = 2.399963229728653 * (np.arange(collapsed.size) + escapes)
-            b = problem.net.springs[collapsed, 1]
-            move = 1e-3 * problem.net.rest_length[collapsed, None]
-            move = move * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-            np.add.at(y, b, move * problem.free[b])
+            y = _unfold(problem, x, collapsed, escapes)
         elif outcome.certified:
             return outcome, extra
         else:
@@ -363,6 +361,22 @@ def _second_order(
         reason = "a saddle or a collapsed spring persists after 3 escapes"
         return Outcome(outcome.x, outcome.iterations, False, reason), extra
     return outcome, extra
+
+
+def _unfold(problem: Problem, x: NDArray, collapsed: NDArray, turn: int) -> NDArray:
+    """``x`` (n_nodes, 2) with each ``collapsed`` spring's second node (its first where the
+    second is pinned) moved by 1e-3 of its rest length, the i-th in the direction at
+    ``i + turn`` golden angles from the x axis: a zero-length spring has no force
+    direction."""
+    y = np.array(x, dtype=np.float64, copy=True)
+    angle = 2.399963229728653 * (np.arange(collapsed.size) + turn)
+    a, b = problem.net.springs[collapsed].T
+    move = 1e-3 * problem.net.rest_length[collapsed, None]
+    move = move * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+    free = problem.free
+    np.add.at(y, b, move * free[b])
+    np.add.at(y, a, -move * (free[a] & ~free[b]))
+    return y
 
 
 def _place(x: NDArray, start: NDArray, free: NDArray) -> NDArray:

@@ -281,6 +281,8 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         else:
             basis = None
         H = terms.reduced_hessian(mu, basis)
+        if not np.isfinite(H).all():  # a spring of zero length has no curvature direction
+            return Outcome(x, it, False, "the Hessian is not finite (a spring of zero length?)")
         gr = basis.T @ g if basis is not None else g * inv_root
         model = Model(x, H, gr, basis, inv_root, terms)
 

@@ -180,6 +180,8 @@ def subproblem(spec: Spectrum, radius: float) -> tuple[NDArray, NDArray, float]:
         h = gt / den  # -p(shift)
         norm2 = float(h @ h)
         norm = math.sqrt(norm2)
+        if norm2 == 0.0:  # no gradient left in float64 (it underflowed): no step
+            return -h, den, 0.0
         if abs(norm - radius) <= 1e-6 * radius:
             return -h, den, norm
         if norm > radius:
