@@ -187,6 +187,9 @@ def relax(
     max_iter, max_seconds : budgets; exceeding either raises :class:`EquilibriumError`
         (Newton's default of 2000 iterations is a safety net, not a working limit: on the
         500-network family of ``benchmarks/bench_family.py`` no converging case needs it).
+        ``max_iter`` bounds each solve (a ramp stage, an escape, a solve with pins chosen
+        anew), so the reported iterations, their sum, can exceed it; ``max_seconds`` bounds
+        the whole call.
 
     A converged state is also checked to second order: a saddle (the reduced Hessian of
     the Lagrangian, scaled by node stiffness, with an eigenvalue below ``-max(1e-8,
