@@ -235,6 +235,12 @@ class Problem:
         """The same problem with another pin mask."""
         return self._sibling(np.asarray(free, dtype=bool), self.clamp_lengths)
 
+    def as_exact(self) -> Problem:
+        """The same problem with its clamps exact instead of rods."""
+        new = self._sibling(self.free, self.clamp_lengths)
+        object.__setattr__(new, "clamp", "exact")
+        return new
+
     def _sibling(self, free: NDArray, lengths: NDArray) -> Problem:
         """A copy with ``free`` and clamp ``lengths`` replaced that reuses the coordinate
         scale (it depends on the network only): no ``__post_init__`` again."""
