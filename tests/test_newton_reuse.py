@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from continuum_vs_network.network import hessian_ladder as ladder
 from continuum_vs_network.network import newton as nw
 from continuum_vs_network.network import reuse
 from continuum_vs_network.network.builders import triangular_lattice
@@ -215,14 +216,14 @@ def test_a_start_that_needs_a_shift_ends_certified_by_the_loops_own_factorisatio
     problem = Problem.build(net, clamped={c: float(net.clamp_length(c, 5.0))})
     stop = problem.stop_rule(1e-10, max_iter=200, max_seconds=60.0)
     shifts = []
-    factorise = nw._factor_lagrangian_hessian
+    factorise = nw.factor_positive_model
 
     def recorded(*args, **kwargs):
         out = factorise(*args, **kwargs)
         shifts.append(out[2])
         return out
 
-    monkeypatch.setattr(nw, "_factor_lagrangian_hessian", recorded)
+    monkeypatch.setattr(nw, "factor_positive_model", recorded)
     outcome = nw.newton(problem, problem.start(net.positions), stop, Trace())
     assert outcome.converged and outcome.certified
     assert shifts[0] > 0.0 and shifts[-1] == 0.0
@@ -255,7 +256,7 @@ def test_no_factorisation_is_tried_that_a_known_direction_proves_indefinite(
     pcg, factor_pd, factor_or_curvature = (
         nw.projected_pcg,
         nw.factor_pd,
-        nw._factor_or_curvature,
+        ladder._factor_or_curvature,
     )
 
     def spy_pcg(*args, **kwargs):
@@ -282,8 +283,9 @@ def test_no_factorisation_is_tried_that_a_known_direction_proves_indefinite(
         return factor_or_curvature(M, pattern)
 
     monkeypatch.setattr(nw, "projected_pcg", spy_pcg)
-    monkeypatch.setattr(nw, "factor_pd", spy_factor)
-    monkeypatch.setattr(nw, "_factor_or_curvature", spy_factor_or_curvature)
+    monkeypatch.setattr(nw, "factor_pd", spy_factor)  # the clamp predictor's
+    monkeypatch.setattr(ladder, "factor_spd", spy_factor)  # the ladder's
+    monkeypatch.setattr(ladder, "_factor_or_curvature", spy_factor_or_curvature)
     eq = cvn.relax(net, clamped=clamped)
     assert eq.converged
     assert curvatures, "CG never met negative curvature: the case does not test the rule"

@@ -74,11 +74,11 @@ from numpy.typing import NDArray
 from .checks import dependent_clamps
 from .constraints import Problem, clamp_tensions, dense_jacobian_pays
 from .energy import HessianPattern, spring_gradient
+from .hessian_ladder import DAMP_MIN, assemble_hessian, factor_positive_model, marquardt_scaling
 from .kkt import (
     DENSE_MAX,
     Factor,
     factor_spd,
-    factor_spd_or_curvature,
     range_space_solve,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
@@ -96,7 +96,6 @@ DAMP_UP = 10.0  # shift growth after a step cut below a quarter
 DAMP_UP_MILD = 2.0  # after a step cut to a quarter or more (Nielsen's gentler growth)
 DAMP_RETRY = 1e-4  # least shift after a line search that found no decrease
 DAMP_GIVE_UP = 1e6  # no decrease even at this shift: the solve fails
-DAMP_MIN = 1e-6
 # In-loop second-order certificate (relax then skips its check, a float64 factorisation):
 # the converging step came from an exact, positive-definite factorisation made one step
 # before and moved no coordinate more than _CERTIFY_MOVE mean rest lengths. Below
@@ -120,7 +119,7 @@ def newton(
     (the exact Hessian, still indefinite, made every reuse fail on negative curvature);
     when that model meets negative curvature, the model of the factor's own (larger) shift
     is tried before a refactorisation, and the direction found spares the factorisations
-    it proves indefinite (:func:`_factor_lagrangian_hessian`). bench_relax at 1e5 nodes,
+    it proves indefinite (:func:`factor_positive_model`). bench_relax at 1e5 nodes,
     one clamp at strain 2: 21 -> 12 iterations, 58.1 -> 18.3 s (limit 2.8 s).
 
     Rod clamps (``exact_first``): the problem with exact clamps is solved first, and the
@@ -208,7 +207,7 @@ def newton(
         certifying = False
         if reusable is not None and not (shift == 0.0 and not exact_ok) and not near:
             budget = reuse_budget(pattern.size)
-            W = _assemble(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
+            W = assemble_hessian(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             # the damped model a refactorisation would solve now; when that (a shift decayed
             # after full steps) is indefinite, the model the factor was made for, before
             # any refactorisation (bench_relax at 1e5 nodes, strain 2: 4 iterations had
@@ -216,7 +215,7 @@ def newton(
             # networks of bench_family --medium, 1012 of 1302 such retries solved; without
             # them the most iterations were 1242, with them 710
             trials = (shift, factor_shift) if factor_shift > shift else (shift,)
-            scaling = _marquardt_scaling(W) if trials[-1] > 0.0 else None
+            scaling = marquardt_scaling(W) if trials[-1] > 0.0 else None
             for trial in trials:
                 model = W + trial * scaling if trial > 0.0 else W
                 try:
@@ -233,7 +232,7 @@ def newton(
                 shift = trial  # the model solved (trials never go below shift)
         if step is None:
             factor = reusable = None  # released first: one factorisation alive at a time
-            factor, rho, shift, exact_ok, model = _factor_lagrangian_hessian(
+            factor, rho, shift, exact_ok, model = factor_positive_model(
                 problem, pattern, x, lam_ls[:m], rho, shift, indefinite=indefinite
             )
             if factor is None:
@@ -319,7 +318,7 @@ def _clamp_predictor(
     was not taken) and the factorisation (None when none was made). The next iterations
     reuse it, also after a refused step: conjugate gradients preconditioned by it either
     solve the start's Newton step or meet negative curvature along a direction that
-    spares the factorisations bound to fail (:func:`_factor_lagrangian_hessian`).
+    spares the factorisations bound to fail (:func:`factor_positive_model`).
 
     ``benchmarks/bench_relax.py`` (N = 1024 / 1e4, one clamp at strains 0.05-2, stress-free
     and random rest lengths, and two clamps of k in U(0.5, 50)): iterations 3-18 -> 2-12.
@@ -332,7 +331,7 @@ def _clamp_predictor(
     A = problem.clamp_jacobian(x, coords, dense=dense_jacobian)
     lam = clamp_tensions(A, grad, problem.scale[coords])
     factor = factor_pd(
-        _assemble(pattern, lagrangian_blocks(problem, x, lam, rho)),
+        assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho)),
         ordered=pattern.ordered,
         rough=True,
     )
@@ -388,152 +387,3 @@ def _kkt_step(
     if not m:
         return -np.asarray(solver.solve(grad)), np.empty(0)
     return range_space_solve(solver, A, -grad, -viol)[1]
-
-
-def _assemble(pattern: HessianPattern, blocks: NDArray) -> sp.csr_matrix | NDArray:
-    """Dense below ``DENSE_MAX`` coordinates (no sparse overhead), CSR above."""
-    if pattern.size <= DENSE_MAX:
-        return pattern.assemble_dense(blocks)
-    return pattern.assemble(blocks)
-
-
-def _factor_lagrangian_hessian(
-    problem: Problem,
-    pattern: HessianPattern,
-    x: NDArray,
-    lam: NDArray,
-    rho: float,
-    shift: float,
-    *,
-    indefinite: tuple[float, NDArray] | None = None,
-) -> tuple[Factor | None, float, float, bool, sp.csr_matrix | NDArray | None]:
-    """Factorise a positive-definite Hessian model: exact if possible, else shifted.
-
-    Order: the exact Hessian (when ``shift`` is 0), also with a larger augmentation ``rho``
-    when there are clamps (at a stable constrained minimum a large enough ``rho`` makes it
-    positive definite, Finsler's lemma, and the step does not depend on ``rho``; that second
-    factorisation is skipped when a direction of negative curvature read off the first,
-    :func:`~.kkt.factor_spd_or_curvature`, stays negative under the larger ``rho``); then the
-    exact Hessian plus a Levenberg-Marquardt shift ``mu diag(W)`` that starts at the ``mu``
-    passed in (at least 1e-6; after a failed exact factorisation at least
-    :func:`_shift_estimate`) and grows (100-fold from ``DAMP_MIN``, 10-fold from an estimate
-    or from a shift carried over from the last iterations) until the
-    factorisation is positive definite. Clipping each spring's negative tangential curvature
-    instead crept for hundreds of iterations on the paper's network under strain
-    continuation.
-
-    ``indefinite``: ``(s, d)`` when conjugate gradients met negative curvature along
-    ``d`` (n,) on ``W + s D`` (``A d = 0``); ``s`` replaces ``shift``. No factorisation
-    bound to fail is made: the ladder starts one rung above ``s``, or at the estimate from ``d``; at
-    ``s = 0`` the exact Hessian is not factorised, nor with a larger ``rho``
-    (``rho A^T A`` adds nothing along ``d``). At 1e5 nodes, strain 2 (bench_relax) that
-    skipped 3.8 s of 9.4 s in the first indefinite iteration.
-
-    Returns ``(factor, rho, shift, exact_used, model)``, ``model`` the matrix factorised.
-    The exact Hessian is used whenever it is positive definite, so the last iterations are
-    pure Newton steps.
-    """
-    W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
-    directions = None
-    if indefinite is not None:  # the shift CG failed at, and its direction
-        shift, directions = indefinite[0], indefinite[1][:, None]
-    if shift == 0.0:
-        if directions is None:
-            factor, directions = _factor_or_curvature(W, pattern)
-            if factor is not None:
-                return factor, rho, 0.0, True, W
-        if lam.size:
-            d = np.maximum(problem.net.lengths(x, problem.clamp_springs), 1e-300)
-            new_rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
-            # rho A^T A adds (new_rho - rho) |A v|^2 to the curvature along v: if a known
-            # negative direction stays negative, factorising again cannot succeed (the larger
-            # rho is kept: it helps later reuse of the factorisation)
-            futile = directions is not None and _still_negative(
-                W, directions, problem, x, pattern, new_rho - rho
-            )
-            rho = new_rho
-            W = _assemble(pattern, lagrangian_blocks(problem, x, lam, rho))
-            factor = None if futile else factor_pd(W, ordered=pattern.ordered, rough=True)
-            if factor is not None:
-                return factor, rho, 0.0, True, W
-    # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
-    # not freeze soft springs (stiffness ratios up to 1e12 are supported). Without a known
-    # direction of negative curvature the shift grows by 100s from DAMP_MIN; with one, from
-    # the estimate of _shift_estimate by 10s; from a shift carried over (a decayed one) by
-    # 10s too: by 100s it climbed back over the shift needed and crawled (42 lattices of
-    # 576-1024 nodes at strains -0.5..8: 560 -> 487 iterations, the same equilibria)
-    scaling = _marquardt_scaling(W)
-    shift = max(shift, DAMP_MIN)
-    growth = 10.0 if shift > DAMP_MIN else 100.0
-    if indefinite is not None and indefinite[0] > 0.0:
-        shift *= growth
-    if directions is not None:
-        estimate = _shift_estimate(W, directions, scaling.diagonal())
-        if estimate > shift:
-            shift, growth = estimate, 10.0
-    while shift <= 1e8:
-        model = W + shift * scaling
-        factor = factor_pd(model, ordered=pattern.ordered, rough=True)
-        if factor is not None:
-            return factor, rho, shift, False, model
-        shift *= growth
-    return None, rho, shift, False, None
-
-
-def _marquardt_scaling(W: sp.spmatrix | NDArray) -> sp.spmatrix | NDArray:
-    """``diag(|W_ii|)`` (zeros replaced by the largest entry, or 1), the Levenberg-Marquardt
-    shift's metric."""
-    diag = np.abs(W.diagonal())  # ndarray and sparse alike
-    scale = np.where(diag > 0, diag, max(float(diag.max(initial=0.0)), 1.0))
-    return np.diag(scale) if isinstance(W, np.ndarray) else sp.diags(scale)
-
-
-def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDArray | None]:
-    """``factor_pd`` of ``W``, with directions of negative curvature when it fails (sparse).
-
-    The directions come from SuperLU in nested-dissection order also where the rows are in
-    band order (``pattern.nested_rows``, :func:`~.lagrangian.pattern_for`): which negative
-    pivots it finds depends on the order, and the shift estimated from them steers the
-    iterations.
-    """
-    if isinstance(W, np.ndarray):
-        return factor_pd(W, ordered=pattern.ordered), None
-    rows = getattr(pattern, "nested_rows", None)
-    if rows is None:
-        return factor_spd_or_curvature(W, ordered=pattern.ordered, rough=True)
-    factor = factor_pd(W, ordered=True, rough=True)
-    if factor is not None:
-        return factor, None
-    _, nested = factor_spd_or_curvature(W[rows][:, rows], ordered=True)
-    if nested is None:
-        return None, None
-    directions = np.empty_like(nested)
-    directions[rows] = nested
-    return None, directions
-
-
-def _shift_estimate(W: sp.spmatrix, directions: NDArray, scale: NDArray) -> float:
-    """A first Levenberg-Marquardt shift from directions ``v`` (n, k) of negative curvature:
-    twice the largest ``-v^T W v / (v^T diag(scale) v)``, the shift that would just cancel
-    ``v``'s negative curvature in the shift's metric.
-
-    A heuristic start, not a bound: too small, the ladder grows it; too large, it damps the
-    step more than needed. It replaced ``-v^T W v / (scale_j v_j^2)`` (``j`` the largest
-    entry of ``v``), which for a direction spread over many nodes asked for a shift 100x
-    too large: on a prestressed 17 x 17 lattice (``bench_family.py --medium --seed 1``,
-    network 41) the shift jumped 5e-6 -> 5e-4 after each decay, and Newton crept at a
-    saddle past 2000 iterations. Against the ladder from ``DAMP_MIN`` by 100s, the old
-    estimate had cut factorisations on the random-rest lattices of ``bench_relax.py`` (N = 1e3 at
-    strains 1-8, seeds 0-2) from 144 to 122.
-    """
-    curv = np.einsum("ij,ij->j", directions, W @ directions)
-    quad = np.einsum("ij,ij->j", directions, scale[:, None] * directions)
-    return 2.0 * float(np.max(-curv / np.maximum(quad, 1e-300)))
-
-
-def _still_negative(W, directions, problem, x, pattern, extra_rho) -> bool:
-    """True when some direction keeps negative curvature after adding ``extra_rho A^T A``."""
-    A = problem.clamp_jacobian(x, pattern.coords, dense=False)
-    curv = np.einsum("ij,ij->j", directions, W @ directions)
-    Av = A @ directions
-    return bool(np.any(curv + extra_rho * np.einsum("ij,ij->j", Av, Av) < 0))
