@@ -103,3 +103,19 @@ def test_the_sparse_newton_bends_clamps_started_in_a_line():
     off_line = abs(u * q - v * p) / np.hypot(u, v)
     assert eq.converged and off_line > 0.1  # 1.05 + 1.05 over a distance of 2
     assert np.allclose(net.lengths(x)[[i, j]], 1.05, rtol=1e-9)
+
+
+@pytest.mark.parametrize("clamp", ["exact", "rod"])
+def test_clamps_too_short_for_the_pins_are_named(clamp):
+    """Three collinear springs of a 16 x 19 lattice (the sparse Newton) clamped to 0.7
+    each between pinned nodes 3 apart cannot be met. The errors were 'Hessian could not be
+    made positive definite' (exact) and 'did not reach the requested residual' at a
+    residual of 4e-16 (rods); both now say the clamps are far from their lengths, and why
+    that can be."""
+    from continuum_vs_network.network.builders import triangular_lattice
+
+    net = triangular_lattice(16, 19)
+    chain = [int(j) for j in np.flatnonzero(np.isin(net.springs, [80, 81, 82, 83]).all(axis=1))]
+    assert net.springs[chain].tolist() == [[80, 81], [81, 82], [82, 83]]
+    with pytest.raises(cvn.EquilibriumError, match="clamps are far from their lengths"):
+        cvn.relax(net, pinned=[80, 83], clamped=dict.fromkeys(chain, 0.7), clamp=clamp)

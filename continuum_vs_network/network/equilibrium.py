@@ -433,6 +433,13 @@ def _finish(
                 "pinned nodes, their lengths adding up to the distance); rods "
                 "(clamp='rod') stretch instead"
             )
+        elif clamp_relative > 1e-3 and "cannot all be met" not in reason:
+            reason += (
+                f"; the clamps are far from their lengths (relative error {clamp_relative:.1e}): "
+                "they may not all be reachable together, or with the pins (e.g. clamped "
+                "springs between pinned nodes whose lengths add up to less than the pins' "
+                "distance)"
+            )
         elif outcome.stalled and stop.tol < relative <= 10.0 * (
             floor := roundoff_floor(problem, x)
         ):  # 10x: the solver's own iterates carry several rounding units
