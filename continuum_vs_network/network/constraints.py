@@ -237,18 +237,18 @@ class Problem:
 
     def as_exact(self) -> Problem:
         """The same problem with its clamps exact instead of rods."""
-        new = self._sibling(self.free, self.clamp_lengths)
-        object.__setattr__(new, "clamp", "exact")
-        return new
+        return self._sibling(self.free, self.clamp_lengths, clamp="exact")
 
-    def _sibling(self, free: NDArray, lengths: NDArray) -> Problem:
-        """A copy with ``free`` and clamp ``lengths`` replaced that reuses the coordinate
-        scale (it depends on the network only): no ``__post_init__`` again."""
+    def _sibling(self, free: NDArray, lengths: NDArray, clamp: ClampMode | None = None) -> Problem:
+        """A copy with ``free``, clamp ``lengths`` (and the ``clamp`` mode) replaced that
+        reuses the coordinate scale (it depends on the network only): no
+        ``__post_init__`` again."""
         new = object.__new__(Problem)
         free_flat = self.free_flat if free is self.free else np.flatnonzero(free.ravel())
+        clamp = self.clamp if clamp is None else clamp
         fields = {
             "net": self.net, "free": free, "clamp_springs": self.clamp_springs,
-            "clamp_lengths": lengths, "clamp": self.clamp, "rod_stiffness": self.rod_stiffness,
+            "clamp_lengths": lengths, "clamp": clamp, "rod_stiffness": self.rod_stiffness,
             "free_flat": free_flat, "scale": self.scale,
         }  # fmt: skip
         for name, value in fields.items():
@@ -285,6 +285,12 @@ class Problem:
         return cls(net, free, idx, length, clamp, float(rod_stiffness))
 
     # -- the energy that is minimised -----------------------------------------------
+    @property
+    def mean_rest_length(self) -> float:
+        """The network's mean rest length (the length unit of nudges and move bounds)."""
+        net = self.net
+        return float(np.add.reduce(net.rest_length)) / net.n_springs
+
     @property
     def n_clamps(self) -> int:
         return int(self.clamp_springs.size)
@@ -435,8 +441,7 @@ class Problem:
         ends = net.springs[self.clamp_springs].ravel()
         move = np.zeros_like(x)
         move[ends] = np.random.default_rng(0).uniform(-1.0, 1.0, (ends.size, 2))
-        length = float(np.add.reduce(net.rest_length)) / net.n_springs
-        return x + 1e-6 * length * move * self.free
+        return x + 1e-6 * self.mean_rest_length * move * self.free
 
     # -- counting ---------------------------------------------------------------------
     def maxwell_zero_modes(self) -> int:

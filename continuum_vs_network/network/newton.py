@@ -146,8 +146,8 @@ def newton(
     rho = rho_base = float(np.max(k)) if m else 0.0
     shift = 0.0
     exact_ok = True
-    certifying = certified = False  # see _CERTIFY_MOVE
-    mean_rest = float(np.add.reduce(net.rest_length)) / net.n_springs
+    certified = False  # see _CERTIFY_MOVE
+    mean_rest = problem.mean_rest_length
     # a few clamps: a dense Jacobian, whose products cost less than scipy.sparse's overhead
     dense_jacobian = dense_jacobian_pays(problem.n_clamps, pattern.size)
     x = np.array(x, dtype=np.float64)

@@ -132,7 +132,7 @@ def _setup(problem: Problem) -> tuple:
     kappa = kappa if coords.size == 2 * net.n_nodes else kappa[coords]
     inv_root = 1.0 / np.sqrt(kappa)
     inv_root.setflags(write=False)
-    mean_rest = float(np.add.reduce(net.rest_length)) / net.n_springs
+    mean_rest = problem.mean_rest_length
     hit = per[key] = (
         frame, stiff, inv_root, mean_rest, median(kappa), float(np.add.reduce(kappa))
     )  # fmt: skip
