@@ -110,12 +110,37 @@ def test_clamps_too_short_for_the_pins_are_named(clamp):
     """Three collinear springs of a 16 x 19 lattice (the sparse Newton) clamped to 0.7
     each between pinned nodes 3 apart cannot be met. The errors were 'Hessian could not be
     made positive definite' (exact) and 'did not reach the requested residual' at a
-    residual of 4e-16 (rods); both now say the clamps are far from their lengths, and why
-    that can be."""
+    residual of 4e-16 (rods). Exact clamps are now refused before the solve, naming the
+    chain; rods (which stretch, so no chain is impossible for them) fail saying the clamps
+    are far from their lengths, and why that can be."""
     from continuum_vs_network.network.builders import triangular_lattice
 
     net = triangular_lattice(16, 19)
     chain = [int(j) for j in np.flatnonzero(np.isin(net.springs, [80, 81, 82, 83]).all(axis=1))]
     assert net.springs[chain].tolist() == [[80, 81], [81, 82], [82, 83]]
-    with pytest.raises(cvn.EquilibriumError, match="clamps are far from their lengths"):
+    if clamp == "exact":
+        error, match = ValueError, r"nodes 80 and 83 are pinned 3 apart, .* springs \[230, 233"
+    else:
+        error, match = cvn.EquilibriumError, "clamps are far from their lengths"
+    with pytest.raises(error, match=match):
         cvn.relax(net, pinned=[80, 83], clamped=dict.fromkeys(chain, 0.7), clamp=clamp)
+    # long enough to span the pins: relaxed
+    assert cvn.relax(net, pinned=[80, 83], clamped=dict.fromkeys(chain, 1.2)).converged
+
+
+def test_a_clamp_longer_than_a_chain_through_pinned_nodes_is_refused():
+    """Nodes 0 and 1 pinned 1 apart, springs 0-2 and 1-3 clamped to 1: nodes 2 and 3 are at
+    most 3 apart, so clamping spring 2-3 to 4 is refused before the solve, naming the chain
+    (a clamp, the pinned pair, a clamp); clamped to 2.9 it is relaxed."""
+    net = cvn.SpringNetwork(
+        [[0, 0], [1, 0], [0, 1], [1, 1]],
+        [[0, 1], [0, 2], [1, 3], [2, 3], [0, 3]],
+        [1.0] * 5,
+        [1.0, 1.0, 1.0, 1.0, 1.4],
+    )
+    match = r"spring 3 is clamped to 4, .* springs \[1, 2\] and pinned node pairs \[\(0, 1\)\]"
+    with pytest.raises(ValueError, match=match):
+        cvn.relax(net, pinned=[0, 1], clamped={1: 1.0, 2: 1.0, 3: 4.0})
+    eq = cvn.relax(net, pinned=[0, 1], clamped={1: 1.0, 2: 1.0, 3: 2.9})
+    assert eq.converged
+    assert np.linalg.norm(eq.positions[3] - eq.positions[2]) == pytest.approx(2.9, rel=1e-9)

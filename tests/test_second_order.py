@@ -122,15 +122,26 @@ def test_rigid_networks_pass_the_rank_check_even_when_started_collinear():
 
 
 def test_incompatible_clamps_fail_with_a_clear_reason():
-    """A triangle clamped to sides 1, 1, 3 cannot exist: a clear failure, not a creep."""
+    """A triangle clamped to sides 1, 1, 3 cannot exist: refused before the solve, naming
+    the chain (it was a failed projection after the setup). Four nodes with all six
+    distances clamped to 1 pass that check (a regular tetrahedron exists) but not the plane:
+    a clear failure, not a creep."""
     net = cvn.SpringNetwork(
         [[0, 0], [1, 0], [0.5, 0.8], [1.5, 0.8]],
         [[0, 1], [1, 2], [2, 0], [1, 3], [2, 3]],
         [1.0] * 5,
         [1.0] * 5,
     )
-    with pytest.raises(cvn.EquilibriumError, match="clamp lengths cannot all be met"):
+    with pytest.raises(ValueError, match=r"spring 2 is clamped to 3, .* springs \[1, 0\]"):
         cvn.relax(net, pinned=(0,), clamped={0: 1.0, 1: 1.0, 2: 3.0})
+    four = cvn.SpringNetwork(
+        [[0, 0], [1, 0], [0.5, 0.8], [0.5, 0.3], [1.5, 0.8]],
+        [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3], [1, 4], [2, 4]],
+        [1.0] * 8,
+        [1.0] * 8,
+    )
+    with pytest.raises(cvn.EquilibriumError, match="clamp lengths cannot all be met"):
+        cvn.relax(four, pinned=(0,), clamped=dict.fromkeys(range(6), 1.0))
 
 
 @pytest.mark.parametrize("method", ["newton", "lbfgs", "fire"])

@@ -30,6 +30,7 @@ from .escapes import DEFAULT_TOL, Method, second_order, unfold
 from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
 from .newton import newton
+from .reachable import refuse_unreachable_clamps
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX
 
@@ -221,7 +222,7 @@ def relax(
         tol, max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]), max_seconds=max_seconds
     )
     x = _start(problem, x0)
-    _refuse_pinned_clamps(problem, x)
+    refuse_unreachable_clamps(problem, x)
     collapsed = collapsed_springs(problem, x)
     if collapsed.size:  # coincident nodes: no force direction, unfolded before any solve
         x = unfold(problem, x, collapsed, 0)
@@ -355,24 +356,6 @@ def _pin_reaction(problem: Problem, x: NDArray, force: NDArray | None = None) ->
     if force is None:
         force, _ = problem.unbalanced_force(x, np.arange(problem.free.size))
     return float(np.max(np.abs(force[pinned]) / problem.scale[pinned]))
-
-
-def _refuse_pinned_clamps(problem: Problem, x: NDArray) -> None:
-    """A clamp no move can meet: both ends of its spring pinned at another distance
-    (a rod there would only carry the pins' force, which no free coordinate measures)."""
-    if not problem.n_clamps:
-        return
-    ends = problem.net.springs[problem.clamp_springs]
-    held = ~problem.free[ends].any(axis=(1, 2))  # (m,): both end nodes fully pinned
-    r = np.linalg.norm(x[ends[:, 1]] - x[ends[:, 0]], axis=1)
-    wrong = held & (np.abs(r - problem.clamp_lengths) > 1e-12 * problem.clamp_lengths)
-    if wrong.any():
-        c = int(np.argmax(wrong))
-        raise ValueError(
-            f"clamped: spring {int(problem.clamp_springs[c])} has both end nodes pinned, "
-            f"{r[c]:.6g} apart, so its clamp length {problem.clamp_lengths[c]:.6g} cannot "
-            "be met; clamp it to that distance, or leave an end free"
-        )
 
 
 def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:

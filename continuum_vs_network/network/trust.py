@@ -235,8 +235,9 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             0,
             False,
             "the clamp lengths cannot all be met (the projection onto them does not converge): "
-            f"clamps on springs {problem.clamp_springs.tolist()} are incompatible, e.g. a "
-            "triangle of clamped springs that violates the triangle inequality",
+            f"clamps on springs {problem.clamp_springs.tolist()} are incompatible in the "
+            "plane, e.g. all six distances among four nodes clamped (chains shorter than a "
+            "clamp or a pinned distance are refused before the solve)",
         )
     rigid = not problem.free_flat.size < problem.free.size  # nothing pinned
     rigid_basis = RigidBasis(x, inv_root, mean_rest) if rigid and not m else None
