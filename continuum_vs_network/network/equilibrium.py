@@ -417,11 +417,18 @@ def _finish(
                 "(clamp='rod') stretch instead"
             )
         elif clamp_relative > 1e-3 and "cannot all be met" not in reason:
+            # exact clamps that no chain forbids passed refuse_unreachable_clamps: only the
+            # plane can forbid them; rods stretch, and are not checked there
+            why = (
+                "no chain of clamps or pins forbids them, so either the solve has not got "
+                "there or they cannot all be met in the plane"
+                if problem.clamp == "exact"
+                else "they may not all be reachable together, or with the pins (e.g. rods "
+                "between pinned nodes whose lengths add up to less than the pins' distance)"
+            )
             reason += (
                 f"; the clamps are far from their lengths (relative error {clamp_relative:.1e}): "
-                "they may not all be reachable together, or with the pins (e.g. clamped "
-                "springs between pinned nodes whose lengths add up to less than the pins' "
-                "distance)"
+                + why
             )
         elif outcome.stalled and stop.tol < relative <= 10.0 * (
             floor := roundoff_floor(problem, x)
