@@ -10,7 +10,7 @@ import pytest
 
 import continuum_vs_network as cvn
 from continuum_vs_network.network.checks import lowest_curvature, roundoff_floor
-from continuum_vs_network.network.constraints import Problem, clamp_tensions
+from continuum_vs_network.network.constraints import Problem, clamp_tensions, default_pins
 from continuum_vs_network.network.line_search import curvature_search, merit_change
 
 DATA = Path(__file__).parent / "data"
@@ -177,3 +177,23 @@ def test_a_patch_whose_last_steps_are_at_energy_round_off_converges():
     eq = cvn.relax(net, clamped=clamped)
     assert eq.converged and eq.relative_residual <= 1e-10
     assert eq.iterations <= 40
+
+
+def test_a_solve_wandering_at_the_round_off_floor_stops_and_says_so():
+    """A 15 x 15 lattice, k over 10 decades, prestressed, 1e3 from the origin, tol 1e-14
+    (its round-off floor is 3.8e-13): Newton's steps there, accepted when the residual
+    halved by chance, kept it wandering between 4e-12 and 1e-7 to the 2000-iteration cap,
+    reported as 'no convergence'. No halving of the best residual in 50 iterations at
+    10x the floor now stops it, stalled, and the error names the cause."""
+    from continuum_vs_network.network.builders import triangular_lattice
+
+    rng = np.random.default_rng(4)
+    net = triangular_lattice(15, 15, noise=0.1, rng=rng)
+    net = net.with_stiffness(10 ** rng.uniform(-5, 5, net.n_springs))
+    net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
+    with pytest.raises(cvn.EquilibriumError, match="below float64's reach") as err:
+        cvn.relax(net, x0=net.positions + 1e3, tol=1e-14)
+    state = err.value.state
+    assert state.iterations < 2000
+    problem = Problem.build(net, pinned=default_pins(net))
+    assert 1e-14 < state.relative_residual <= 10 * roundoff_floor(problem, state.positions)
