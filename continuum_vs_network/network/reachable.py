@@ -15,7 +15,9 @@ The check is necessary, not sufficient (a 2D embedding needs more), and it refus
 clear violations (by more than ``1e-9`` relative): clamp lengths that add up exactly are
 degenerate, not impossible, and the solvers name them so. Rods (``clamp="rod"``) stretch,
 so for them only the single spring between two pins is refused: a rod there carries only
-the pins' force, which no free coordinate measures.
+the pins' force, which no free coordinate measures. The chain check runs only where a chain
+can exist (a node shared by two clamps, or two pinned clamp ends: 20 us otherwise) and up
+to ``_CHAIN_NODES_MAX`` clamp end nodes (its pinned pairs grow as their square).
 """
 
 from __future__ import annotations
