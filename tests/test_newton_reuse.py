@@ -230,7 +230,7 @@ def test_a_start_that_needs_a_shift_ends_certified_by_the_loops_own_factorisatio
     assert lowest_curvature(problem, outcome.x) >= 0.0  # the independent check agrees
 
 
-@pytest.mark.parametrize(("clamps", "seed"), [(1, 1), (1, 2), (2, 0), (2, 2)])
+@pytest.mark.parametrize(("clamps", "seed"), [(1, 1), (1, 2), (2, 0), (2, 4)])
 def test_no_factorisation_is_tried_that_a_known_direction_proves_indefinite(
     clamps, seed, monkeypatch
 ):
@@ -292,7 +292,7 @@ def test_no_factorisation_is_tried_that_a_known_direction_proves_indefinite(
     assert min(curvatures) > 0.0
 
 
-@pytest.mark.parametrize(("side", "strain"), [(64, 1.0), (100, 2.0)])
+@pytest.mark.parametrize(("side", "strain"), [(50, 1.0), (64, 1.0)])
 def test_the_end_game_makes_one_factorisation(side, strain, monkeypatch):
     """Below ``_FRESH_NEAR tol`` a fresh factorisation is made only when its step is
     expected to move little enough to certify the minimum (``_CERTIFY_MOVE``). On

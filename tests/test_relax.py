@@ -146,7 +146,7 @@ def test_placement_on_default_pins_undoes_a_rigid_motion():
     (to round-off): the fully pinned node at its start, the other pinned coordinate at its
     start value, every other node where it began."""
     from continuum_vs_network.network.builders import paper_network
-    from continuum_vs_network.network.equilibrium import _place
+    from continuum_vs_network.network.placement import place_on_pins
 
     net = paper_network(np.random.default_rng(3))
     start = net.positions
@@ -154,9 +154,47 @@ def test_placement_on_default_pins_undoes_a_rigid_motion():
     for turn in (0.3, 2.5, -1.9):
         rot = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
         moved = start @ rot.T + np.array([4.0, -7.0])
-        placed = _place(moved, start, free)
+        placed = place_on_pins(moved, start, free)
         assert np.allclose(placed, start, rtol=0, atol=1e-12 * np.abs(start).max())
         assert np.array_equal(placed[~free], start[~free])
+
+
+def test_a_network_shrinking_to_half_its_size_is_relaxed_in_one_solve(monkeypatch):
+    """A 16 x 16 lattice (512 coordinates: the sparse Newton, under default pins) whose
+    rest lengths are half its springs' lengths relaxes to the start shrunk by 1/2, turned
+    and shifted: zero energy. Pinned in x and y, the far default pin's offset from the
+    first along its pinned coordinate (0.7 of the lever) outlasted the shrinking lever and
+    held it as a strut: 12 iterations to a loaded equilibrium, then 5 more with new pins.
+    Solved in the lever's frame (placement.lever_frame) it is one solve of 2 iterations."""
+    from continuum_vs_network.network import equilibrium
+    from continuum_vs_network.network.builders import triangular_lattice
+    from continuum_vs_network.network.constraints import Problem
+    from continuum_vs_network.network.placement import lever_frame
+
+    net = triangular_lattice(16, 16, noise=0.1, rng=np.random.default_rng(0))
+    net = net.with_rest_length(0.5 * net.rest_length)
+    solves = []
+    newton = equilibrium.METHODS["newton"]
+
+    def counted(*args, **kwargs):
+        outcome = newton(*args, **kwargs)
+        solves.append(outcome.iterations)
+        return outcome
+
+    monkeypatch.setitem(equilibrium.METHODS, "newton", counted)
+    eq = cvn.relax(net)
+    assert eq.converged and len(solves) == 1 and eq.iterations <= 5, solves
+    shrunk = net.lengths(eq.positions)
+    np.testing.assert_allclose(shrunk, 0.5 * net.lengths(), rtol=1e-9)
+    # the frame puts the far pin on the x axis through the first, which it makes 0
+    problem = Problem.build(net)
+    solved, frame = lever_frame(problem, net.positions)
+    pinned = ~solved.free
+    a = int(np.flatnonzero(pinned.all(axis=1))[0])
+    b = int(np.flatnonzero(pinned[:, 1] & ~pinned[:, 0])[0])
+    inside = frame.into(net.positions)
+    assert np.array_equal(inside[a], [0.0, 0.0]) and abs(inside[b, 1]) < 1e-12
+    np.testing.assert_allclose(frame.back(inside), net.positions, rtol=0, atol=1e-13)
 
 
 def test_derived_problems_keep_the_coordinate_scale_of_a_fresh_one():

@@ -9,7 +9,6 @@ length.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
@@ -30,6 +29,7 @@ from .escapes import DEFAULT_TOL, Method, second_order, unfold
 from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
 from .newton import newton
+from .placement import lever_frame, place_on_pins
 from .reachable import refuse_unreachable_clamps
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX
@@ -235,10 +235,16 @@ def relax(
     known = None  # (problem, x, its Residual): computed once, reused by _finish
     # Default pins only remove rigid motion. The dense trust-region Newton removes it
     # itself when nothing is pinned (a pin pair whose lever shortens in a large deformation
-    # leaves a nearly free rotation that it would otherwise creep along); the result is
-    # then placed rigidly on the default pins.
+    # leaves a nearly free rotation that it would otherwise creep along); other solves run
+    # in the pins' lever frame (placement.lever_frame: a shrinking network cannot turn
+    # the pins into a strut). Either result is then placed rigidly on the default pins.
     floating = pinned is None and method == "newton" and problem.free.size <= TR_DENSE_MAX
-    solved = problem.with_free(np.ones_like(problem.free)) if floating else problem
+    solved, frame = problem, None
+    if floating:
+        solved = problem.with_free(np.ones_like(problem.free))
+    elif pinned is None and (turned := lever_frame(problem, x)) is not None:
+        solved, frame = turned
+        outcome = Outcome(frame.into(x), 0, True)
     for step in range(1, int(ramp) + 1):
         frac = step / ramp
         lengths = start_lengths + frac * (problem.clamp_lengths - start_lengths)
@@ -248,15 +254,18 @@ def relax(
         iterations += outcome.iterations
         if not outcome.converged:
             break
-    if floating:  # second order judged without pins (rigid motions removed), then placed
+    checked = None  # an outcome already judged to second order (placed rigidly since)
+    if solved is not problem:  # second order judged in the solve's frame, then placed
         outcome, extra = second_order(solved, outcome, solve, stop, trace, iterations)
         iterations += extra
-    checked = None  # an outcome already judged to second order (placed rigidly since)
-    if floating and outcome.converged:
-        placed_x = _place(outcome.x, x, problem.free)
-        outcome = checked = Outcome(placed_x, outcome.iterations, True, certified=True)
-        placed, reaction = _residual_and_reaction(problem, placed_x)
-        known = (problem, placed_x, placed)
+        back = frame.back(outcome.x) if frame is not None else outcome.x
+        if np.isfinite(back).all():
+            back = place_on_pins(back, x, problem.free)
+        outcome = replace(outcome, x=back)
+    if solved is not problem and outcome.converged:
+        outcome = checked = replace(outcome, certified=True)
+        placed, reaction = _residual_and_reaction(problem, outcome.x)
+        known = (problem, outcome.x, placed)
         if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
             trace.base = iterations
             outcome = replace(solve(problem, outcome.x, stop, trace), certified=True)
@@ -283,43 +292,6 @@ def relax(
         outcome, extra = second_order(problem, outcome, solve, stop, trace, iterations)
     res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
     return _finish(problem, outcome, iterations + extra, method, stop, trace, res)
-
-
-def _place(x: NDArray, start: NDArray, free: NDArray) -> NDArray:
-    """``x`` (n_nodes, 2) moved rigidly onto the pins of ``free`` (one node fully, one
-    coordinate of another, as :func:`~.constraints.default_pins` gives) at ``start``.
-
-    The fully pinned node goes to its start position; the network is turned about it so
-    that the other pinned coordinate keeps its start value (of the two such turns, the one
-    closer to the start's orientation), or, when the network has shrunk too much for that,
-    so that the pair has its start orientation.
-    """
-    pins = np.flatnonzero(~free.ravel()).tolist()  # scalars: math, not numpy (~1 ms relax)
-    nodes = [p // 2 for p in pins]
-    full = [i for i in dict.fromkeys(nodes) if nodes.count(i) == 2]
-    part = [p for p in pins if nodes.count(p // 2) == 1]
-    if not full:
-        return x
-    a = full[0]
-    start_a = start[a]
-    y = x - x[a] + start_a
-    if not part:
-        return y
-    b, c = divmod(part[0], 2)
-    (dx, dy), (d0x, d0y) = (y[b] - y[a]).tolist(), (start[b] - start_a).tolist()
-    r = math.hypot(dx, dy)
-    want = math.atan2(d0y, d0x)
-    t = (d0x, d0y)[c] / max(r, 1e-300)
-    if abs(t) <= 1.0:
-        base = math.asin(t) if c == 1 else math.acos(t)
-        options = (base, math.pi - base) if c == 1 else (base, -base)
-        want = min(options, key=lambda o: abs(math.remainder(o - want, 2 * math.pi)))
-    turn = want - math.atan2(dy, dx)
-    cos, sin = math.cos(turn), math.sin(turn)
-    y = (y - y[a]) @ np.array([[cos, sin], [-sin, cos]]) + start_a
-    y[b, c] = start[b, c] if abs(t) <= 1.0 else y[b, c]  # exact, not to round-off
-    y[a] = start_a
-    return y
 
 
 def _residual_and_reaction(problem: Problem, x: NDArray) -> tuple[Residual, float]:

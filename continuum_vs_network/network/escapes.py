@@ -5,6 +5,7 @@ which have no force direction, are unfolded (:func:`unfold`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -98,15 +99,25 @@ def second_order(
 
 def unfold(problem: Problem, x: NDArray, collapsed: NDArray, turn: int) -> NDArray:
     """``x`` (n_nodes, 2) with each ``collapsed`` spring's second node (its first where the
-    second is pinned) moved by 1e-3 of its rest length, the i-th in the direction at
-    ``i + turn`` golden angles from the x axis: a zero-length spring has no force
-    direction."""
+    second is pinned) moved by 1e-3 of its rest length: a zero-length spring has no force
+    direction. The i-th moves across the first other spring of nonzero length at its node
+    (along the x axis where there is none), turned by ``i + turn`` golden angles: a
+    collapse on a line of springs (a clamped triangle started collinear) is left off that
+    line, which relaxing would not leave, in any frame."""
     y = np.array(x, dtype=np.float64, copy=True)
-    angle = 2.399963229728653 * (np.arange(collapsed.size) + turn)
-    a, b = problem.net.springs[collapsed].T
-    move = 1e-3 * problem.net.rest_length[collapsed, None]
+    net, free = problem.net, problem.free
+    a, b = net.springs[collapsed].T
+    moved = np.where(free[b].any(axis=1), b, a)
+    base = np.zeros(collapsed.size)
+    for i, (c, m) in enumerate(zip(collapsed.tolist(), moved.tolist(), strict=True)):
+        for j in np.flatnonzero((net.springs == m).any(axis=1)).tolist():
+            d = x[net.springs[j].sum() - m] - x[m]
+            if j != c and math.hypot(*d) > 1e-9 * float(net.rest_length[j]):
+                base[i] = math.atan2(d[1], d[0]) + 0.5 * math.pi
+                break
+    angle = base + 2.399963229728653 * (np.arange(collapsed.size) + turn)
+    move = 1e-3 * net.rest_length[collapsed, None]
     move = move * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-    free = problem.free
     np.add.at(y, b, move * free[b])
     np.add.at(y, a, -move * (free[a] & ~free[b]))
     return y
