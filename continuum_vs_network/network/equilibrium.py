@@ -148,9 +148,11 @@ def relax(
     pinned : sequence of node indices, (n_nodes, 2) bool mask, or None
         Coordinates held at their values in ``x0``. None pins one node fully and one
         coordinate of a far node, chosen away from the clamped springs; they only remove
-        rigid motion (Newton on up to ``TR_DENSE_MAX`` coordinates removes it itself and
-        places the result on them: the node in place, the coordinate kept, or, when the
-        network shrank below that offset, the pair's start orientation).
+        rigid motion: Newton on up to ``TR_DENSE_MAX`` coordinates removes it itself, other
+        solves hold the far node on the line through the first in their start direction
+        (:func:`~.placement.lever_frame`); the result is placed on the pins: the node in
+        place, the coordinate kept, or, when the network shrank below that offset, the
+        pair's start orientation.
     clamped : {spring_index: length}, optional
         Springs held at a length (Eq. 25).
     x0 : (n_nodes, 2) float array, optional
