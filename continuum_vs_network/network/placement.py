@@ -14,9 +14,10 @@ so that the lever is the x axis, ``b``'s y pinned. ``b`` then stays on the line 
 ``a`` in the lever's start direction, free to approach ``a`` until they meet.
 :func:`place_on_pins` moves the result rigidly back onto the default pins. The frame's
 origin is ``a``'s start, so the solve also works in coordinates of the network's size,
-whose round-off is that of the network, not of its distance from 0 (a 15 x 15 lattice
-1e3 from 0, tol 1e-14: converged in the frame in 149 iterations where the pinned solve
-wandered at the round-off floor for 993).
+whose round-off is that of the network, not of its distance from 0: a 15 x 15 lattice
+1e3 from 0 at tol 1e-14 converges in the frame in 149 iterations, and 28 more find that
+1e3 from 0 the tol is below float64's reach, where the pinned solve wandered at that
+round-off floor for 1221 before saying so.
 
 On ``bench_family.py --medium`` (60 networks, seeds 1 and 2) this took the strongly
 prestressed half from a median of 262.5 / 228 iterations to 227.5 / 195 (p95 353 / 405 to
