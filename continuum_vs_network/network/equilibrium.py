@@ -264,15 +264,15 @@ def relax(
         if np.isfinite(back).all():
             back = place_on_pins(back, x, problem.free)
         outcome = replace(outcome, x=back)
-    if solved is not problem and outcome.converged:
-        outcome = checked = replace(outcome, certified=True)
-        placed, reaction = _residual_and_reaction(problem, outcome.x)
-        known = (problem, outcome.x, placed)
-        if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
-            trace.base = iterations
-            outcome = replace(solve(problem, outcome.x, stop, trace), certified=True)
-            iterations += outcome.iterations
-            reaction = None
+        if outcome.converged:
+            outcome = checked = replace(outcome, certified=True)
+            placed, reaction = _residual_and_reaction(problem, outcome.x)
+            known = (problem, outcome.x, placed)
+            if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
+                trace.base = iterations
+                outcome = replace(solve(problem, outcome.x, stop, trace), certified=True)
+                iterations += outcome.iterations
+                reaction = None
     # Default pins only remove rigid motion, so they must carry no load. After a large
     # deformation two of them can line up and act as a strut: choose them anew at the
     # deformed positions and relax again from there.

@@ -5,7 +5,6 @@ which have no force direction, are unfolded (:func:`unfold`).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -108,13 +107,18 @@ def unfold(problem: Problem, x: NDArray, collapsed: NDArray, turn: int) -> NDArr
     net, free = problem.net, problem.free
     a, b = net.springs[collapsed].T
     moved = np.where(free[b].any(axis=1), b, a)
-    base = np.zeros(collapsed.size)
-    for i, (c, m) in enumerate(zip(collapsed.tolist(), moved.tolist(), strict=True)):
-        for j in np.flatnonzero((net.springs == m).any(axis=1)).tolist():
-            d = x[net.springs[j].sum() - m] - x[m]
-            if j != c and math.hypot(*d) > 1e-9 * float(net.rest_length[j]):
-                base[i] = math.atan2(d[1], d[0]) + 0.5 * math.pi
-                break
+    # each node's first spring of nonzero length, in spring order: row r of ``ends`` is
+    # spring r % s seen from node ends[r, 0] (one sort, not a search per collapsed spring)
+    s = net.n_springs
+    ends = np.concatenate([net.springs, net.springs[:, ::-1]])
+    away = x[ends[:, 1]] - x[ends[:, 0]]
+    rows = np.flatnonzero(np.hypot(away[:, 0], away[:, 1]) > 1e-9 * np.tile(net.rest_length, 2))
+    rows = rows[np.argsort(ends[rows, 0] * s + rows % s, kind="stable")]
+    nodes, first = np.unique(ends[rows, 0], return_index=True)
+    across = np.full(net.n_nodes, -1)
+    across[nodes] = rows[first]
+    pick = across[moved]
+    base = np.where(pick >= 0, np.arctan2(away[pick, 1], away[pick, 0]) + 0.5 * np.pi, 0.0)
     angle = base + 2.399963229728653 * (np.arange(collapsed.size) + turn)
     move = 1e-3 * net.rest_length[collapsed, None]
     move = move * np.stack([np.cos(angle), np.sin(angle)], axis=1)
