@@ -21,11 +21,11 @@ the residual that float64 cannot resolve at a state.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from .arguments import lone_nodes
 from .constraints import Problem, clamp_tensions, length_jacobian
+from .hessian_ladder import shifted
 from .kkt import factor_spd
 from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
 from .memo import per_array, per_network
@@ -146,7 +146,7 @@ def lowest_curvature(problem: Problem, x: NDArray, threshold: float = 0.0) -> fl
     rho = 100.0 * float(np.max(net.stiffness)) if problem.exact else 0.0
     W = lagrangian_hessian(problem, x, mu, rho=rho, frame=frame)
     if threshold > 0.0:
-        W = W + sp.diags(threshold * _node_scale(problem)[coords])
+        W = shifted(W, threshold, _node_scale(problem)[coords])
     return np.inf if factor_spd(W, ordered=frame.ordered) is not None else None
 
 

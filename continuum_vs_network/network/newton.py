@@ -74,7 +74,13 @@ from numpy.typing import NDArray
 from .checks import dependent_clamps, roundoff_floor
 from .constraints import Problem, clamp_tensions, dense_jacobian_pays
 from .energy import HessianPattern, spring_gradient
-from .hessian_ladder import DAMP_MIN, assemble_hessian, factor_positive_model, marquardt_scaling
+from .hessian_ladder import (
+    DAMP_MIN,
+    assemble_hessian,
+    factor_positive_model,
+    marquardt_scale,
+    shifted,
+)
 from .kkt import (
     DENSE_MAX,
     Factor,
@@ -239,9 +245,9 @@ def newton(
             # networks of bench_family --medium, 1012 of 1302 such retries solved; without
             # them the most iterations were 1242, with them 710
             trials = (shift, factor_shift) if factor_shift > shift else (shift,)
-            scaling = marquardt_scaling(W) if trials[-1] > 0.0 else None
+            scale = marquardt_scale(W) if trials[-1] > 0.0 else None
             for trial in trials:
-                model = W + trial * scaling if trial > 0.0 else W
+                model = shifted(W, trial, scale) if trial > 0.0 else W
                 try:
                     step, lam = projected_pcg(
                         model, reusable, grad, A if m else None, viol, rtol=eta, max_iter=budget
