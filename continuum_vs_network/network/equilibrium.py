@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 from .. import _validate as check
 from .arguments import relax_arguments
 from .checks import (
+    clamp_roundoff_floor,
     collapsed_springs,
     dependent_clamps,
     refuse_floppy,
@@ -101,11 +102,19 @@ class EquilibriumError(RuntimeError):
     state : Equilibrium
         The last iterate, with ``converged=False`` and its diagnostics.
     reason : str
+    roundoff : bool
+        ``tol`` is below float64's reach at ``state``: its residual or clamp error is
+        within 10x of what moving every coordinate by one rounding unit changes
+        (:func:`~.checks.roundoff_floor`, :func:`~.checks.clamp_roundoff_floor`), so no
+        solver, start or continuation does better in float64.
     """
 
-    def __init__(self, reason: str, state: Equilibrium | None = None) -> None:
+    def __init__(
+        self, reason: str, state: Equilibrium | None = None, *, roundoff: bool = False
+    ) -> None:
         self.reason = reason
         self.state = state
+        self.roundoff = roundoff
         detail = ""
         if state is not None:
             detail = (
@@ -379,6 +388,7 @@ def _finish(
         iteration_trace=np.asarray(trace.iteration, dtype=np.int64),
     )
     if not converged:
+        roundoff = False  # the state is an equilibrium as far as float64 can tell
         reason = outcome.message or "did not reach the requested residual"
         if not finite:
             reason = "iterate became non-finite; " + reason
@@ -407,13 +417,28 @@ def _finish(
         elif outcome.stalled and stop.tol < relative <= 10.0 * (
             floor := roundoff_floor(problem, x)
         ):  # 10x: the solver's own iterates carry several rounding units
+            roundoff = True
             reason += (
                 f"; tol is below float64's reach at this state: moving every coordinate by "
                 f"one rounding unit changes the relative residual by up to {floor:.1e}"
+            )
+        elif (
+            relative
+            <= stop.tol
+            < clamp_relative
+            <= 10.0 * (floor := clamp_roundoff_floor(problem, x))
+        ):
+            roundoff = True
+            reason += (
+                f"; tol is below float64's reach for the clamp lengths at this state: "
+                f"moving every coordinate (up to {float(np.max(np.abs(x))):.1e}) by one "
+                f"rounding unit changes the relative clamp error by up to {floor:.1e} (the "
+                f"clamped rest lengths are down to {float(np.min(stop.clamp_scale)):.1e})"
             )
         raise EquilibriumError(
             f"{method}: {reason} (wanted every net force <= {stop.tol:.1e} of its node's "
             f"sum k L, got {relative:.3e}; relative clamp error {clamp_relative:.3e})",
             state,
+            roundoff=roundoff,
         )
     return state
