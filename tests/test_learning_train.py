@@ -14,7 +14,7 @@ from continuum_vs_network.learning import (
     stern_task,
     train,
 )
-from continuum_vs_network.learning.history import MEASUREMENTS, UPDATES
+from continuum_vs_network.learning.history import MEASUREMENTS, UPDATES, stop_cause
 from continuum_vs_network.learning.metrics import (
     final_values,
     length_error,
@@ -203,6 +203,30 @@ def test_a_trial_that_fails_stops_with_its_reason():
     assert h.completed[0] < 5 and "rest length" in h.stop_reason[0]
     assert np.isnan(h.error_initial[0, h.completed[0] + 1 :]).all()
     assert np.isfinite(h.error_initial[0, 0])
+
+
+def test_a_stopped_trials_cause_is_read_off_its_reason():
+    """The report counts early stops by cause: a real run's rest length crossing 0, and
+    the reasons an equilibrium failure and an overflow give (their text as raised)."""
+    rule = ProspectiveConfiguration(10.0, strain_reference="initial")  # no floor
+    h = train(paper_network, paper_task, rule, 5, seeds=[0, 1], progress=False)
+    assert h.stop_causes() == {"a rest length would reach 0": 2}
+    reasons = {
+        "step 3: EquilibriumError: newton: trust region collapsed (no decrease possible); "
+        "tol is below float64's reach for the clamp lengths at this state: ...": (
+            "tol below float64's reach"
+        ),
+        "step 7: EquilibriumError: newton: no convergence in 2000 iterations": (
+            "no equilibrium found"
+        ),
+        "step 2: LearningError: the rest_length update of spring 4 is not finite (inf; 1 "
+        "springs): the step overflowed (lower the learning rate)": "an update overflowed",
+        "step 1: KeyError: 'x'": "KeyError",
+    }
+    for reason, cause in reasons.items():
+        assert stop_cause(reason) == cause
+    full = train(paper_network, paper_task, _GCL, 2, seeds=[0], progress=False)
+    assert full.stop_causes() == {}  # a trial that completed has no cause
 
 
 def test_gpc_without_measurement_solves_only_its_clamped_states():

@@ -66,6 +66,28 @@ UPDATES = {
 }
 
 
+# (substring of a trial's stop reason, its cause), the first match wins
+_CAUSES = (
+    ("float64's reach", "tol below float64's reach"),
+    ("EquilibriumError", "no equilibrium found"),
+    ("rest length of spring", "a rest length would reach 0"),
+    ("stiffness of spring", "a stiffness would turn negative"),
+    ("nudged target length", "a nudged target length would reach 0"),
+    ("is not finite", "an update overflowed"),
+)
+
+
+def stop_cause(reason: str) -> str:
+    """The cause of an early stop, read off a trial's ``stop_reason`` (``"step t: Error:
+    message"``): one of the phrases of ``_CAUSES``, else the error's name (the reason
+    itself when it names none)."""
+    for text, cause in _CAUSES:
+        if text in reason:
+            return cause
+    parts = reason.split(": ")
+    return parts[1] if len(parts) > 2 else reason
+
+
 @dataclass(frozen=True, eq=False)
 class History:
     """Measurements of one training call (several trials); see the module docstring.
@@ -124,6 +146,15 @@ class History:
     def strain_reference(self) -> str:
         """The strain convention the rule trained in (``"initial"`` or ``"current"``)."""
         return str(self.settings.get("strain_reference", "initial"))
+
+    def stop_causes(self) -> dict[str, int]:
+        """How many trials stopped early for each :func:`stop_cause` (most frequent first)."""
+        causes: dict[str, int] = {}
+        for done, reason in zip(self.completed, self.stop_reason):
+            if done < self.steps:
+                cause = stop_cause(reason)
+                causes[cause] = causes.get(cause, 0) + 1
+        return dict(sorted(causes.items(), key=lambda item: -item[1]))
 
     def task_error(self, strain_reference: str) -> NDArray:
         """Eq. 26 with strains against the ``"initial"`` or the ``"current"`` rest lengths,

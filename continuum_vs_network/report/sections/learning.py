@@ -52,17 +52,22 @@ def section(doc: Document, result) -> None:
         "says otherwise."
     )
     stopped = [
-        (f"{s}/{r}/noise{i}", int(np.sum(h(s, r, i).completed < L.steps)))
+        (f"{s}/{r}/noise{i}", h(s, r, i).stop_causes())
         for s in solvers
         for r in names
         for i in range(len(L.noise))
     ]
-    if any(n for _, n in stopped):
+    if any(causes for _, causes in stopped):
         doc.add(
             "",
-            "Trials that stopped early (a rest length would reach 0 without a floor, or "
-            "an equilibrium was lost): "
-            + ", ".join(f"{k}: {n}" for k, n in stopped if n)
+            "Trials that stopped early, with the causes read off their stop reasons: "
+            + "; ".join(
+                f"{k}: {sum(causes.values())} ("
+                + ", ".join(f"{cause}: {n}" for cause, n in causes.items())
+                + ")"
+                for k, causes in stopped
+                if causes
+            )
             + ". The error-vs-step figure holds them at their last measured value; the "
             "paper's mean figures end at the last step every trial measured.",
         )
