@@ -13,6 +13,7 @@ iterations, overall and for the strongly prestressed half (rest lengths 0.3-3x).
     python benchmarks/bench_family.py --large --count 60   # 500-1100 nodes: the sparse Newton
     python benchmarks/bench_family.py --tol 1e-2           # a loose tolerance (no false saddles)
     python benchmarks/bench_family.py --pinned             # two far nodes pinned fully
+    python benchmarks/bench_family.py --medium --displaced --count 60   # pinned nodes moved
 
 Targets: 0 failures, median <= 30, p95 <= 120 iterations. Clamp sets that no network can
 meet (three clamped springs forming a triangle that violates the triangle inequality) are
@@ -38,6 +39,13 @@ def _parse() -> argparse.Namespace:
         action="store_true",
         help="pin both nodes of the default pins fully (they then carry load) instead of "
         "relaxing under the default pins",
+    )
+    p.add_argument(
+        "--displaced",
+        action="store_true",
+        help="stress-free networks (rest lengths = the geometry's), no clamps: 1-5 "
+        "neighbouring nodes moved together by 0.1-10 mean rest lengths and pinned there, "
+        "with the default pins (a source displaced and held)",
     )
     p.add_argument(
         "--large",
@@ -98,6 +106,27 @@ def family_member(rng, *, large: bool = False, medium: bool = False):
     return kind, prestressed, net, clamped
 
 
+def displaced(net, rng):
+    """``net`` made stress-free (rest lengths = its lengths) with 1-5 neighbouring nodes
+    moved together by ``10^U(-1, 1)`` mean rest lengths in a random direction and pinned
+    there, with the default pins: ``(net, pins (n_nodes, 2) bool, x0)``."""
+    import numpy as np
+
+    import continuum_vs_network as cvn
+
+    net = net.with_rest_length(net.lengths(net.positions))
+    count = int(rng.integers(1, 6))
+    centre = int(rng.integers(net.n_nodes))
+    movers = np.argsort(np.linalg.norm(net.positions - net.positions[centre], axis=1))[:count]
+    amplitude = 10 ** rng.uniform(-1, 1) * float(np.mean(net.rest_length))
+    direction = rng.standard_normal(2)
+    x0 = net.positions.copy()
+    x0[movers] += amplitude * direction / np.linalg.norm(direction)
+    pins = cvn.default_pins(net)
+    pins[movers] = True
+    return net, pins, x0
+
+
 def incompatible(net, clamped) -> bool:
     """True when three clamped springs form a triangle that violates the triangle
     inequality: no network meets those clamps, and ``relax`` must say so."""
@@ -128,14 +157,16 @@ def main() -> None:
     t0 = time.perf_counter()
     for i in range(args.count):
         kind, prestressed, net, clamped = family_member(rng, large=args.large, medium=args.medium)
+        pinned = x0 = None
+        if args.displaced:
+            (net, pinned, x0), clamped = displaced(net, rng), {}
         if incompatible(net, clamped):
             kind = "incompatible"
-        pinned = None
         if args.pinned:
             pins = default_pins(net, list(clamped))
             pinned = np.flatnonzero(pins.any(axis=1)).tolist()
         try:
-            eq = cvn.relax(net, pinned, clamped, method=args.method, tol=args.tol)
+            eq = cvn.relax(net, pinned, clamped, x0=x0, method=args.method, tol=args.tol)
             rows.append((kind, prestressed, eq.iterations, True, ""))
         except Exception as err:  # every failure counts, whatever it is
             its = getattr(getattr(err, "state", None), "iterations", -1)
@@ -162,6 +193,7 @@ def main() -> None:
         )
 
     pins = "two far nodes pinned" if args.pinned else "default pins"
+    pins += ", 1-5 nodes displaced and pinned (stress-free)" if args.displaced else ""
     print(
         f"family of {args.count} networks, seed {args.seed}, method {args.method}, "
         f"tol {args.tol:g}, {pins}"
