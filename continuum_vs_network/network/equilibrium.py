@@ -166,6 +166,9 @@ def relax(
         Springs held at a length (Eq. 25).
     x0 : (n_nodes, 2) float array, optional
         Starting positions (default ``net.positions``); pinned coordinates keep these values.
+        Where ``x0`` is ``net.positions`` with only pinned nodes moved (a source displaced
+        and held), Newton above the dense size starts from the linear elastic response to
+        that displacement when it lowers the energy (:func:`~.newton._pin_predictor`).
     method : {"newton", "fire", "lbfgs", "paper"}
         ``newton``: sparse Newton with exact clamps (default). ``fire`` and ``lbfgs``:
         first-order minimisers, exact clamps through an augmented Lagrangian. ``paper``: the
