@@ -378,7 +378,7 @@ def _clamp_predictor(
     y = x.copy()
     y.ravel()[coords] += step
     springs = problem.net.springs
-    turned = np.einsum("ij,ij->i", spring_vectors(x, springs), spring_vectors(y, springs)) <= 0.0
+    turned = _turned_over(x, y, springs)
     turned[problem.clamp_springs] = False
     if not np.all(np.isfinite(y)) or turned.any():
         return x, factor
@@ -429,14 +429,18 @@ def _pin_predictor(
     y.ravel()[pattern.coords] = reference.ravel()[pattern.coords] - factor.solve(
         rhs.ravel()[pattern.coords]
     )
-    turned = np.einsum(
-        "ij,ij->i", spring_vectors(reference, net.springs), spring_vectors(y, net.springs)
-    )
-    if not np.all(np.isfinite(y)) or np.any(turned <= 0.0):
+    if not np.all(np.isfinite(y)) or _turned_over(reference, y, net.springs).any():
         return x, factor
     if not spring_energy_change(y, x, *springs) < 0.0:
         return x, factor
     return y, factor
+
+
+def _turned_over(before: NDArray, after: NDArray, springs: NDArray) -> NDArray:
+    """Per spring (s,): True where positions ``after`` (n_nodes, 2) point it at least 90
+    degrees away from ``before``: a predictor's linearised rotation has failed there."""
+    vectors = spring_vectors(before, springs), spring_vectors(after, springs)
+    return np.einsum("ij,ij->i", *vectors) <= 0.0
 
 
 def _fresh_step(
