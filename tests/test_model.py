@@ -93,3 +93,20 @@ def test_with_copies_validate_and_share_topology():
         net.with_rest_length([1.0, -1.0, 1.0])
     with pytest.raises(ValueError, match="stiffness"):
         net.with_stiffness([1.0, 1.0])
+
+
+@pytest.mark.parametrize("rows", [10, 5000])
+def test_vector_lengths_match_hypot_also_where_squares_leave_float64(rows):
+    """Ordinary lengths to a rounding unit of ``np.hypot``; lengths whose squares would
+    overflow (1e200) or underflow (1e-200), zero and NaN exactly as ``np.hypot`` gives them
+    and without a warning (RuntimeWarnings from the package are errors here)."""
+    from continuum_vs_network.network.model import vector_lengths
+
+    d = np.random.default_rng(0).normal(size=(rows, 2))
+    assert np.allclose(vector_lengths(d), np.hypot(d[:, 0], d[:, 1]), rtol=3e-16, atol=0)
+    for value in (1e200, -1e200, 1e-200, 0.0, np.nan, np.inf):
+        extreme = d.copy()
+        extreme[rows // 2] = (value, 3e-201)
+        got = vector_lengths(extreme)
+        assert np.array_equal(got, np.hypot(extreme[:, 0], extreme[:, 1]), equal_nan=True)
+    assert np.isclose(vector_lengths(np.array([[3e200, 4e200]] * rows))[0], 5e200, rtol=1e-15)

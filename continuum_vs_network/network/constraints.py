@@ -23,7 +23,7 @@ from .._validate import choice, index_array, real
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .memo import per_network
-from .model import SpringNetwork, spring_vectors
+from .model import SpringNetwork, spring_vectors, vector_lengths
 from .spd import DENSE_MAX
 from .stopping import StopRule, coordinate_scale
 
@@ -137,7 +137,7 @@ def length_jacobian(
     a dense ndarray or a sparse CSR matrix."""
     m = len(pairs)
     d = spring_vectors(x, pairs)
-    u = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
+    u = d / np.maximum(vector_lengths(d), 1e-300)[:, None]
     cols = end_columns(pairs, column)
     vals = np.concatenate([-u, u], axis=1)
     if dense:
@@ -325,7 +325,7 @@ class Problem:
             return np.empty(0)
         s = self.net.springs[self.clamp_springs]
         d = spring_vectors(x, s)
-        return np.hypot(d[:, 0], d[:, 1]) - self.clamp_lengths
+        return vector_lengths(d) - self.clamp_lengths
 
     def clamp_jacobian(
         self, x: NDArray, coords: NDArray | None = None, *, dense: bool = False

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from .. import _validate as check
 from .memo import per_array
-from .model import SpringNetwork, spring_vectors
+from .model import SpringNetwork, spring_vectors, vector_lengths
 
 __all__ = [
     "HessianPattern",
@@ -46,7 +46,7 @@ _XY = np.arange(2)
 
 def _geometry(x: NDArray, springs: NDArray) -> tuple[NDArray, NDArray]:
     d = spring_vectors(x, springs)
-    r = np.hypot(d[:, 0], d[:, 1])
+    r = vector_lengths(d)
     return d, r
 
 
@@ -279,7 +279,7 @@ def node_stiffness(x: NDArray, springs: NDArray, k: NDArray, L: NDArray) -> NDAr
     compressed below half its rest length). Returns a (n_nodes,) float array.
     """
     d = spring_vectors(x, springs)
-    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
+    r = np.maximum(vector_lengths(d), 1e-300)
     w = k * np.maximum(1.0, np.abs(1.0 - L / r))
     n = x.shape[0]
     return np.bincount(springs[:, 0], w, n) + np.bincount(springs[:, 1], w, n)

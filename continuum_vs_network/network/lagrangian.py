@@ -26,7 +26,7 @@ from .constraints import Problem, dense_jacobian_pays, length_jacobian
 from .energy import HessianPattern
 from .kkt import DENSE_MAX, banded_pays, factor_spd, sparse_solver
 from .memo import per_array
-from .model import SpringNetwork, spring_vectors
+from .model import SpringNetwork, spring_vectors, vector_lengths
 from .ordering import band_order, coordinate_order, nested_dissection
 
 __all__ = ["Frame", "lagrangian_blocks", "lagrangian_hessian", "pattern_for", "trust_region"]
@@ -84,7 +84,7 @@ def lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) ->
     net = problem.net
     springs, clamps = net.springs, problem.clamp_springs
     d = spring_vectors(x, springs)
-    r = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)
+    r = np.maximum(vector_lengths(d), 1e-300)
     axial = net.stiffness.copy()
     tangential = net.stiffness * (1.0 - net.rest_length / r)
     if problem.clamp == "rod" and problem.n_clamps:

@@ -35,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
 from .constraints import default_pins, pin_mask
-from .model import SpringNetwork, spring_vectors
+from .model import SpringNetwork, spring_vectors, vector_lengths
 
 __all__ = [
     "DENSE_LIMIT",
@@ -85,7 +85,7 @@ def _rigidity_entries(net: SpringNetwork, x: NDArray) -> tuple[NDArray, NDArray,
     (n_nodes, 2); raises ValueError for a spring of zero length."""
     s = net.springs
     d = spring_vectors(x, s)
-    r = np.hypot(d[:, 0], d[:, 1])
+    r = vector_lengths(d)
     zero = np.flatnonzero(r == 0.0)
     if zero.size:
         raise ValueError(f"spring {zero[0]} has zero length at x; its direction is undefined")

@@ -24,7 +24,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .constraints import Problem, end_columns
-from .model import spring_vectors
+from .model import spring_vectors, vector_lengths
 
 __all__ = ["StiffSprings", "median"]
 
@@ -87,7 +87,7 @@ class StiffSprings:
         """Unit vectors ``u`` (s, 2) from each stiff spring's first node to its second, and
         lengths ``r`` (s,), at positions ``x`` (n_nodes, 2): ``J``'s rows are ``(-u, u)``."""
         d = spring_vectors(x, self.springs)
-        r = np.hypot(d[:, 0], d[:, 1])
+        r = vector_lengths(d)
         return d / np.maximum(r, 1e-300)[:, None], r
 
     def lengthening(self, u: NDArray, move: NDArray) -> NDArray:

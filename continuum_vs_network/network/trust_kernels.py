@@ -26,7 +26,7 @@ from .constraints import Problem
 from .energy import _scatter_nodes, spring_energy_change, spring_gradient
 from .lagrangian import Frame, lagrangian_blocks
 from .memo import per_array
-from .model import spring_vectors
+from .model import spring_vectors, vector_lengths
 
 __all__ = ["DENSE_NODES", "DenseKernels", "SparseKernels", "kernels"]
 
@@ -77,7 +77,7 @@ class SparseKernels:
         full[self.coords] = step
         full = full.reshape(x.shape)
         d = spring_vectors(x, springs)
-        r = np.maximum(np.hypot(d[:, 0], d[:, 1]), _TINY)
+        r = np.maximum(vector_lengths(d), _TINY)
         u = d / r[:, None]
         dd = spring_vectors(full, springs)
         perp = dd[:, 0] * u[:, 1] - dd[:, 1] * u[:, 0]
@@ -130,7 +130,7 @@ class DenseKernels(SparseKernels):
             d, r = self.tried[1:]
         else:
             d = self.E @ x
-            r = np.hypot(d[:, 0], d[:, 1])
+            r = vector_lengths(d)
         self.x = x
         r_safe = np.maximum(r, _TINY)
         self.d, self.r, self.r_safe, self.r_rest = d, r, r_safe, r - self.L2
@@ -160,7 +160,7 @@ class DenseKernels(SparseKernels):
         d0 = self.d
         du = self.E @ (y - self.x if move is None else move)
         d = d0 + du
-        r = np.hypot(d[:, 0], d[:, 1])
+        r = vector_lengths(d)
         self.tried = (y, d, r)
         # r - r0 = du . (d + d0) / (r + r0), without cancellation
         dr = np.add.reduce(du * (d + d0), 1) / (r + self.r_safe)

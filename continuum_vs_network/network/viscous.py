@@ -52,7 +52,7 @@ from .energy import (
     spring_gradient,
     spring_hessian_blocks,
 )
-from .model import SpringNetwork, spring_vectors
+from .model import SpringNetwork, spring_vectors, vector_lengths
 from .newton import factor_pd, pattern_for
 
 __all__ = [
@@ -111,7 +111,7 @@ class Viscosity:
 
 def _unit(x: NDArray, springs: NDArray) -> tuple[NDArray, NDArray]:
     d = spring_vectors(x, springs)
-    r = np.hypot(d[:, 0], d[:, 1])
+    r = vector_lengths(d)
     return d / np.maximum(r, 1e-300)[:, None], r
 
 
