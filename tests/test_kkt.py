@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 from continuum_vs_network.network import kkt as kkt_module
 from continuum_vs_network.network import spd as spd_module
 from continuum_vs_network.network.kkt import (
+    Factor,
     Inertia,
     factor_kkt,
     factor_spd,
@@ -318,6 +319,32 @@ def test_a_rough_banded_factor_is_float32_and_still_refuses_indefinite_w(
         factor = factor_spd(M, rough=True)
         assert len(calls) == tried and not any(calls)  # not tried, or tried and refused
         np.testing.assert_array_equal(factor.solve(b), factor_spd(M).solve(b))
+
+
+def test_a_ladder_rung_takes_a_failed_float32_pivot_as_final(monkeypatch, solver_choice):
+    """2x2 blocks [[1, 1 - 1e-9], [1 - 1e-9, 1]] are positive definite (eigenvalue 1e-9)
+    but singular in float32 (1 - 1e-9 rounds to 1: a zero pivot). A rough factorisation
+    falls back to float64 and succeeds; as a rung of the Levenberg-Marquardt ladder
+    (``rung=True``) it fails without factorising in float64. A well-conditioned rung still
+    gets its float32 factor, and an inaccurate float32 factor (a pivot that passed) still
+    gets the float64 one."""
+    set_sparse_solver("superlu")
+    blocks = 300  # 600 rows: above DENSE_MAX, lower bandwidth 1
+    near = sp.block_diag([np.array([[1.0, 1.0 - 1e-9], [1.0 - 1e-9, 1.0]])] * blocks, "csr")
+    assert isinstance(factor_spd(near, rough=True), Factor)
+    calls = []
+    cholesky = spd_module.sla.cholesky_banded
+    monkeypatch.setattr(
+        spd_module.sla, "cholesky_banded", lambda *a, **k: calls.append(1) or cholesky(*a, **k)
+    )
+    assert factor_spd(near, rough=True, rung=True) is None and not calls
+    well = factor_spd(_laplacian_2d(24), rough=True, rung=True)
+    assert isinstance(well, Factor) and well.approximate and not calls
+    side = 24
+    grounded = _weighted_grid_laplacian(side, np.ones(2 * side * (side - 1)), 1e-9)
+    b = np.sin(np.arange(side * side, dtype=float))
+    fallback = factor_spd(grounded, rough=True, rung=True)
+    assert calls and np.allclose(fallback.solve(b), factor_spd(grounded).solve(b), rtol=1e-12)
 
 
 def test_band_order_reports_the_assembled_bandwidth():

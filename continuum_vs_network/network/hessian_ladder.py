@@ -109,7 +109,7 @@ def factor_positive_model(
             shift, growth = estimate, 10.0
     while shift <= 1e8:
         model = shifted(W, shift, scale)
-        factor = factor_spd(model, ordered=pattern.ordered, rough=True)
+        factor = factor_spd(model, ordered=pattern.ordered, rough=True, rung=True)
         if factor is not None:
             return factor, rho, shift, False, model
         shift *= growth
