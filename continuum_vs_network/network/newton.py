@@ -141,6 +141,9 @@ def newton(
     Rod clamps (``exact_first``): the problem with exact clamps is solved first, and the
     rods from its equilibrium (or from ``x`` where that fails).
     """
+    if not problem.free_flat.size:  # every node pinned: nothing moves (clamps checked before)
+        trace.record(0.0, 0)
+        return Outcome(np.array(x, dtype=np.float64), 0, True, certified=True)
     if problem.free_flat.size <= TR_DENSE_MAX:
         return trust_region_newton(problem, problem.start(x), stop, trace)
     if exact_first and problem.clamp == "rod" and problem.n_clamps:
