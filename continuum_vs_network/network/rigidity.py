@@ -16,10 +16,9 @@ Ranks are numerical: a singular value of ``R`` (rows are unit vectors, so ``R`` 
 counts as zero when it is below ``rtol`` times the largest one. Dense singular value
 decompositions are used up to :data:`DENSE_LIMIT` coordinates (they cost O(n^3): about
 0.2 s at 1000 coordinates and 2 s at 2000 on two idle cores, ten times more on a busy
-machine); above it, rank counts use sparse shift-invert eigenvalues of ``R^T R`` (about
-0.05 s at 2000 coordinates; zero eigenvalues come out near 1e-16, the smallest nonzero
-ones of the lattices and jammed networks built here near 1e-3) and self-stress supports
-use sparse leverage scores.
+machine); above it, rank counts use the singular values of ``R`` on the subspace of its
+smallest ones, found by shift-invert iteration on ``R^T R`` (about 0.05 s at 2000
+coordinates), and self-stress supports use sparse leverage scores.
 """
 
 from __future__ import annotations
@@ -52,7 +51,6 @@ DENSE_LIMIT = 600
 
 Method = Literal["auto", "dense", "sparse"]
 _CHOLESKY_LIMIT = 5000  # leverage scores: dense Cholesky of the pinned R^T R up to this size
-_SPARSE_RTOL = 1e-6  # singular-value tolerance of the sparse eigenvalue path (eigenvalues ~1e-12)
 
 
 def _positions(net: SpringNetwork, x: ArrayLike | None) -> NDArray:
@@ -133,62 +131,69 @@ def _dense_rank(R: sp.spmatrix | NDArray, rtol: float) -> int:
 
 
 def _sparse_nullity(R: sp.spmatrix, rtol: float) -> int:
-    """Dimension of the null space of ``R`` from the smallest eigenvalues of ``R^T R``.
+    """Dimension of the null space of ``R`` (m, n): how many singular values are at most
+    ``rtol`` times the largest (bounded by Gershgorin on ``R^T R``).
 
-    Block shift-invert subspace iteration around a small negative shift
-    (:func:`_count_smallest`) counts how many of the ``k`` smallest eigenvalues are below
-    the threshold ``(rtol * sigma_max)^2``; ``k`` doubles until one is above it. A block,
-    not single-vector Lanczos: Lanczos finds one vector of an eigenvalue per start vector
-    and the rest only through round-off, and scipy's ``eigsh`` (shift-invert ARPACK)
-    counted 7 of 9, 28 of 31 or 62 of 63 zero modes on 4 of 120 diluted lattices (5-11 per
-    side), differently from run to run.
+    Block shift-invert subspace iteration on ``R^T R`` around a small shift
+    (:func:`_count_smallest`) finds the subspace of the ``k`` smallest singular values;
+    ``k`` doubles until one is above the threshold. A block, not single-vector Lanczos:
+    Lanczos finds one vector of an eigenvalue per start vector and the rest only through
+    round-off, and scipy's ``eigsh`` (shift-invert ARPACK) counted 7 of 9, 28 of 31 or 62 of
+    63 zero modes on 4 of 120 diluted lattices (5-11 per side), differently from run to run.
     """
     n = R.shape[1]
     K = (R.T @ R).tocsc()
     lam_max = float(np.max(np.abs(K).sum(axis=1))) if K.nnz else 0.0  # Gershgorin bound
     if lam_max == 0.0:
         return n
-    threshold = (rtol**2) * lam_max
-    shift = 1e-6 * lam_max
+    threshold = rtol * np.sqrt(lam_max)
+    # modes below the shift are not told apart from the null space by the iteration, only
+    # by the SVD of the block, which must then hold them all: at 1e-6 (before) the soft
+    # bending modes of a thin isostatic strip (sigma^2 down to 1e-14 of lam_max) filled it
+    shift = 1e-10 * lam_max
     solve = spla.splu((K + shift * sp.identity(n, format="csc")).tocsc()).solve
     rng = np.random.default_rng(0)  # a seeded block: counts reproducible bit for bit
     k = 8
     while True:
         if k >= n - 1:  # too many zero modes for a block this wide: count them densely
             return n - _dense_rank(R, rtol)
-        n_zero = _count_smallest(solve, n, k, shift, threshold, rng)
+        n_zero = _count_smallest(R, solve, k, threshold, rng)
         if n_zero < k:
             return n_zero
         k *= 2
 
 
-def _count_smallest(solve, n: int, k: int, shift: float, threshold: float, rng) -> int:
-    """How many of the ``k`` smallest eigenvalues of ``K`` are ``<= threshold``, given
-    ``solve = (K + shift I)^-1`` for symmetric positive semi-definite ``K`` (n, n).
+def _count_smallest(R: sp.spmatrix, solve, k: int, threshold: float, rng) -> int:
+    """How many of the ``k`` smallest singular values of ``R`` (m, n) are ``<= threshold``,
+    given ``solve = (R^T R + shift I)^-1``.
 
-    Subspace iteration on ``(K + shift I)^-1`` with a random block of ``k + 8`` columns and
-    Rayleigh-Ritz each iteration. A Ritz value of the inverse never exceeds the eigenvalue
-    of its rank, so the count never exceeds the true one; a random block of more columns
-    than zero eigenvalues holds all of their directions, which the iteration amplifies by
-    ``(lambda + shift) / shift`` each step. Stops when the count has not changed for two
-    iterations and the smallest eigenvalue above the threshold has settled to 1e-3.
+    Subspace iteration on that inverse with a random block of ``k + 8`` columns; each
+    iteration's count comes from the singular values of ``R`` on the block (a dense SVD of
+    ``R X``, (m, k + 8)). Those never fall below the singular values of their rank, so the
+    count never exceeds the true one; and they resolve a singular value to round-off of
+    the largest, where eigenvalues of ``R^T R`` (the squares) stop near 1e-8 of it: a
+    rigid 349-node isostatic strip (smallest singular value 1.7e-7 of the largest) was
+    counted floppy. A random block of more columns than zero singular values holds all
+    of their directions, which the iteration amplifies by ``(sigma^2 + shift) / shift``
+    each step. Stops when the count has not changed for two iterations and the smallest
+    singular value above the threshold has settled to 1e-3.
     """
-    X = np.linalg.qr(rng.standard_normal((n, k + 8)))[0]
+    X = np.linalg.qr(rng.standard_normal((R.shape[1], k + 8)))[0]
     counts: list[int] = []
     above = np.inf
     for _ in range(200):
-        Y = solve(X)
-        H = X.T @ Y
-        theta = np.linalg.eigvalsh(0.5 * (H + H.T))[::-1][:k]  # largest first
-        lam = 1.0 / theta - shift  # the Ritz estimates of the k smallest eigenvalues
-        count = int(np.sum(lam <= threshold))
-        rest = lam[count] if count < k else 0.0
+        X = np.linalg.qr(solve(X))[0]
+        RX = R @ X
+        sigma = np.linalg.svd(RX, compute_uv=False)[::-1]  # smallest first
+        # fewer rows than columns: the missing singular values are zeros
+        sigma = np.concatenate([np.zeros(max(0, RX.shape[1] - RX.shape[0])), sigma])[:k]
+        count = int(np.sum(sigma <= threshold))
+        rest = sigma[count] if count < k else 0.0
         settled = abs(rest - above) <= 1e-3 * rest
         counts.append(count)
         if len(counts) >= 3 and counts[-1] == counts[-2] == counts[-3] and settled:
             return count
         above = rest
-        X = np.linalg.qr(Y)[0]
     return counts[-1]
 
 
@@ -220,12 +225,12 @@ def zero_modes(
         Positions at which ``R`` is evaluated (default ``net.positions``).
     method : {"auto", "dense", "sparse"}
         ``dense``: singular values of ``R_f`` (O(n^3); about 2 s at 2000 coordinates).
-        ``sparse``: shift-invert eigenvalues of ``R_f^T R_f`` (fast when the count is small).
+        ``sparse``: singular values of ``R_f`` on the subspace of its smallest, found by
+        shift-invert iteration on ``R_f^T R_f`` (fast when the count is small).
         ``auto``: dense up to :data:`DENSE_LIMIT` free coordinates, sparse above.
     rtol : float
-        A singular value below ``rtol * sigma_max`` counts as zero (dense). The sparse path
-        cannot resolve eigenvalues much below ``1e-12 lambda_max`` and uses
-        ``max(rtol, 1e-6)``.
+        A singular value below ``rtol * sigma_max`` counts as zero (the sparse path bounds
+        ``sigma_max`` by Gershgorin on ``R_f^T R_f``).
 
     Returns
     -------
@@ -260,7 +265,7 @@ def count_zero_modes(
     if method == "dense" or (method == "auto" and n_free <= DENSE_LIMIT):
         return n_free - _dense_rank(_dense_rigidity(net, x, rows, cols), rtol)
     R = rigidity_matrix(net, x)[rows][:, cols]
-    return _sparse_nullity(R.tocsr(), max(rtol, _SPARSE_RTOL))
+    return _sparse_nullity(R.tocsr(), rtol)
 
 
 def is_rigid(
