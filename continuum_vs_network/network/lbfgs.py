@@ -103,7 +103,12 @@ def _lbfgs_inner(
                 test(y, False)
                 stalls = stalls + 1 if done["iterations"] - start_iterations <= 2 else 0
                 if stalls >= 3:
-                    done.update(status="stalled", message=f"L-BFGS: stalled ({res.message})")
+                    why = str(res.message).rstrip(": ") or "no reason given"
+                    message = (
+                        "L-BFGS: stalled (scipy's L-BFGS-B stopped within 2 iterations of "
+                        f"3 restarts in a row: {why}; no step lowered the energy)"
+                    )
+                    done.update(status="stalled", message=message)
                     raise _StopNow
         except _StopNow:
             pass
