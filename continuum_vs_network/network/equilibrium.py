@@ -322,7 +322,7 @@ def relax(
     if outcome is not checked:  # a placed outcome has the lengths just judged
         outcome, extra = second_order(problem, outcome, solve, stop, trace, iterations)
     res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
-    return _finish(problem, outcome, iterations + extra, method, stop, trace, res)
+    return _finish(problem, outcome, iterations + extra, method, stop, trace, res, pinned is None)
 
 
 def _pins_loaded(reaction: float, rounds: int) -> str:
@@ -384,8 +384,10 @@ def _finish(
     stop: StopRule,
     trace: Trace,
     res: Residual | None = None,
+    default: bool = False,
 ) -> Equilibrium:
-    """The :class:`Equilibrium` of ``outcome`` (``res``: its residual, when known)."""
+    """The :class:`Equilibrium` of ``outcome`` (``res``: its residual, when known;
+    ``default``: the pins are relax's default ones, which must carry no load)."""
     x, net = outcome.x, problem.net
     finite = bool(np.isfinite(x).all())
     if finite:
@@ -464,6 +466,13 @@ def _finish(
                 f"rounding unit changes the relative clamp error by up to {floor:.1e} (the "
                 f"clamped rest lengths are down to {float(np.min(stop.clamp_scale)):.1e})"
             )
+        if finite and (collapsed := collapsed_springs(problem, x)).size:
+            reason += (
+                f"; springs {collapsed[:5].tolist()} have collapsed to zero length (k > 0: "
+                "their force has no direction)"
+            )
+        if finite and default and (load := _pin_reaction(problem, x)) > max(relative, stop.tol):
+            reason += f"; the default pins carry {load:.1e} of their nodes' sum k L"
         raise EquilibriumError(
             f"{method}: {reason} (wanted every net force <= {stop.tol:.1e} of its node's "
             f"sum k L, got {relative:.3e}; relative clamp error {clamp_relative:.3e})",

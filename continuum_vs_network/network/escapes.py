@@ -56,6 +56,7 @@ def second_order(
             # may lie on a line of symmetry that relaxing never leaves (a clamped triangle
             # started collinear, collapsed by its clamp, unfolded along its own line)
             y = unfold(problem, x, collapsed, escapes)
+            left = f"springs {collapsed[:5].tolist()} collapsed to zero length (k > 0)"
         elif outcome.certified:
             return outcome, extra
         else:
@@ -69,6 +70,7 @@ def second_order(
                 # equilibrium, not necessarily at a saddle; relaxed on to the default tol
                 stop = replace(stop, tol=DEFAULT_TOL)
                 y = x
+                left = "a point where the reduced Hessian is indefinite at tol"
             elif direction is None:
                 return Outcome(
                     x, outcome.iterations, False, "saddle: the reduced Hessian is indefinite"
@@ -81,6 +83,7 @@ def second_order(
                 # would stop there)
                 tighter = 0.1 * -lowest if escapes == 0 else DEFAULT_TOL
                 stop = replace(stop, tol=min(stop.tol, tighter))
+                left = f"a saddle (scaled reduced-Hessian eigenvalue {lowest:.1e})"
         trace.base = done + extra
         outcome = solve(problem, y, stop, trace)
         extra += outcome.iterations
@@ -90,6 +93,9 @@ def second_order(
             found = problem.residual(outcome.x)
             if asked.met(found.imbalance, found.clamp):
                 outcome = Outcome(outcome.x, outcome.iterations, True)
+        if not outcome.converged:  # the cause first: the solve that failed was an escape's
+            why = f"the solve reached {left}; escaping it, the solve from there: "
+            outcome = replace(outcome, message=why + outcome.message)
     if outcome.converged:
         reason = "a saddle or a collapsed spring persists after 3 escapes"
         return Outcome(outcome.x, outcome.iterations, False, reason), extra
