@@ -472,8 +472,9 @@ def _finish(
                 "their force has no direction)"
             )
         named = "default pins carry" in reason  # by the re-pinning loop
-        if finite and default and not named and (load := _pin_reaction(problem, x)) > stop.tol:
-            reason += f"; the default pins carry {load:.1e} of their nodes' sum k L"
+        if finite and default and not named:
+            if (load := _pin_reaction(problem, x)) > max(relative, stop.tol):
+                reason += f"; the default pins carry {load:.1e} of their nodes' sum k L"
         raise EquilibriumError(
             f"{method}: {reason} (wanted every net force <= {stop.tol:.1e} of its node's "
             f"sum k L, got {relative:.3e}; relative clamp error {clamp_relative:.3e})",
