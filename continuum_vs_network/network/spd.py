@@ -230,7 +230,7 @@ def _banded_cholesky(
     return Factor(solve, n, precondition)
 
 
-def _banded_float32(W: sp.csr_matrix, band: NDArray) -> Factor | None:
+def _banded_float32(W: sp.csr_matrix, band: NDArray) -> Factor | bool | None:
     """The banded Cholesky of ``W`` (its lower ``band`` in LAPACK's layout, float64, left
     as it is) rounded to float32, solves taking and returning float64; None when it meets a
     non-positive pivot (``W`` indefinite, or positive definite only beyond float32's
