@@ -297,6 +297,7 @@ def relax(
     # tol 1e-3 returned with 0.37 at a pin). From the second re-pinning on, each solve
     # therefore goes as far below the last one's tolerance as the reaction was above tol.
     target = stop.tol  # the tolerance of the last solve
+    named = False  # the outcome's message already names the pins' load
     for rounds in range(_PIN_ROUNDS + 1):
         if pinned is not None or not outcome.converged:
             break
@@ -307,6 +308,7 @@ def relax(
             break
         if rounds == _PIN_ROUNDS:
             outcome = replace(outcome, converged=False, message=_pins_loaded(reaction, rounds))
+            named = True
             break
         if rounds:
             target *= max(0.5 * stop.tol / reaction, _PIN_TIGHTEST)
@@ -318,11 +320,13 @@ def relax(
         if not outcome.converged and target < stop.tol:
             why = f"; the solve to tol {target:.1e} from there stopped: {outcome.message}"
             outcome = replace(outcome, message=_pins_loaded(reaction, rounds + 1) + why)
+            named = True
     extra = 0
     if outcome is not checked:  # a placed outcome has the lengths just judged
         outcome, extra = second_order(problem, outcome, solve, stop, trace, iterations)
     res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
-    return _finish(problem, outcome, iterations + extra, method, stop, trace, res, pinned is None)
+    name_load = pinned is None and not named  # _finish names a load the pins still carry
+    return _finish(problem, outcome, iterations + extra, method, stop, trace, res, name_load)
 
 
 def _pins_loaded(reaction: float, rounds: int) -> str:
@@ -384,10 +388,11 @@ def _finish(
     stop: StopRule,
     trace: Trace,
     res: Residual | None = None,
-    default: bool = False,
+    name_pin_load: bool = False,
 ) -> Equilibrium:
     """The :class:`Equilibrium` of ``outcome`` (``res``: its residual, when known;
-    ``default``: the pins are relax's default ones, which must carry no load)."""
+    ``name_pin_load``: the pins are relax's default ones, which must carry no load, and a
+    failure's reason should name a load they carry)."""
     x, net = outcome.x, problem.net
     finite = bool(np.isfinite(x).all())
     if finite:
@@ -471,10 +476,12 @@ def _finish(
                 f"; springs {collapsed[:5].tolist()} have collapsed to zero length (k > 0: "
                 "their force has no direction)"
             )
-        named = "default pins carry" in reason  # by the re-pinning loop
-        if finite and default and not named:
-            if (load := _pin_reaction(problem, x)) > max(relative, stop.tol):
-                reason += f"; the default pins carry {load:.1e} of their nodes' sum k L"
+        if (
+            finite
+            and name_pin_load
+            and (load := _pin_reaction(problem, x)) > max(relative, stop.tol)
+        ):
+            reason += f"; the default pins carry {load:.1e} of their nodes' sum k L"
         raise EquilibriumError(
             f"{method}: {reason} (wanted every net force <= {stop.tol:.1e} of its node's "
             f"sum k L, got {relative:.3e}; relative clamp error {clamp_relative:.3e})",
