@@ -137,17 +137,20 @@ def test_a_solve_stopped_far_from_equilibrium_gets_no_round_off_note():
     assert err.value.state.relative_residual > 1e-6
 
 
-def _near_folded_state() -> np.ndarray:
+def _near_folded_state(seed: int = 0) -> np.ndarray:
     """The folded state moved by 1e-8 at random: a few steps from where tol = 1e-14 stalls."""
     stalled = np.load(DATA / "folded_clamps_lattice.npz")["stalled_positions"]
-    return stalled + 1e-8 * np.random.default_rng(0).standard_normal(stalled.shape)
+    return stalled + 1e-8 * np.random.default_rng(seed).standard_normal(stalled.shape)
 
 
 def test_a_budget_stop_near_the_round_off_floor_gets_no_round_off_note():
-    """The note names why a solve *stalled*; a solve stopped by its budget stopped for that."""
+    """The note names why a solve *stalled*; a solve stopped by its budget stopped for that.
+    (One iteration: its first step already reaches the floor, and where the round-off of
+    the machine's BLAS lets no second step decrease the energy, the second iteration
+    stalls.)"""
     net, clamped = _folded_clamps()
-    with pytest.raises(cvn.EquilibriumError, match="no convergence in 2 iterations") as err:
-        cvn.relax(net, clamped=clamped, x0=_near_folded_state(), max_iter=2, tol=1e-14)
+    with pytest.raises(cvn.EquilibriumError, match="no convergence in 1 iterations") as err:
+        cvn.relax(net, clamped=clamped, x0=_near_folded_state(), max_iter=1, tol=1e-14)
     assert "below float64's reach" not in str(err.value)
     state = err.value.state
     floor = roundoff_floor(Problem.build(net, clamped=clamped), state.positions)
@@ -158,13 +161,18 @@ def test_energy_changes_at_round_off_do_not_pass_as_decrease():
     """Near the folded state every energy change is round-off (|dE| ~ 1e-15 against
     E = 44); a trial whose noise reads as a decrease 1e10 times the model's promise must be
     judged by the force instead, so no accepted step raises the residual there (with that
-    check off, the solve wanders for hundreds of steps with the residual up and down)."""
+    check off, the solve wanders for hundreds of steps with the residual up and down).
+    Five starts: how many steps the round-off allows before the solve stalls depends on
+    the machine's BLAS (1-5 each on an AMD EPYC)."""
     net, clamped = _folded_clamps()
-    with pytest.raises(cvn.EquilibriumError, match="below float64's reach") as err:
-        cvn.relax(net, clamped=clamped, x0=_near_folded_state(), tol=1e-14)
-    trace = err.value.state.residual_trace
-    assert trace.size > 2
-    assert np.all(np.diff(trace) <= 0.0)
+    steps = 0
+    for seed in range(5):
+        with pytest.raises(cvn.EquilibriumError, match="below float64's reach") as err:
+            cvn.relax(net, clamped=clamped, x0=_near_folded_state(seed), tol=1e-14)
+        trace = err.value.state.residual_trace
+        assert np.all(np.diff(trace) <= 0.0)
+        steps += trace.size - 1
+    assert steps >= 8
 
 
 def test_a_patch_whose_last_steps_are_at_energy_round_off_converges():
