@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import continuum_vs_network as cvn
-from continuum_vs_network.network.energy import HessianPattern, spring_gradient
+from continuum_vs_network.network.energy import HessianPattern, spring_bending, spring_gradient
 
 
 def _random_network(rng, n=12):
@@ -107,3 +107,22 @@ def test_gradient_follows_a_changed_springs_array_behind_a_read_only_view():
     changed = spring_gradient(x, view, k, L)
     assert np.array_equal(changed, spring_gradient(x, fresh, k, L))
     assert not np.allclose(changed, first)
+
+
+def test_spring_bending_is_the_force_of_the_lengths_second_derivative_along_a_step():
+    """``spring_bending`` is ``J^T (k r'')``: each spring's second derivative of length along
+    the step (central differences of the lengths), times k, along the spring."""
+    rng = np.random.default_rng(3)
+    net = _random_network(rng)
+    x = net.positions
+    step = rng.standard_normal(x.shape)
+    h = 1e-4
+    r = [net.lengths(x + t * step) for t in (-h, 0.0, h)]
+    second = (r[0] - 2 * r[1] + r[2]) / h**2  # (s,)
+    d = x[net.springs[:, 1]] - x[net.springs[:, 0]]
+    t = (net.stiffness * second / r[1])[:, None] * d
+    expected = np.zeros_like(x)
+    np.add.at(expected, net.springs[:, 1], t)
+    np.add.at(expected, net.springs[:, 0], -t)
+    got = spring_bending(x, step, net.springs, net.stiffness)
+    np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-6 * np.abs(expected).max())

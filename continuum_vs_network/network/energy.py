@@ -34,6 +34,7 @@ __all__ = [
     "hessian",
     "hessian_norm_bound",
     "node_stiffness",
+    "spring_bending",
     "spring_energy",
     "spring_energy_change",
     "spring_gradient",
@@ -61,6 +62,20 @@ def spring_gradient(x: NDArray, springs: NDArray, k: NDArray, L: NDArray) -> NDA
     d, r = _geometry(x, springs)
     t = (k * (r - L) / np.maximum(r, _TINY))[:, None] * d  # tension vector along a -> b
     return _scatter_nodes(t, springs, x.shape[0])
+
+
+def spring_bending(x: NDArray, step: NDArray, springs: NDArray, k: NDArray) -> NDArray:
+    """The force (n_nodes, 2) of the springs' second-order length change along ``step``
+    (n_nodes, 2) from ``x``: ``J^T (k |dd_perp|^2 / r)``, with ``dd_perp`` the part of a
+    spring's change perpendicular to it (a linear step that turns a spring lengthens it by
+    ``|dd_perp|^2 / (2 r)``). The Hessian's solve of it is the step's geodesic acceleration
+    (Transtrum & Sethna 2012)."""
+    d, r = _geometry(x, springs)
+    r = np.maximum(r, _TINY)
+    u = d / r[:, None]
+    dd = spring_vectors(step, springs)
+    perp = dd[:, 0] * u[:, 1] - dd[:, 1] * u[:, 0]
+    return _scatter_nodes((k * perp * perp / r)[:, None] * u, springs, x.shape[0])
 
 
 def _scatter_nodes(t: NDArray, springs: NDArray, n_nodes: int) -> NDArray:

@@ -51,6 +51,13 @@ choice), not only from 1e3x, cut ``benchmarks/bench_family.py`` (60 networks, se
 from a median of 167 to 96 iterations (p95 511 to 388) with ``--medium`` and from 215 to
 158 (p95 720 to 600) with ``--large``, in 0.84x and 1.12x the time.
 
+Curved valleys: where the line search refuses an exact Newton step (shift 0), the step is
+also tried bent along its geodesic acceleration (:func:`~.line_search.geodesic_path`, as
+the dense trust region bends every step): a long strip curling far from its start, or a
+lattice far from the origin, follows rotations that a straight step overshoots. On 3-row
+strips of 130 columns iterations went from 109-156 to 43-57 (rest lengths within 10 %),
+and on a 15 x 15 lattice with k over 10 decades started 1e3 away from 942 to 311.
+
 Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones
 :func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
 unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
@@ -90,7 +97,7 @@ from .kkt import (
     range_space_solve,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
-from .line_search import follow_curvature, line_search
+from .line_search import follow_curvature, geodesic_path, line_search
 from .model import spring_vectors
 from .reuse import NegativeCurvature, SolveFailed, projected_pcg, reuse_budget
 from .stiff_springs import StiffSprings
@@ -176,6 +183,7 @@ def newton(
         # complement); off the line by a nudge, the projection onto the clamps can
         x = problem.onto_clamps(problem.nudged(x), coords)
     reusable, factor_shift = None, 0.0  # factor_shift: the shift reusable was made with
+    solver: Factor | None = None  # what solved the step (geodesic_path solves with it too)
     if m:
         y, reusable = _clamp_predictor(problem, pattern, x, rho, stop, dense_jacobian)
     else:
@@ -265,8 +273,9 @@ def newton(
                 break
             if step is not None:
                 shift = trial  # the model solved (trials never go below shift)
+                solver = reusable
         if step is None:
-            factor = reusable = None  # released first: one factorisation alive at a time
+            factor = reusable = solver = None  # released first: one factorisation alive at a time
             factor, rho, shift, exact_ok, model = factor_positive_model(
                 problem, pattern, x, lam_ls[:m], rho, shift, indefinite=indefinite
             )
@@ -286,6 +295,7 @@ def newton(
                     "clamp constraints are degenerate (singular Schur complement)",
                 )
             reusable = factor if reuse else None
+            solver = factor
             factor_shift = shift
             certifying = exact_ok and shift == 0.0
         start = x
@@ -301,6 +311,9 @@ def newton(
             rho,
             residual,
             stiff=stiff,
+            geodesic=geodesic_path(problem, x, coords, step, solver, A if m else None)
+            if shift == 0.0
+            else None,
         )
         if indefinite is not None:  # negative curvature known: follow it if that goes lower
             x, alpha = follow_curvature(

@@ -85,7 +85,7 @@ from .stopping import Outcome, StopRule, Trace
 from .trust_kernels import kernels
 from .trust_model import Model, RigidBasis, null_basis, rigid_motions, subproblem
 
-__all__ = ["TR_DENSE_MAX", "trust_region_newton"]
+__all__ = ["ACCEL_MAX", "TR_DENSE_MAX", "trust_region_newton"]
 
 TR_DENSE_MAX = 400  # free coordinates; above, the sparse shifted Newton of newton.py (faster there)
 _ETA = 1e-4  # acceptance threshold on actual / predicted decrease
@@ -94,8 +94,8 @@ _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model 
 _MID = math.sqrt(2.0)  # the radius tried between the last good doubling and a worse one
 _SHORTER_TRIES = 4  # halvings tried at one Hessian after a step of ratio below 0.75
 _NOISY = 4.0  # a ratio above this is checked for an energy change at round-off
-_ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
-_ACCEL2 = _ACCEL_MAX**2
+ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
+_ACCEL2 = ACCEL_MAX**2
 _EMPTY = np.empty(0)
 
 

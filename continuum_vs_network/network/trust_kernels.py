@@ -23,10 +23,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .constraints import Problem
-from .energy import _scatter_nodes, spring_energy_change, spring_gradient
+from .energy import spring_bending, spring_energy_change, spring_gradient
 from .lagrangian import Frame, lagrangian_blocks
 from .memo import per_array
-from .model import spring_vectors, vector_lengths
+from .model import vector_lengths
 
 __all__ = ["DENSE_NODES", "DenseKernels", "SparseKernels", "kernels"]
 
@@ -69,20 +69,13 @@ class SparseKernels:
         return basis.T @ W @ basis
 
     def bending(self, step: NDArray) -> NDArray:
-        """``J^T (k r_vv)`` on ``coords`` (n,) for an unscaled ``step`` (n,) from the last
-        ``x``: the force of every spring's second-order length change ``|dd_perp|^2 / r``."""
+        """:func:`~.energy.spring_bending` on ``coords`` (n,) for an unscaled ``step`` (n,)
+        from the last ``x``."""
         x = self.x
         springs, k, _ = self.springs
         full = np.zeros(x.size)
         full[self.coords] = step
-        full = full.reshape(x.shape)
-        d = spring_vectors(x, springs)
-        r = np.maximum(vector_lengths(d), _TINY)
-        u = d / r[:, None]
-        dd = spring_vectors(full, springs)
-        perp = dd[:, 0] * u[:, 1] - dd[:, 1] * u[:, 0]
-        t = (k * perp * perp / r)[:, None] * u
-        return _scatter_nodes(t, springs, x.shape[0]).ravel()[self.coords]
+        return spring_bending(x, full.reshape(x.shape), springs, k).ravel()[self.coords]
 
     def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
         """``B^T`` :meth:`bending` ``(step)`` (r,) for ``step = B p``."""
