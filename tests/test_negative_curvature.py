@@ -201,7 +201,6 @@ def test_a_solve_wandering_at_the_round_off_floor_stops_and_says_so():
     floor sooner and stops by the second after 350. (Under default pins the solve runs in
     the pins' frame, centred on the first pin, where the floor is lower; only the polish
     1e3 from 0 meets it, and stops by the line search's give-up.)"""
-    from continuum_vs_network.network.builders import triangular_lattice
 
     rng = np.random.default_rng(4)
     net = triangular_lattice(15, 15, noise=0.1, rng=rng)
@@ -223,7 +222,7 @@ def test_a_long_bending_strip_converges_along_its_curved_valley(seed):
     """A 130 x 3 strip (780 coordinates: the sparse Newton), rest lengths within 10 % of
     the geometry, k over six decades: it curls far from its start, and straight Newton
     steps through the curved valley are cut by the line search. With the geodesic path
-    it converges in 43-57 iterations (109-156 with straight steps only)."""
+    it converges in 41-54 iterations (109-156 with straight steps only)."""
     rng = np.random.default_rng(seed)
     base = triangular_lattice(130, 3, noise=0.1, rng=rng)
     s = base.n_springs

@@ -154,13 +154,14 @@ def geodesic_path(
     at the lengths it is refused (computed once, when first needed).
 
     Iterations to 1e-10 under default pins (rest lengths within 10 % of the geometry /
-    0.3-3x it):
+    0.3-3x it; k over six decades):
 
-    - 3-row strips of 130 columns, k over six decades, 3 seeds: 156 / 138 / 109 -> 51 /
-      57 / 43, and 2000 (failed) / 1040 / 2335 -> 462 / 657 / 667;
-    - ``bench_family.py`` networks, all iterations summed: ``--medium`` 8396 -> 8099
-      (60, seed 0) and 8052 -> 8045 (seed 1); ``--large`` 6042 -> 5892 (30, seed 0) and
-      7394 -> 7683 (seed 1); ``--medium --displaced`` 1700 -> 1689 (40, seed 6); no
+    - 3-row strips of 130 columns, 3 seeds: 156 / 138 / 109 -> 50 / 54 / 41, and 2000
+      (failed) / 1040 / 2335 -> 465 / 487 / 589; of 265 columns: 359 / 349 / 246 -> 87 /
+      79 / 72, while of the prestressed ones 2 of 3 still fail (which ones changes);
+    - ``bench_family.py`` networks, all iterations summed: ``--medium`` 8396 -> 8212
+      (60, seed 0) and 8052 -> 8048 (seed 1); ``--large`` 6042 -> 5908 (30, seed 0) and
+      7394 -> 7508 (seed 1); ``--medium --displaced`` 1700 -> 1689 (40, seed 6); no
       failure either way.
     """
 

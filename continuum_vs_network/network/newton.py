@@ -55,7 +55,7 @@ Curved valleys: where the line search refuses an exact Newton step (shift 0), th
 also tried bent along its geodesic acceleration (:func:`~.line_search.geodesic_path`, as
 the dense trust region bends every step): a long strip curling far from its start, or a
 lattice far from the origin, follows rotations that a straight step overshoots. On 3-row
-strips of 130 columns iterations went from 109-156 to 43-57 (rest lengths within 10 %),
+strips of 130 columns iterations went from 109-156 to 41-54 (rest lengths within 10 %),
 and on a 15 x 15 lattice with k over 10 decades started 1e3 away from 942 to 311.
 
 Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones
