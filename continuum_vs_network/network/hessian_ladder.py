@@ -42,7 +42,7 @@ def factor_positive_model(
     shift: float,
     *,
     indefinite: tuple[float, NDArray] | None = None,
-) -> tuple[Factor | None, float, float, bool, sp.csr_matrix | NDArray | None]:
+) -> tuple[Factor | None, float, float, bool, sp.csr_matrix | NDArray | None, NDArray | None]:
     """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
     Order: the exact Hessian (when ``shift`` is 0), also with a larger augmentation ``rho``
@@ -65,9 +65,12 @@ def factor_positive_model(
     (``rho A^T A`` adds nothing along ``d``). At 1e5 nodes, strain 2 (bench_relax) that
     skipped 3.8 s of 9.4 s in the first indefinite iteration.
 
-    Returns ``(factor, rho, shift, exact_used, model)``, ``model`` the matrix factorised.
-    The exact Hessian is used whenever it is positive definite, so the last iterations are
-    pure Newton steps.
+    Returns ``(factor, rho, shift, exact_used, model, negative)``, ``model`` the matrix
+    factorised and ``negative`` (n,) the direction of most negative curvature (in the
+    shift's metric) that the failed exact factorisation gave, without clamps (``lam``
+    empty: with clamps ``W`` carries ``rho A^T A`` and the direction is not in their tangent
+    space), else None. The exact Hessian is used whenever it is positive definite, so the
+    last iterations are pure Newton steps.
     """
     W = assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho))
     directions = None
@@ -77,7 +80,7 @@ def factor_positive_model(
         if directions is None:
             factor, directions = _factor_or_curvature(W, pattern)
             if factor is not None:
-                return factor, rho, 0.0, True, W
+                return factor, rho, 0.0, True, W, None
         if lam.size:
             d = np.maximum(problem.net.lengths(x, problem.clamp_springs), 1e-300)
             new_rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
@@ -91,7 +94,7 @@ def factor_positive_model(
             W = assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho))
             factor = None if futile else factor_spd(W, ordered=pattern.ordered, rough=True)
             if factor is not None:
-                return factor, rho, 0.0, True, W
+                return factor, rho, 0.0, True, W, None
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
     # not freeze soft springs (stiffness ratios up to 1e12 are supported). Without a known
     # direction of negative curvature the shift grows by 100s from DAMP_MIN; with one, from
@@ -103,17 +106,20 @@ def factor_positive_model(
     growth = 10.0 if shift > DAMP_MIN else 100.0
     if indefinite is not None and indefinite[0] > 0.0:
         shift *= growth
+    negative = None
     if directions is not None:
-        estimate = _shift_estimate(W, directions, scale)
+        estimate, lowest = _shift_estimate(W, directions, scale)
         if estimate > shift:
             shift, growth = estimate, 10.0
+        if estimate > 0.0 and indefinite is None and not lam.size:
+            negative = lowest
     while shift <= 1e8:
         model = shifted(W, shift, scale)
         factor = factor_spd(model, ordered=pattern.ordered, rough=True, rung=True)
         if factor is not None:
-            return factor, rho, shift, False, model
+            return factor, rho, shift, False, model, negative
         shift *= growth
-    return None, rho, shift, False, None
+    return None, rho, shift, False, None, None
 
 
 def marquardt_scale(W: sp.spmatrix | NDArray) -> NDArray:
@@ -170,10 +176,10 @@ def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDA
     return None, directions
 
 
-def _shift_estimate(W: sp.spmatrix, directions: NDArray, scale: NDArray) -> float:
+def _shift_estimate(W: sp.spmatrix, directions: NDArray, scale: NDArray) -> tuple[float, NDArray]:
     """A first Levenberg-Marquardt shift from directions ``v`` (n, k) of negative curvature:
     twice the largest ``-v^T W v / (v^T diag(scale) v)``, the shift that would just cancel
-    ``v``'s negative curvature in the shift's metric.
+    ``v``'s negative curvature in the shift's metric; and that direction (n,).
 
     A heuristic start, not a bound: too small, the ladder grows it; too large, it damps the
     step more than needed. It replaced ``-v^T W v / (scale_j v_j^2)`` (``j`` the largest
@@ -186,7 +192,9 @@ def _shift_estimate(W: sp.spmatrix, directions: NDArray, scale: NDArray) -> floa
     """
     curv = np.einsum("ij,ij->j", directions, W @ directions)
     quad = np.einsum("ij,ij->j", directions, scale[:, None] * directions)
-    return 2.0 * float(np.max(-curv / np.maximum(quad, 1e-300)))
+    ratio = -curv / np.maximum(quad, 1e-300)
+    j = int(np.argmax(ratio))
+    return 2.0 * float(ratio[j]), directions[:, j]
 
 
 def _still_negative(W, directions, problem, x, pattern, extra_rho) -> bool:

@@ -38,7 +38,9 @@ lowers the merit most (doubled while it falls) replaces the line search's point 
 goes lower (:func:`~.line_search.follow_curvature`), and the shift restarts from twice
 that direction's Rayleigh quotient (:func:`_shift_estimate`). A shift alone, large
 enough to make ``W`` positive definite, damped the escape from a weak saddle to a creep
-(``bench_family.py --medium --seed 1``: one network past 2000 iterations).
+(``bench_family.py --medium --seed 1``: one network past 2000 iterations). Without
+clamps, the direction the failed factorisation of the exact Hessian gives is followed
+too, once the best residual has not halved in ``_CREEP`` iterations.
 
 Stiffness contrast: a linear step that rotates a spring lengthens it by
 ``|rotation|^2 r / 2``; for springs 10-1e12 times stiffer than the median that
@@ -128,6 +130,14 @@ _CERTIFY_MOVE = 1e-6
 # 1209 (22 s). Accepted steps at round-off (a residual halved by chance) kept its shift
 # from growing to the line search's give-up, which stops such solves otherwise
 _STAGNANT = 50
+# The best residual not halved in this many iterations, the exact Hessian indefinite: the
+# direction of negative curvature its failed factorisation gave is followed after the line
+# search, as conjugate gradients' are. A shift alone made just positive definite crept
+# toward the stationary point (a 265 x 3 strip, rest lengths 0.3-3x: the residual fell
+# 0.08 % an iteration at shift 1e-6 for hundreds of iterations). Followed at every such
+# factorisation, not only in a creep, it cost iterations on strips that converged (130 x
+# 3, seeds 10-14: 2492 -> 4048, one new failure); gated, 2520
+_CREEP = 20
 
 
 def newton(
@@ -276,11 +286,13 @@ def newton(
                 solver = reusable
         if step is None:
             factor = reusable = solver = None  # released first: one factorisation alive at a time
-            factor, rho, shift, exact_ok, model = factor_positive_model(
+            factor, rho, shift, exact_ok, model, lowest = factor_positive_model(
                 problem, pattern, x, lam_ls[:m], rho, shift, indefinite=indefinite
             )
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
+            if lowest is not None and it - best_it >= _CREEP:
+                indefinite = (0.0, lowest)  # a creep: follow what the exact Hessian showed
             # reuse only pays above the dense size; with rods the gradient's huge axial part
             # makes CG's relative tolerance meaningless for the rest. A shifted factor also
             # preconditions the exact Hessian (negative curvature makes CG fail: refactorise)
