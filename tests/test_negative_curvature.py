@@ -217,20 +217,25 @@ def test_a_solve_wandering_at_the_round_off_floor_stops_and_says_so():
         assert 1e-14 < state.relative_residual <= 10 * roundoff_floor(problem, state.positions)
 
 
+def _strip(columns: int, seed: int, rest: tuple[float, float]) -> cvn.SpringNetwork:
+    """A 3-row strip of ``columns``, k = 10^U(-3, 3), rest lengths U(*rest) times the
+    geometry."""
+    rng = np.random.default_rng(seed)
+    base = triangular_lattice(columns, 3, noise=0.1, rng=rng)
+    s = base.n_springs
+    k = 10 ** rng.uniform(-3, 3, s)
+    return cvn.SpringNetwork(
+        base.positions, base.springs, k, base.rest_length * rng.uniform(*rest, s)
+    )
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_long_bending_strip_converges_along_its_curved_valley(seed):
     """A 130 x 3 strip (780 coordinates: the sparse Newton), rest lengths within 10 % of
     the geometry, k over six decades: it curls far from its start, and straight Newton
     steps through the curved valley are cut by the line search. With the geodesic path
     it converges in 41-54 iterations (109-156 with straight steps only)."""
-    rng = np.random.default_rng(seed)
-    base = triangular_lattice(130, 3, noise=0.1, rng=rng)
-    s = base.n_springs
-    k = 10 ** rng.uniform(-3, 3, s)
-    net = cvn.SpringNetwork(
-        base.positions, base.springs, k, base.rest_length * rng.uniform(0.9, 1.1, s)
-    )
-    eq = cvn.relax(net)
+    eq = cvn.relax(_strip(130, seed, (0.9, 1.1)))
     assert eq.converged and eq.iterations < 90
 
 
@@ -244,15 +249,8 @@ def test_creeping_prestressed_strips_follow_the_exact_hessians_negative_curvatur
     solve ends on such a chaotic path depends on round-off, so two of three must."""
     converged = 0
     for seed in (1, 2, 5):
-        rng = np.random.default_rng(seed)
-        base = triangular_lattice(265, 3, noise=0.1, rng=rng)
-        s = base.n_springs
-        k = 10 ** rng.uniform(-3, 3, s)
-        net = cvn.SpringNetwork(
-            base.positions, base.springs, k, base.rest_length * rng.uniform(0.3, 3, s)
-        )
         try:
-            converged += cvn.relax(net).relative_residual <= 1e-10
+            converged += cvn.relax(_strip(265, seed, (0.3, 3.0))).relative_residual <= 1e-10
         except cvn.EquilibriumError:
             pass
     assert converged >= 2
