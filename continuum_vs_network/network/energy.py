@@ -35,6 +35,7 @@ __all__ = [
     "hessian_norm_bound",
     "node_stiffness",
     "spring_bending",
+    "spring_bending_on",
     "spring_energy",
     "spring_energy_change",
     "spring_gradient",
@@ -76,6 +77,16 @@ def spring_bending(x: NDArray, step: NDArray, springs: NDArray, k: NDArray) -> N
     dd = spring_vectors(step, springs)
     perp = dd[:, 0] * u[:, 1] - dd[:, 1] * u[:, 0]
     return _scatter_nodes((k * perp * perp / r)[:, None] * u, springs, x.shape[0])
+
+
+def spring_bending_on(
+    x: NDArray, coords: NDArray, step: NDArray, springs: NDArray, k: NDArray
+) -> NDArray:
+    """:func:`spring_bending` of a ``step`` (n,) of the flat coordinates ``coords`` (the
+    others held), on those coordinates (n,)."""
+    moved = np.zeros(x.size)
+    moved[coords] = step
+    return spring_bending(x, moved.reshape(x.shape), springs, k).ravel()[coords]
 
 
 def _scatter_nodes(t: NDArray, springs: NDArray, n_nodes: int) -> NDArray:

@@ -10,6 +10,7 @@ valley a rotation follows.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -17,7 +18,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from .constraints import Problem
-from .energy import spring_bending, spring_energy_change
+from .energy import spring_bending_on, spring_energy_change
 from .kkt import Factor, range_space_solve
 from .stiff_springs import StiffSprings
 from .trust import ACCEL_MAX
@@ -74,10 +75,10 @@ def line_search(
     move back onto the clamp lengths, which keeps the curvature of ``r_c`` along the step
     from blocking full steps (the Maratos effect; Nocedal & Wright, Sec. 18.3).
 
-    ``geodesic``: computes (once, when the straight step is first refused) the correction
-    ``c`` (n_free,) of the curved path ``x + alpha step + alpha^2 c``, or None; at each
-    ``alpha`` whose straight point is refused, the curved one is tried (see
-    :func:`~.newton.newton`).
+    ``geodesic``: returns the correction ``c`` (n_free,) of the curved path ``x + alpha
+    step + alpha^2 c``, or None (:func:`geodesic_path`: computed when first asked, when the
+    straight step is first refused); at each ``alpha`` whose straight point is refused, the
+    curved one is tried.
 
     Returns the new positions and the step length taken (0 when none was accepted).
     """
@@ -113,20 +114,15 @@ def line_search(
                     return z
         return None
 
-    curve = None
     alpha = 1.0
     for _ in range(60):
         y = x.copy()
         y.ravel()[coords] += alpha * step
         z = accepted(y, alpha)
-        if z is None and geodesic is not None:
-            if curve is None:
-                curve = geodesic()
-                geodesic = geodesic if curve is not None else None
-            if curve is not None:
-                y = x.copy()
-                y.ravel()[coords] += alpha * step + (alpha * alpha) * curve
-                z = accepted(y, alpha)
+        if z is None and geodesic is not None and (curve := geodesic()) is not None:
+            y = x.copy()
+            y.ravel()[coords] += alpha * step + (alpha * alpha) * curve
+            z = accepted(y, alpha)
         if z is not None:
             return z, alpha
         alpha *= 0.5
@@ -151,7 +147,7 @@ def geodesic_path(
     solved; on the clamps' tangent space ``A a = 0``), bends the path back into the curved
     valley a rotation follows. The dense trust region bends every step (:mod:`.trust`);
     here only exact Newton steps (shift 0), and only where the straight point is refused,
-    at the lengths it is refused (computed once, when first needed).
+    at the lengths it is refused.
 
     Iterations to 1e-10 under default pins (rest lengths within 10 % of the geometry /
     0.3-3x it; k over six decades):
@@ -165,11 +161,10 @@ def geodesic_path(
       failure either way.
     """
 
+    @functools.cache  # computed once, when first asked
     def correction() -> NDArray | None:
         springs, k, _ = problem.all_springs()
-        moved = np.zeros(x.size)
-        moved[coords] = step
-        bend = spring_bending(x, moved.reshape(x.shape), springs, k).ravel()[coords]
+        bend = spring_bending_on(x, coords, step, springs, k)
         try:
             if A is None:
                 accel = -np.asarray(solver.solve(bend))

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .constraints import Problem
-from .energy import spring_bending, spring_energy_change, spring_gradient
+from .energy import spring_bending_on, spring_energy_change, spring_gradient
 from .lagrangian import Frame, lagrangian_blocks
 from .memo import per_array
 from .model import vector_lengths
@@ -69,13 +69,10 @@ class SparseKernels:
         return basis.T @ W @ basis
 
     def bending(self, step: NDArray) -> NDArray:
-        """:func:`~.energy.spring_bending` on ``coords`` (n,) for an unscaled ``step`` (n,)
+        """:func:`~.energy.spring_bending_on` ``coords`` (n,) for an unscaled ``step`` (n,)
         from the last ``x``."""
-        x = self.x
         springs, k, _ = self.springs
-        full = np.zeros(x.size)
-        full[self.coords] = step
-        return spring_bending(x, full.reshape(x.shape), springs, k).ravel()[self.coords]
+        return spring_bending_on(self.x, self.coords, step, springs, k)
 
     def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
         """``B^T`` :meth:`bending` ``(step)`` (r,) for ``step = B p``."""
