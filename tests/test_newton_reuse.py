@@ -220,7 +220,7 @@ def test_a_start_that_needs_a_shift_ends_certified_by_the_loops_own_factorisatio
 
     def recorded(*args, **kwargs):
         out = factorise(*args, **kwargs)
-        shifts.append(out[2])
+        shifts.append(out.shift)
         return out
 
     monkeypatch.setattr(nw, "factor_positive_model", recorded)

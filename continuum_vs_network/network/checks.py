@@ -38,6 +38,7 @@ __all__ = [
     "CURVATURE_DENSE_MAX",
     "RANK_MAX",
     "clamp_roundoff_floor",
+    "collapse_note",
     "collapsed_springs",
     "escape_direction",
     "floppy_modes",
@@ -89,6 +90,14 @@ def collapsed_springs(problem: Problem, x: NDArray) -> NDArray[np.int64]:
     if not np.count_nonzero(short):  # the common case, without the index search
         return _NONE
     return np.flatnonzero(short & (net.stiffness > 0))
+
+
+def collapse_note(collapsed: NDArray[np.int64]) -> str:
+    """What a message says of the :func:`collapsed_springs` ``collapsed`` (first five)."""
+    return (
+        f"springs {collapsed[:5].tolist()} collapsed to zero length (k > 0: their force "
+        "has no direction)"
+    )
 
 
 def _node_scale(problem: Problem) -> NDArray:

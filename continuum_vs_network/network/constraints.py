@@ -23,7 +23,7 @@ from .._validate import choice, index_array, real
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .memo import per_network
-from .model import SpringNetwork, spring_vectors, vector_lengths
+from .model import SpringNetwork, spring_vectors, unit_vectors, vector_lengths
 from .spd import DENSE_MAX
 from .stopping import StopRule, coordinate_scale
 
@@ -136,8 +136,7 @@ def length_jacobian(
     coordinates, in columns ``column`` (2 n_nodes,) (-1: a pinned coordinate, left out);
     a dense ndarray or a sparse CSR matrix."""
     m = len(pairs)
-    d = spring_vectors(x, pairs)
-    u = d / np.maximum(vector_lengths(d), 1e-300)[:, None]
+    u, _ = unit_vectors(x, pairs)
     cols = end_columns(pairs, column)
     vals = np.concatenate([-u, u], axis=1)
     if dense:

@@ -19,6 +19,7 @@ from .. import _validate as check
 from .arguments import relax_arguments
 from .checks import (
     clamp_roundoff_floor,
+    collapse_note,
     collapsed_springs,
     dependent_clamps,
     refuse_floppy,
@@ -472,10 +473,7 @@ def _finish(
                 f"clamped rest lengths are down to {float(np.min(stop.clamp_scale)):.1e})"
             )
         if finite and (collapsed := collapsed_springs(problem, x)).size:
-            reason += (
-                f"; springs {collapsed[:5].tolist()} have collapsed to zero length (k > 0: "
-                "their force has no direction)"
-            )
+            reason += "; " + collapse_note(collapsed)
         if (
             finite
             and name_pin_load

@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from .checks import collapsed_springs, escape_direction, lowest_curvature
+from .checks import collapse_note, collapsed_springs, escape_direction, lowest_curvature
 from .constraints import Problem
 from .stopping import Outcome, StopRule, Trace
 
@@ -56,7 +56,7 @@ def second_order(
             # may lie on a line of symmetry that relaxing never leaves (a clamped triangle
             # started collinear, collapsed by its clamp, unfolded along its own line)
             y = unfold(problem, x, collapsed, escapes)
-            left = f"springs {collapsed[:5].tolist()} collapsed to zero length (k > 0)"
+            left = collapse_note(collapsed)
         elif outcome.certified:
             return outcome, extra
         else:

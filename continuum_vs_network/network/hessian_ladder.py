@@ -6,6 +6,8 @@ factorisation succeeds (the ladder), steered by directions of negative curvature
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
@@ -17,6 +19,7 @@ from .lagrangian import lagrangian_blocks
 
 __all__ = [
     "DAMP_MIN",
+    "PositiveModel",
     "assemble_hessian",
     "factor_positive_model",
     "marquardt_scale",
@@ -24,6 +27,20 @@ __all__ = [
 ]
 
 DAMP_MIN = 1e-6  # the least Levenberg-Marquardt shift (relative to diag W)
+
+
+class PositiveModel(NamedTuple):
+    """What :func:`factor_positive_model` made: ``factor`` of ``matrix`` (None when no
+    shift up to 1e8 made it positive definite), the augmentation ``rho`` and the shift it
+    took, whether ``matrix`` is the exact Hessian (shift 0), and the direction of most
+    negative curvature (n,) the failed exact factorisation gave (None without one)."""
+
+    factor: Factor | None
+    rho: float
+    shift: float
+    exact: bool
+    matrix: sp.csr_matrix | NDArray | None
+    negative: NDArray | None
 
 
 def assemble_hessian(pattern: HessianPattern, blocks: NDArray) -> sp.csr_matrix | NDArray:
@@ -42,7 +59,7 @@ def factor_positive_model(
     shift: float,
     *,
     indefinite: tuple[float, NDArray] | None = None,
-) -> tuple[Factor | None, float, float, bool, sp.csr_matrix | NDArray | None, NDArray | None]:
+) -> PositiveModel:
     """Factorise a positive-definite Hessian model: exact if possible, else shifted.
 
     Order: the exact Hessian (when ``shift`` is 0), also with a larger augmentation ``rho``
@@ -65,12 +82,11 @@ def factor_positive_model(
     (``rho A^T A`` adds nothing along ``d``). At 1e5 nodes, strain 2 (bench_relax) that
     skipped 3.8 s of 9.4 s in the first indefinite iteration.
 
-    Returns ``(factor, rho, shift, exact_used, model, negative)``, ``model`` the matrix
-    factorised and ``negative`` (n,) the direction of most negative curvature (in the
-    shift's metric) that the failed exact factorisation gave, without clamps (``lam``
-    empty: with clamps ``W`` carries ``rho A^T A`` and the direction is not in their tangent
-    space), else None. The exact Hessian is used whenever it is positive definite, so the
-    last iterations are pure Newton steps.
+    Returns a :class:`PositiveModel`; its ``negative`` (the direction of most negative
+    curvature in the shift's metric) only without clamps (``lam`` empty: with clamps ``W``
+    carries ``rho A^T A`` and the direction is not in their tangent space). The exact
+    Hessian is used whenever it is positive definite, so the last iterations are pure
+    Newton steps.
     """
     W = assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho))
     directions = None
@@ -80,7 +96,7 @@ def factor_positive_model(
         if directions is None:
             factor, directions = _factor_or_curvature(W, pattern)
             if factor is not None:
-                return factor, rho, 0.0, True, W, None
+                return PositiveModel(factor, rho, 0.0, True, W, None)
         if lam.size:
             d = np.maximum(problem.net.lengths(x, problem.clamp_springs), 1e-300)
             new_rho = max(10 * rho, 10 * float(np.max(np.abs(lam) / d)))
@@ -94,7 +110,7 @@ def factor_positive_model(
             W = assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho))
             factor = None if futile else factor_spd(W, ordered=pattern.ordered, rough=True)
             if factor is not None:
-                return factor, rho, 0.0, True, W, None
+                return PositiveModel(factor, rho, 0.0, True, W, None)
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
     # not freeze soft springs (stiffness ratios up to 1e12 are supported). Without a known
     # direction of negative curvature the shift grows by 100s from DAMP_MIN; with one, from
@@ -117,9 +133,9 @@ def factor_positive_model(
         model = shifted(W, shift, scale)
         factor = factor_spd(model, ordered=pattern.ordered, rough=True, rung=True)
         if factor is not None:
-            return factor, rho, shift, False, model, negative
+            return PositiveModel(factor, rho, shift, False, model, negative)
         shift *= growth
-    return None, rho, shift, False, None, None
+    return PositiveModel(None, rho, shift, False, None, None)
 
 
 def marquardt_scale(W: sp.spmatrix | NDArray) -> NDArray:

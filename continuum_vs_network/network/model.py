@@ -88,6 +88,14 @@ def vector_lengths(d: NDArray) -> NDArray:
     return r if r.min() > low else np.hypot(dx, dy)
 
 
+def unit_vectors(x: NDArray, springs: NDArray) -> tuple[NDArray, NDArray]:
+    """Unit vectors ``u`` (s, 2) from each spring's first node to its second, and lengths
+    ``r`` (s,), at positions ``x`` (n_nodes, 2); a spring of zero length gets ``u = 0``."""
+    d = spring_vectors(x, springs)
+    r = vector_lengths(d)
+    return d / np.maximum(r, 1e-300)[:, None], r
+
+
 @dataclass(frozen=True, eq=False)
 class SpringNetwork:
     """A 2D network of unit point masses joined by Hookean springs.

@@ -286,13 +286,14 @@ def newton(
                 solver = reusable
         if step is None:
             factor = reusable = solver = None  # released first: one factorisation alive at a time
-            factor, rho, shift, exact_ok, model, lowest = factor_positive_model(
+            # unpacked, not kept: the next refactorisation releases the factor first
+            factor, rho, shift, exact_ok, model, negative = factor_positive_model(
                 problem, pattern, x, lam_ls[:m], rho, shift, indefinite=indefinite
             )
             if factor is None:
                 return Outcome(x, it, False, "Hessian could not be made positive definite")
-            if lowest is not None and it - best_it >= _CREEP:
-                indefinite = (0.0, lowest)  # a creep: follow what the exact Hessian showed
+            if negative is not None and it - best_it >= _CREEP:
+                indefinite = (0.0, negative)  # a creep: follow what the exact Hessian showed
             # reuse only pays above the dense size; with rods the gradient's huge axial part
             # makes CG's relative tolerance meaningless for the rest. A shifted factor also
             # preconditions the exact Hessian (negative curvature makes CG fail: refactorise)

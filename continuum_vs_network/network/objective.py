@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from .constraints import Problem, clamp_tensions
 from .energy import node_stiffness, spring_energy_change, spring_gradient
+from .model import unit_vectors
 from .stopping import Outcome, StopRule, Trace
 
 __all__ = ["RECORD_EVERY", "InnerMethod", "InnerResult", "Objective", "minimise"]
@@ -108,9 +109,7 @@ class Objective:
 
     # geometry of the clamped springs
     def _clamp_geometry(self, x: NDArray) -> tuple[NDArray, NDArray]:
-        d = x[self.ends[:, 1]] - x[self.ends[:, 0]]
-        r = np.hypot(d[:, 0], d[:, 1])
-        return d / np.maximum(r, 1e-300)[:, None], r
+        return unit_vectors(x, self.ends)
 
     def violation(self, x: NDArray) -> NDArray:
         if not self.ends.size:

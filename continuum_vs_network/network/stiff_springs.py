@@ -24,7 +24,7 @@ import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from .constraints import Problem, end_columns
-from .model import spring_vectors, vector_lengths
+from .model import unit_vectors
 
 __all__ = ["StiffSprings", "median"]
 
@@ -86,9 +86,7 @@ class StiffSprings:
     def geometry(self, x: NDArray) -> tuple[NDArray, NDArray]:
         """Unit vectors ``u`` (s, 2) from each stiff spring's first node to its second, and
         lengths ``r`` (s,), at positions ``x`` (n_nodes, 2): ``J``'s rows are ``(-u, u)``."""
-        d = spring_vectors(x, self.springs)
-        r = vector_lengths(d)
-        return d / np.maximum(r, 1e-300)[:, None], r
+        return unit_vectors(x, self.springs)
 
     def lengthening(self, u: NDArray, move: NDArray) -> NDArray:
         """``J move`` (s,): each stiff spring's length change along ``move`` (n,), to first

@@ -52,7 +52,7 @@ from .energy import (
     spring_gradient,
     spring_hessian_blocks,
 )
-from .model import SpringNetwork, spring_vectors, vector_lengths
+from .model import SpringNetwork, spring_vectors, unit_vectors
 from .newton import factor_pd, pattern_for
 
 __all__ = [
@@ -109,15 +109,9 @@ class Viscosity:
         return self.arm_dashpot / self.arm_stiffness if self.has_arm else math.inf
 
 
-def _unit(x: NDArray, springs: NDArray) -> tuple[NDArray, NDArray]:
-    d = spring_vectors(x, springs)
-    r = vector_lengths(d)
-    return d / np.maximum(r, 1e-300)[:, None], r
-
-
 def dashpot_blocks(x: NDArray, springs: NDArray, gamma: float) -> NDArray:
     """Per-spring blocks ``gamma e e^T`` (n_springs, 2, 2): the Hessian blocks at ``L = r``."""
-    _, r = _unit(x, springs)
+    _, r = unit_vectors(x, springs)
     return spring_hessian_blocks(x, springs, np.full(len(springs), float(gamma)), r)
 
 
@@ -134,7 +128,7 @@ def dashpot_matrix(
 def dashpot_force(x: ArrayLike, net: SpringNetwork, gamma: float, v: ArrayLike) -> NDArray:
     """Dashpot force ``-D_kv(x) v`` on every node (n_nodes, 2) for velocities ``v``."""
     x = np.asarray(x, dtype=np.float64)
-    e, _ = _unit(x, net.springs)
+    e, _ = unit_vectors(x, net.springs)
     dv = spring_vectors(np.asarray(v), net.springs)
     rate = gamma * np.einsum("ij,ij->i", e, dv)
     # the force on b is -rate e, on a +rate e: the gradient of a spring with tension `rate`
@@ -163,7 +157,7 @@ def linear_system(
     if not viscosity.has_arm:
         return H.tocsr(), D.tocsr()
     k2, g2 = viscosity.arm_stiffness, viscosity.arm_dashpot
-    e, _ = _unit(x, net.springs)
+    e, _ = unit_vectors(x, net.springs)
     idx = pattern.free_index
     rows, cols, vals = [], [], []
     for node_col, sign in ((1, 1.0), (0, -1.0)):
@@ -369,7 +363,7 @@ class Stepper:
         for clip in (False, True):
             L = Lc
             if clip:  # compressed springs: tangentially clipped, positive semi-definite
-                _, r = _unit(y, springs)
+                _, r = unit_vectors(y, springs)
                 L = np.minimum(Lc, r)
             blocks = spring_hessian_blocks(y, springs, kc, L)
             if isinstance(D, _Scaled):
