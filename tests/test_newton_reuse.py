@@ -339,3 +339,98 @@ def test_the_end_game_makes_one_factorisation(side, strain, monkeypatch):
     eq = cvn.relax(net, clamped=clamped, tol=tol)
     assert eq.converged and eq.relative_residual <= tol
     assert len(end_game) == 1, end_game
+
+
+def _ladders(monkeypatch, side: int = 20, strain: float = 3.0) -> list:
+    """Newton on a ``side`` x ``side`` lattice whose central spring's nodes are pinned
+    ``strain`` apart (bench_jaxmd's problem, two far nodes pinned too): the arguments and
+    result of every :func:`~.hessian_ladder.factor_positive_model` call that met a
+    direction of negative curvature, where the Ritz bound is computed."""
+    net = triangular_lattice(side, side, noise=0.1, rng=np.random.default_rng(0))
+    mid = net.positions[net.springs].mean(axis=1)
+    c = int(np.argmin(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1)))
+    a, b = net.springs[c]
+    x0 = net.positions.copy()
+    grow = strain * (x0[b] - x0[a])
+    x0[a] -= 0.5 * grow
+    x0[b] += 0.5 * grow
+    problem = Problem.build(net, pinned=[0, net.n_nodes - 1, int(a), int(b)])
+    calls: list = []
+    made, ritz = ladder.factor_positive_model, ladder.ritz_lowest
+    bounded = [False]
+
+    def recorded(*args, **kwargs):
+        bounded[0] = False
+        out = made(*args, **kwargs)
+        if bounded[0]:
+            calls.append((args, kwargs, out))
+        return out
+
+    def spy(*args, **kwargs):
+        bounded[0] = True
+        return ritz(*args, **kwargs)
+
+    with monkeypatch.context() as spied:
+        spied.setattr(nw, "factor_positive_model", recorded)
+        spied.setattr(ladder, "ritz_lowest", spy)
+        stop = problem.stop_rule(1e-10, max_iter=200, max_seconds=60.0)
+        assert nw.newton(problem, problem.start(x0), stop, Trace()).converged
+    assert calls, "no ladder met negative curvature: the case does not test the rule"
+    return calls
+
+
+def test_the_ritz_value_bounds_the_lowest_eigenvalue_and_finds_it_from_a_negative_direction(
+    monkeypatch,
+):
+    """``ritz_lowest`` is a Rayleigh quotient over a Krylov space, so never below the lowest
+    eigenvalue of ``W`` in the metric ``diag(scale)``; from a direction of negative
+    curvature it reaches an eigenvalue that stands apart in a few steps."""
+    (problem, pattern, x, lam, rho, _), _, _ = _ladders(monkeypatch)[0]
+    W = ladder.assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho))
+    scale = ladder.marquardt_scale(W)
+    root = 1.0 / np.sqrt(scale)
+    vals, vecs = np.linalg.eigh(root[:, None] * W.toarray() * root[None, :])
+    assert vals[0] < 0.0 and vals[1] - vals[0] > 0.1 * abs(vals[0])  # apart, negative
+    rng = np.random.default_rng(1)
+    negative = root * (vecs[:, 0] + 0.3 * rng.standard_normal(vals.size) / np.sqrt(vals.size))
+    assert ladder.ritz_lowest(W, scale, negative, steps=10) == pytest.approx(vals[0], rel=1e-8)
+    for steps in (1, 3, 10):
+        start = rng.standard_normal(vals.size)
+        assert ladder.ritz_lowest(W, scale, start, steps=steps) >= vals[0] - 1e-12
+
+
+def test_the_ladder_skips_only_rungs_that_must_fail(monkeypatch):
+    """Rungs below the Ritz bound are not factorised: the ladder ends at the same shift
+    with the same factor after fewer factorisations, and each rung it skips fails when
+    factorised. At strain 10 the first ladder (N = 4096, bench_jaxmd) went 0.0368 ->
+    0.368 -> 3.68 -> 36.8, three failed factorisations (22 of 209 ms); now 36.8 at once."""
+    made = ladder.factor_positive_model
+    factorised: list = []
+    factor = ladder.factor_spd
+
+    def counted(M, **kwargs):
+        out = factor(M, **kwargs)
+        factorised.append((M, out is not None))
+        return out
+
+    calls = _ladders(monkeypatch)
+    monkeypatch.setattr(ladder, "factor_spd", counted)
+    skipped = 0
+    for args, kwargs, out in calls:
+        factorised.clear()
+        with monkeypatch.context() as unbounded:
+            unbounded.setattr(ladder, "ritz_lowest", lambda *a, **k: np.inf)
+            plain = made(*args, **kwargs)
+        rungs = [M for M, _ in factorised]
+        factorised.clear()
+        again = made(*args, **kwargs)
+        assert again.shift == out.shift == plain.shift
+        rhs = np.random.default_rng(0).standard_normal(plain.matrix.shape[0])
+        np.testing.assert_array_equal(again.factor.solve(rhs), plain.factor.solve(rhs))
+        kept = [M.data for M, _ in factorised]
+        missing = [M for M in rungs if not any(np.array_equal(M.data, d) for d in kept)]
+        assert len(rungs) - len(factorised) == len(missing)
+        for M in missing:
+            assert factor(M, rough=True, rung=True) is None
+        skipped += len(missing)
+    assert skipped >= 2
