@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from pulled_lattices import pulled_apart
 
 from continuum_vs_network.network import hessian_ladder as ladder
 from continuum_vs_network.network import newton as nw
@@ -343,18 +344,11 @@ def test_the_end_game_makes_one_factorisation(side, strain, monkeypatch):
 
 def _ladders(monkeypatch, side: int = 20, strain: float = 3.0) -> list:
     """Newton on a ``side`` x ``side`` lattice whose central spring's nodes are pinned
-    ``strain`` apart (bench_jaxmd's problem, two far nodes pinned too): the arguments and
+    ``strain`` apart (:func:`pulled_apart`, bench_jaxmd's problem): the arguments and
     result of every :func:`~.hessian_ladder.factor_positive_model` call that met a
     direction of negative curvature, where the Ritz bound is computed."""
-    net = triangular_lattice(side, side, noise=0.1, rng=np.random.default_rng(0))
-    mid = net.positions[net.springs].mean(axis=1)
-    c = int(np.argmin(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1)))
-    a, b = net.springs[c]
-    x0 = net.positions.copy()
-    grow = strain * (x0[b] - x0[a])
-    x0[a] -= 0.5 * grow
-    x0[b] += 0.5 * grow
-    problem = Problem.build(net, pinned=[0, net.n_nodes - 1, int(a), int(b)])
+    net, pins, x0 = pulled_apart(side, strain)
+    problem = Problem.build(net, pinned=pins)
     calls: list = []
     made, ritz = ladder.factor_positive_model, ladder.ritz_lowest
     bounded = [False]

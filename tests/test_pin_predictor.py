@@ -4,30 +4,13 @@ geometry to the pins' displacement (``newton._pin_predictor``)."""
 from __future__ import annotations
 
 import numpy as np
+from pulled_lattices import pulled_apart
 
 import continuum_vs_network as cvn
 from continuum_vs_network.network import newton as nw
-from continuum_vs_network.network.builders import triangular_lattice
 from continuum_vs_network.network.constraints import Problem
 from continuum_vs_network.network.energy import spring_energy
 from continuum_vs_network.network.lagrangian import pattern_for
-
-
-def _pulled_apart(side: int, strain: float):
-    """A stress-free noisy ``side`` x ``side`` lattice whose spring nearest the centre is
-    stretched by ``strain`` by moving its two nodes apart and pinning them there (plus the
-    default pins): ``(net, pins, x0)``."""
-    net = triangular_lattice(side, side, noise=0.1, rng=np.random.default_rng(0))
-    mid = net.positions[net.springs].mean(axis=1)
-    c = int(np.argmin(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1)))
-    a, b = net.springs[c]
-    x0 = net.positions.copy()
-    grow = strain * (x0[b] - x0[a])
-    x0[a] -= 0.5 * grow
-    x0[b] += 0.5 * grow
-    pins = cvn.default_pins(net, avoid=[c])
-    pins[[a, b]] = True
-    return net, pins, x0
 
 
 def _predict(net, pins, x0):
@@ -46,7 +29,7 @@ def test_the_pin_predictor_is_the_first_order_response():
     spring length and 1e-2 of the start's offset from the equilibrium."""
     errors = []
     for strain in (2e-3, 1e-3):
-        net, pins, x0 = _pulled_apart(16, strain)
+        net, pins, x0 = pulled_apart(16, strain)
         y, factor = _predict(net, pins, x0)
         assert factor is not None and y is not x0
         np.testing.assert_array_equal(y[pins], x0[pins])  # the pins stay where they are
@@ -61,7 +44,7 @@ def test_the_pin_predictor_is_the_first_order_response():
 def test_a_prediction_that_raises_the_energy_is_refused():
     """At strain 4 (16 x 16) the linear response raises the energy above the start's: the
     start is kept, with the factorisation made for it (Newton preconditions with it)."""
-    net, pins, x0 = _pulled_apart(16, 4.0)
+    net, pins, x0 = pulled_apart(16, 4.0)
     y, factor = _predict(net, pins, x0)
     assert y is x0 and factor is not None
 
@@ -69,7 +52,7 @@ def test_a_prediction_that_raises_the_energy_is_refused():
 def test_other_starts_are_left_alone_without_a_factorisation():
     """A start whose free nodes are off the geometry (a warm start), or whose pins are
     where the network has them, is not predicted: nothing is factorised."""
-    net, pins, x0 = _pulled_apart(16, 1.0)
+    net, pins, x0 = pulled_apart(16, 1.0)
     warm = x0 + 1e-3 * np.random.default_rng(1).standard_normal(x0.shape) * ~pins
     for start in (warm, net.positions.copy()):
         y, factor = _predict(net, pins, start)
@@ -80,7 +63,7 @@ def test_displaced_pins_reach_the_same_equilibrium_in_fewer_iterations(monkeypat
     """A 24 x 24 lattice pulled apart at strain 2: Newton with the predictor and without
     it (the start as given) reach the same positions; with it in at most 6 iterations
     (the predictor counted), without it in 9."""
-    net, pins, x0 = _pulled_apart(24, 2.0)
+    net, pins, x0 = pulled_apart(24, 2.0)
     predicted = cvn.relax(net, pinned=pins, x0=x0, tol=1e-11)
     monkeypatch.setattr(nw, "_pin_predictor", lambda problem, pattern, x: (x, None))
     plain = cvn.relax(net, pinned=pins, x0=x0, tol=1e-11)
