@@ -75,13 +75,15 @@ def factor_positive_model(
     or from a shift carried over from the last iterations) until the
     factorisation is positive definite. Clipping each spring's negative tangential curvature
     instead crept for hundreds of iterations on the paper's network under strain
-    continuation. When a rung fails and a direction of negative curvature is known, the
-    rungs below the negative of the lowest Ritz value from that direction
-    (:func:`ritz_lowest`, 10 Lanczos steps), which cannot be positive definite, are
-    skipped: the same shifts and iterates, fewer failed factorisations (lattices of 32-64
-    per side with two nodes pinned at strains 1.5-15: 40 -> 21 failed of 109 -> 90;
-    ``bench_family.py --medium``, 30 networks: 1468 -> 1396; at N = 4096, strain 10, the
-    first ladder 37.5 -> 22 ms).
+    continuation. Where a direction of negative curvature is known, the rungs below the
+    negative of the lowest Ritz value from it (:func:`ritz_lowest`, 10 Lanczos steps),
+    which cannot be positive definite, are skipped: the same shifts and iterates, fewer
+    failed factorisations. The bound is made at once for a direction conjugate gradients
+    met, else after the first failed rung (at once there too, 3-row strips of 265 columns
+    took 3 % longer: their first rungs succeed). Failed factorisations: lattices of 32-64
+    per side pulled apart by two pinned nodes at strains 1.5-15, 40 -> 7 (of 109 -> 76);
+    ``bench_family.py --medium`` (30 networks) 1468 -> 1360, ``--large`` (10) 441 -> 394;
+    at N = 4096, strain 10, the first ladder took 37.5 ms, now 15.
 
     ``indefinite``: ``(s, d)`` when conjugate gradients met negative curvature along
     ``d`` (n,) on ``W + s D`` (``A d = 0``); ``s`` replaces ``shift``. No factorisation
@@ -137,15 +139,21 @@ def factor_positive_model(
             shift, growth = estimate, 10.0
         if estimate > 0.0 and indefinite is None and not lam.size:
             negative = lowest
-    bound = None  # no shift below it makes W positive definite: those rungs are skipped
+
+    def ritz_bound() -> float:
+        """No shift below it makes ``W`` positive definite: those rungs are skipped."""
+        return -0.99 * ritz_lowest(W, scale, lowest) if lowest is not None else 0.0
+
+    # at once from conjugate gradients' direction (its Rayleigh quotient, not an
+    # eigenvector's, left most first rungs to fail), else after the first failed rung
+    bound = ritz_bound() if indefinite is not None else None
     while shift <= 1e8:
         if bound is None or shift >= bound:
             model = shifted(W, shift, scale)
             factor = factor_spd(model, ordered=pattern.ordered, rough=True, rung=True)
             if factor is not None:
                 return PositiveModel(factor, rho, shift, False, model, negative)
-            if bound is None:  # after the first failed rung, from the known direction
-                bound = -0.99 * ritz_lowest(W, scale, lowest) if lowest is not None else 0.0
+            bound = ritz_bound() if bound is None else bound
         shift *= growth
     return PositiveModel(None, rho, shift, False, None, None)
 
