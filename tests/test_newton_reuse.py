@@ -391,6 +391,9 @@ def test_the_ritz_value_bounds_the_lowest_eigenvalue_and_finds_it_from_a_negativ
     for steps in (1, 3, 10):
         start = rng.standard_normal(vals.size)
         assert ladder.ritz_lowest(W, scale, start, steps=steps) >= vals[0] - 1e-12
+    unknown = sp.csr_matrix(np.full((2, 2), np.nan))
+    assert ladder.ritz_lowest(unknown, np.ones(2), np.ones(2)) == np.inf
+    assert ladder.ritz_lowest(W, scale, np.zeros(vals.size)) == np.inf
 
 
 def test_the_ladder_skips_only_rungs_that_must_fail(monkeypatch):

@@ -240,9 +240,10 @@ def ritz_lowest(
     Lanczos steps (full reorthogonalisation) from ``diag(scale)^1/2 start`` (n,): the least
     ``v^T W v / (v^T diag(scale) v)`` over that Krylov space, so an upper bound on ``W``'s
     lowest eigenvalue in the shift's metric, and ``W + mu diag(scale)`` is indefinite for
-    every ``mu`` below its negative. From a direction of negative curvature it converges
-    in a few steps where that eigenvalue stands apart (a lattice pulled to strain 10:
-    -6.6359 after 5 steps, the same after 40).
+    every ``mu`` below its negative (``inf`` where nothing is known: a start of no length,
+    ``W`` not finite). From a direction of negative curvature it converges in a few steps
+    where that eigenvalue stands apart (a lattice pulled to strain 10: -6.6359 after 5
+    steps, the same after 40).
     """
     root = np.sqrt(scale)
     q = root * start
@@ -262,11 +263,10 @@ def ritz_lowest(
         norm = float(np.linalg.norm(w))
         beta.append(norm)
         q = w
-    if not alpha:
-        return np.inf
-    return float(
-        sla.eigvalsh_tridiagonal(alpha, beta[: len(alpha) - 1], select="i", select_range=(0, 0))[0]
-    )
+    diagonal, off = np.array(alpha), np.array(beta[: len(alpha) - 1])
+    if not (diagonal.size and np.isfinite(diagonal).all() and np.isfinite(off).all()):
+        return np.inf  # nothing known (a start of no length, or W not finite)
+    return float(sla.eigvalsh_tridiagonal(diagonal, off, select="i", select_range=(0, 0))[0])
 
 
 def _still_negative(W, directions, problem, x, pattern, extra_rho) -> bool:
