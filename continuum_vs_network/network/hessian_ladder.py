@@ -24,6 +24,7 @@ __all__ = [
     "assemble_hessian",
     "factor_positive_model",
     "marquardt_scale",
+    "ritz_lowest",
     "shifted",
 ]
 
