@@ -154,7 +154,8 @@ def factor_positive_model(
             factor = factor_spd(model, ordered=pattern.ordered, rough=True, rung=True)
             if factor is not None:
                 return PositiveModel(factor, rho, shift, False, model, negative)
-            bound = ritz_bound() if bound is None else bound
+            if bound is None:
+                bound = ritz_bound()
         shift *= growth
     return PositiveModel(None, rho, shift, False, None, None)
 

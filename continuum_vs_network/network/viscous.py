@@ -52,7 +52,7 @@ from .energy import (
     spring_gradient,
     spring_hessian_blocks,
 )
-from .model import SpringNetwork, spring_vectors, unit_vectors
+from .model import SpringNetwork, spring_vectors, unit_vectors, vector_lengths
 from .newton import factor_pd, pattern_for
 
 __all__ = [
@@ -111,7 +111,7 @@ class Viscosity:
 
 def dashpot_blocks(x: NDArray, springs: NDArray, gamma: float) -> NDArray:
     """Per-spring blocks ``gamma e e^T`` (n_springs, 2, 2): the Hessian blocks at ``L = r``."""
-    _, r = unit_vectors(x, springs)
+    r = vector_lengths(spring_vectors(x, springs))
     return spring_hessian_blocks(x, springs, np.full(len(springs), float(gamma)), r)
 
 
@@ -363,7 +363,7 @@ class Stepper:
         for clip in (False, True):
             L = Lc
             if clip:  # compressed springs: tangentially clipped, positive semi-definite
-                _, r = unit_vectors(y, springs)
+                r = vector_lengths(spring_vectors(y, springs))
                 L = np.minimum(Lc, r)
             blocks = spring_hessian_blocks(y, springs, kc, L)
             if isinstance(D, _Scaled):
