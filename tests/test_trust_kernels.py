@@ -11,7 +11,7 @@ from continuum_vs_network.network.builders import paper_network
 from continuum_vs_network.network.constraints import Problem, clamp_tensions
 from continuum_vs_network.network.lagrangian import Frame
 from continuum_vs_network.network.trust_kernels import DenseKernels, SparseKernels
-from continuum_vs_network.network.trust_model import CURVATURE, Model, null_basis, positive_factor
+from continuum_vs_network.network.trust_model import CURVATURE, Model, null_basis
 
 
 @pytest.mark.parametrize("mode", ["none", "exact", "rod", "pinned"])
@@ -58,8 +58,9 @@ def test_dense_kernels_agree_with_sparse_ones(mode):
 
 @pytest.mark.parametrize("lowest", [-1e-3, 0.5e-8, 2e-8, 0.3])
 def test_cholesky_certificate_matches_the_lowest_eigenvalue(lowest):
-    """The Cholesky factor certifies exactly the matrices whose lowest eigenvalue exceeds
-    1e-8 (a saddle or a nearly singular minimum is not certified), and its Newton step
+    """A model certifies exactly the Hessians whose lowest eigenvalue exceeds 1e-8 (a
+    saddle or a nearly singular minimum is not), before and after its spectrum is known;
+    its Cholesky factor exists exactly for positive-definite ones, and its Newton step
     solves H p = -g."""
     rng = np.random.default_rng(1)
     vecs = np.linalg.qr(rng.normal(size=(9, 9)))[0]
@@ -67,11 +68,16 @@ def test_cholesky_certificate_matches_the_lowest_eigenvalue(lowest):
     H = vecs @ np.diag(vals) @ vecs.T
     H = 0.5 * (H + H.T)
     g = rng.normal(size=9)
-    factor, step, length = positive_factor(H, g)
-    assert (factor is not None) == (lowest > CURVATURE)
-    if factor is not None:
+    model = Model(np.zeros((5, 2)), H, g, None, np.ones(9), None)
+    assert model.certified == (lowest > CURVATURE)
+    assert (model.factor is not None) == (lowest > 0)
+    if model.factor is not None:
+        step = model.newton
         np.testing.assert_allclose(H @ step, -g, atol=1e-9 * np.abs(g).max() / lowest)
-        assert length == pytest.approx(np.linalg.norm(step))
+        assert model.newton_length == pytest.approx(np.linalg.norm(step))
+    fresh = Model(np.zeros((5, 2)), H, g, None, np.ones(9), None)
+    fresh.eigen()
+    assert fresh.certified == (lowest > CURVATURE)
 
 
 def test_model_newton_step_is_the_same_from_its_eigenvalues():

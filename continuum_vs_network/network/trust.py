@@ -153,6 +153,27 @@ def _trial(
     the positions are not). ``coords``: the free flat coordinates (``full``: all of them, in
     order); ``exact``: the problem has exact clamps.
 
+    Kept per model by radius: the radius tries of :func:`trust_region_newton` come back to
+    a radius already tried at the same Hessian (a doubling from a quarter of a rejected
+    radius), whose step is then not computed again.
+    """
+    hit = model.trials.get(radius)
+    if hit is None:
+        hit = model.trials[radius] = _bent_step(problem, model, radius, stiff, coords, full, exact)
+    return hit
+
+
+def _bent_step(
+    problem: Problem,
+    model: Model,
+    radius: float,
+    stiff: StiffSprings | None,
+    coords: NDArray,
+    full: bool,
+    exact: bool,
+) -> tuple[NDArray, float, float, float]:
+    """:func:`_trial`, computed.
+
     The step is bent by its geodesic acceleration (Transtrum & Sethna 2012): the
     second-order length change ``|dd_perp|^2 / r`` of every spring along the linear step
     exerts forces, corrected by the same (shifted) model Hessian, so that a step that turns

@@ -4,12 +4,12 @@ subproblem, in scaled reduced coordinates.
 A model is ``m(p) = gr . p + p . H p / 2`` over reduced coordinates ``p`` (r,) that move
 the free coordinates by ``B p`` (``B`` (n, r) the scaled basis: ``D^-1/2`` times an
 orthonormal basis of the clamps' tangent space, rigid motions removed when nothing is
-pinned). It is first factored by Cholesky, whose success with a shift ``1e-8`` is the
-second-order certificate and gives the Newton step; when a trial needs a boundary step it
-is eigen-decomposed once, and every trial at that model solves the secular equation on
-the eigenvalues alone (vector operations of length r) and corrects its bending by one
-division. LAPACK is called directly: at the paper's N = 10 patch numpy's per-call overhead
-is the cost.
+pinned). It is first factored by Cholesky, which gives the Newton step; the second-order
+certificate (a Cholesky with a shift ``1e-8``) is made only for the model a solve ends at;
+when a trial needs a boundary step it is eigen-decomposed once, and every trial at that
+model solves the secular equation on the eigenvalues alone (vector operations of length
+r) and corrects its bending by one division. LAPACK is called directly: at the paper's
+N = 10 patch numpy's per-call overhead is the cost.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from .trust_kernels import SparseKernels
 __all__ = ["CURVATURE", "Model", "RigidBasis", "Spectrum", "null_basis", "rigid_motions"]
 
 CURVATURE = 1e-8  # smallest eigenvalue of the scaled reduced Hessian that certifies a minimum
-_EYE: dict[int, tuple[NDArray, NDArray]] = {}  # CURVATURE I, I by size (positive_factor)
+_EYE: dict[int, tuple[NDArray, NDArray]] = {}  # CURVATURE I, I by size (shifted_positive)
 
 
 def null_basis(M: NDArray) -> NDArray:
@@ -201,10 +201,12 @@ class Model:
     """The quadratic model of one iteration: Hessian ``H`` (r, r), gradient ``gr`` (r,) and
     basis ``basis`` (n, r) (None: ``diag(inv_root)``) at positions ``x``.
 
-    ``H`` is first factored (Cholesky) with a shift ``sigma = max(1e-8, 1e-12 |H|)``: when
-    that succeeds every eigenvalue exceeds ``sigma`` (the second-order certificate) and the
-    Newton step comes from the Cholesky factor of ``H``. :meth:`eigen` (the boundary step,
-    negative curvature) is computed only when a trial needs it.
+    ``H`` is first factored (Cholesky): when that succeeds the Newton step comes from the
+    factor. :attr:`certified` (every eigenvalue above ``sigma = max(1e-8, 1e-12 |H|)``,
+    the second-order certificate) is decided only when asked, by a Cholesky of
+    ``H - sigma I``, or from the spectrum when :meth:`eigen` (the boundary step, negative
+    curvature) has been computed. ``trials`` keeps the trust region's trials at this model
+    by radius (:func:`~.trust._trial`).
     """
 
     def __init__(
@@ -215,8 +217,16 @@ class Model:
         self.terms = terms
         self.spectrum: Spectrum | None = None
         self.vecs: NDArray | None = None
-        self.factor, self.newton, self.newton_length = positive_factor(H, gr)
-        self.certified = self.factor is not None  # every eigenvalue > CURVATURE
+        self.factor, self.newton, self.newton_length = cholesky_newton(H, gr)
+        self._certified: bool | None = None if self.factor is not None else False
+        self.trials: dict[float, tuple] = {}
+
+    @property
+    def certified(self) -> bool:
+        """Every eigenvalue of ``H`` exceeds ``sigma`` (:data:`CURVATURE` at least)."""
+        if self._certified is None:
+            self._certified = shifted_positive(self.H)
+        return self._certified
 
     def lift(self, p: NDArray) -> NDArray:
         """The move (n,) of the free coordinates for reduced scaled coordinates ``p`` (r,)."""
@@ -227,20 +237,31 @@ class Model:
         if self.spectrum is None:
             vals, self.vecs = _eigh(self.H)
             self.spectrum = Spectrum(vals, self.vecs.T @ self.gr)
-            self.certified = bool(vals.size == 0 or vals[0] > CURVATURE)
+            self._certified = bool(vals.size == 0 or vals[0] > CURVATURE)
         return self.spectrum
 
 
-def positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | None, float]:
-    """Cholesky factor of ``H`` (r, r), the Newton step and its length, when
-    ``H - sigma I`` is positive definite (see :class:`Model`); else ``(None, None, inf)``."""
+def cholesky_newton(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | None, float]:
+    """Cholesky factor of ``H`` (r, r), the Newton step ``-H^-1 gr`` and its length, when
+    ``H`` is positive definite (numerically: the factorisation completes and the step is
+    finite); else ``(None, None, inf)``."""
     if not H.size:
         return None, None, math.inf
-    # H itself first: where it is not positive definite, neither is H - sigma I (the
-    # shifted factorisation is then skipped; both must succeed either way)
     factor, info = lapack.dpotrf(H)
     if info != 0:
         return None, None, math.inf
+    step, info = lapack.dpotrs(factor, gr)
+    length = math.sqrt(float(step @ step))
+    if info != 0 or not math.isfinite(length):
+        return None, None, math.inf
+    return factor, -step, length
+
+
+def shifted_positive(H: NDArray) -> bool:
+    """``H - sigma I`` (r, r) is positive definite, ``sigma = max(CURVATURE, 1e-12 |H|)``
+    (``|H|`` the largest row sum of ``|H_ij|``); False for an empty ``H``."""
+    if not H.size:
+        return False
     r = H.shape[0]
     magnitude = np.abs(H)
     top = float(np.maximum.reduce(magnitude, None))
@@ -253,10 +274,4 @@ def positive_factor(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | 
         shifts = _EYE.setdefault(r, (CURVATURE * eye, eye))
     shift = shifts[0] if sigma == CURVATURE else sigma * shifts[1]
     _, info = lapack.dpotrf(H - shift, overwrite_a=True)
-    if info != 0:
-        return None, None, math.inf
-    step, info = lapack.dpotrs(factor, gr)
-    length = math.sqrt(float(step @ step))
-    if info != 0 or not math.isfinite(length):
-        return None, None, math.inf
-    return factor, -step, length
+    return info == 0
