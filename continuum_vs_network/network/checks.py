@@ -243,7 +243,10 @@ def dependent_clamps(problem: Problem, x: NDArray, tol: float = 1e-6) -> NDArray
     # the length gradients on the clamps' own free coordinates only, dense: no (m, n)
     # sparse Jacobian (0.4-0.6 ms of scipy.sparse overhead at 1e3-1e4 nodes, 2 clamps)
     pairs = problem.net.springs[problem.clamp_springs]
-    own = (2 * np.unique(pairs)[:, None] + np.arange(2)).ravel()
+    nodes = np.unique(pairs)
+    if nodes.size == pairs.size:  # no shared node: the rows are orthogonal (or zero)
+        return none
+    own = (2 * nodes[:, None] + np.arange(2)).ravel()
     own = own[problem.free.ravel()[own]]
     column = np.full(2 * problem.net.n_nodes, -1, dtype=np.int64)
     column[own] = np.arange(own.size)
