@@ -13,7 +13,7 @@ from continuum_vs_network.network import reuse
 from continuum_vs_network.network.builders import triangular_lattice
 from continuum_vs_network.network.checks import lowest_curvature
 from continuum_vs_network.network.constraints import Problem
-from continuum_vs_network.network.kkt import factor_spd, range_space, range_space_solve
+from continuum_vs_network.network.kkt import Factor, factor_spd, range_space, range_space_solve
 from continuum_vs_network.network.lagrangian import lagrangian_blocks, pattern_for
 from continuum_vs_network.network.stopping import Trace
 
@@ -143,6 +143,30 @@ def test_cg_is_given_up_only_when_its_rate_cannot_reach_the_tolerance_in_budget(
     assert not hopeless(13.4, 9.46, 1.0, 4, 42)
     assert hopeless(13.4, 13.0, 1.0, 4, 42)  # rate 0.0076 per iteration: 340 needed
     assert not hopeless(37.9, 187.0, 1.0, 3, 42)
+
+
+def test_cg_without_clamps_gives_up_a_hopeless_solve_early():
+    """Plain CG (no clamps) stops as soon as its rate cannot reach the tolerance, not at
+    the end of its budget: a diagonal of condition 1e8 with an identity preconditioner
+    cannot get from 1 to 1e-12 in 3 x 40 iterations; a good preconditioner solves it."""
+    W = sp.diags(np.logspace(0.0, 8.0, 400), format="csr")
+    b = np.random.default_rng(3).normal(size=400)
+    products = []
+
+    class Counted:  # W, counting its products
+        shape = W.shape
+
+        def __matmul__(self, v):
+            products.append(1)
+            return W @ v
+
+    identity = Factor(lambda v: np.array(v, dtype=float), 400)
+    with pytest.raises(reuse.SolveFailed, match="no convergence"):
+        reuse.pcg(Counted(), identity, rtol=1e-12, max_iter=40).solve(b)
+    assert 5 <= len(products) <= 15  # the initial residual, then 4-14 of the 40 iterations
+    near = Factor(lambda v: v / (1.01 * W.diagonal()), 400)
+    x = reuse.pcg(W, near, rtol=1e-12, max_iter=40).solve(b)
+    assert np.linalg.norm(W @ x - b) <= 1e-12 * np.linalg.norm(b)
 
 
 def test_batched_range_space_solve_equals_two_solves():
