@@ -396,39 +396,56 @@ class Problem:
         return g + A.T @ mu, mu
 
     def toward_clamps(
-        self, y: NDArray, coords: NDArray | None = None, A: sp.csr_matrix | NDArray | None = None
+        self,
+        y: NDArray,
+        coords: NDArray | None = None,
+        A: sp.csr_matrix | NDArray | None = None,
+        metric: NDArray | None = None,
     ) -> NDArray:
         """One Gauss-Newton step of ``y`` (n_nodes, 2) back onto the clamp lengths.
 
-        The minimum-norm move ``-A^T (A A^T)^-1 (r - l)`` over ``coords`` (default
+        The minimum-norm move ``-M A^T (A M A^T)^-1 (r - l)`` over ``coords`` (default
         ``free_flat``), with the clamp Jacobian ``A`` at ``y`` unless one is given (columns
-        in ``coords`` order). Returns a new array.
+        in ``coords`` order) and ``M = diag(metric)`` (default the identity; ``metric``
+        (n_coords,) positive). Returns a new array.
         """
         coords = self.free_flat if coords is None else coords
         A = self.clamp_jacobian(y, coords) if A is None else A
-        AAt = A @ A.T
+        if metric is None:
+            MAt = A.T
+        elif sp.issparse(A):
+            MAt = sp.diags(metric) @ A.T
+        else:
+            MAt = A.T * metric[:, None]
+        AAt = A @ MAt
         AAt = AAt.toarray() if sp.issparse(AAt) else AAt
         z = np.array(y, dtype=np.float64, copy=True)
         violation = self.clamp_violation(y)
         try:
-            z.ravel()[coords] -= A.T @ np.linalg.solve(AAt, violation)
+            z.ravel()[coords] -= MAt @ np.linalg.solve(AAt, violation)
         except np.linalg.LinAlgError:  # dependent clamp directions: the least-squares move
-            z.ravel()[coords] -= A.T @ np.linalg.lstsq(AAt, violation, rcond=None)[0]
+            z.ravel()[coords] -= MAt @ np.linalg.lstsq(AAt, violation, rcond=None)[0]
         return z
 
-    def onto_clamps(self, y: NDArray, coords: NDArray | None = None) -> NDArray:
+    def onto_clamps(
+        self, y: NDArray, coords: NDArray | None = None, metric: NDArray | None = None
+    ) -> NDArray:
         """``y`` (n_nodes, 2) moved onto the exact clamp lengths by Gauss-Newton steps
-        (:meth:`toward_clamps` over ``coords``, default ``free_flat``) until every
-        violation is within ``1e-14`` of the longest clamp length, at most 20 of them;
-        ``y`` itself with rod clamps."""
+        (:meth:`toward_clamps` over ``coords``, default ``free_flat``, minimum-norm in
+        ``metric``) until every violation is within ``1e-14`` of the longest clamp length,
+        at most 20 of them; ``y`` itself with rod clamps. Where 20 steps in ``metric`` do
+        not get there (a long way to go for nodes the metric makes heavy: a chain of clamps
+        82 + 2 + 30 long between two stiff nodes 10 apart), 20 more go in the identity."""
         if not self.exact:
             return y
         coords = self.free_flat if coords is None else coords
         target = 1e-14 * float(self.clamp_lengths.max())
-        for _ in range(20):
-            if np.abs(self.clamp_violation(y)).max() <= target:
-                break
-            y = self.toward_clamps(y, coords, self.clamp_jacobian(y, coords, dense=True))
+        for weights in (metric, None) if metric is not None else (None,):
+            for _ in range(20):
+                if np.abs(self.clamp_violation(y)).max() <= target:
+                    return y
+                A = self.clamp_jacobian(y, coords, dense=True)
+                y = self.toward_clamps(y, coords, A, weights)
         return y
 
     def nudged(self, x: NDArray) -> NDArray:

@@ -3,8 +3,17 @@
 For problems up to :data:`TR_DENSE_MAX` free coordinates :func:`newton` uses this method:
 each iteration
 
-1. takes the Lagrangian Hessian ``W`` (:func:`~.lagrangian.lagrangian_hessian`, exact
-   multipliers ``mu``, rods included), the gradient and the clamp Jacobian ``A``;
+1. takes the Lagrangian Hessian ``W`` (:func:`~.lagrangian.lagrangian_hessian`, rods
+   included), the gradient and the clamp Jacobian ``A``; the multipliers in ``W`` are the
+   least-squares clamp tensions in the metric ``D^-1`` in which trials are moved back onto
+   the clamps (step 4): then the model of the energy along the clamps is exact to second
+   order also away from equilibrium. With the tensions by which ``relax`` judges the
+   residual (weighted by the local force scale) it was not: a prestressed 8 x 8 lattice,
+   two far nodes pinned, three clamps at strains up to 8 (``bench_family.py --pinned
+   --seed 4``, network 406) crept at a constant radius, every step keeping half its
+   promise, past 2000 iterations (45 now; under default pins 298 -> 78). Euclidean
+   tensions (and projection) fixed it but sent a patch with a soft clamped node into a
+   scaled curvature of -1.5e4 (2000 iterations again);
 2. scales every coordinate by its node's stiffness ``kappa_i = sum_j k_j`` over its springs
    and rods (``x = D^-1/2 z``): a stiff region and a soft one get steps of the same
    energetic size, which is what makes contrasts of 1e12 harmless;
@@ -19,7 +28,8 @@ each iteration
 4. bends the step by its geodesic acceleration (:func:`_trial`): a linear step that turns
    a spring lengthens it by ``|turn|^2 r / 2``, so the step through a curved valley (a
    stiff spring swinging about soft ones) is corrected to second order; then moves back
-   onto the clamp lengths (Gauss-Newton projection) and puts springs stiffer than
+   onto the clamp lengths (Gauss-Newton projection, minimum-norm in the metric
+   ``D^-1``: the scaled coordinates' own) and puts springs stiffer than
    :attr:`~.stiff_springs.StiffSprings.CONTRAST` times the median back to the lengths the
    linear model predicted (:class:`~.stiff_springs.StiffSprings`); where that projection
    gives up (lengths a long step cannot reach), the iterate nearest them is taken, and the
@@ -146,12 +156,13 @@ def _trial(
     stiff: StiffSprings | None,
     coords: NDArray,
     full: bool,
-    exact: bool,
+    metric: NDArray | None,
 ) -> tuple[NDArray, float, float, float]:
     """The trust-region step of ``radius`` taken from ``model.x``: the new positions, the
     step's scaled length, and the predicted and actual energy changes (not finite when
     the positions are not). ``coords``: the free flat coordinates (``full``: all of them, in
-    order); ``exact``: the problem has exact clamps.
+    order); ``metric`` (n,): ``1 / kappa`` on them, in which a trial is moved back onto
+    exact clamps (None: the problem has none; see :func:`trust_region_newton`).
 
     Kept per model by radius: the radius tries of :func:`trust_region_newton` come back to
     a radius already tried at the same Hessian (a doubling from a quarter of a rejected
@@ -159,7 +170,7 @@ def _trial(
     """
     hit = model.trials.get(radius)
     if hit is None:
-        hit = model.trials[radius] = _bent_step(problem, model, radius, stiff, coords, full, exact)
+        hit = model.trials[radius] = _bent_step(problem, model, radius, stiff, coords, full, metric)
     return hit
 
 
@@ -170,7 +181,7 @@ def _bent_step(
     stiff: StiffSprings | None,
     coords: NDArray,
     full: bool,
-    exact: bool,
+    metric: NDArray | None,
 ) -> tuple[NDArray, float, float, float]:
     """:func:`_trial`, computed.
 
@@ -212,12 +223,12 @@ def _bent_step(
         move = None
     z, met = stiff.nearest(y, x, step) if stiff is not None else (None, False)
     if z is not None:
-        z = problem.onto_clamps(z, coords) if exact else z
+        z = problem.onto_clamps(z, coords, metric) if metric is not None else z
         restored = terms.energy_change(z)
         if met:
             return z, length, predicted, restored
-    if exact:
-        y, move = problem.onto_clamps(y, coords), None
+    if metric is not None:
+        y, move = problem.onto_clamps(y, coords, metric), None
     plain = terms.energy_change(y, move)
     # where the projection gave up, the trial is the lower of its nearest and the plain point
     if z is not None and not (
@@ -244,6 +255,8 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     full = n == 2 * net.n_nodes and bool(np.all(coords[1:] > coords[:-1]))
     m = problem.n_clamps if problem.exact else 0
     terms = kernels(problem, frame, inv_root)
+    metric = inv_root * inv_root if m else None  # 1 / kappa: the trials' clamp projection
+    root_kappa = 1.0 / inv_root if m else None
     start = np.array(x, dtype=np.float64)
     x = problem.onto_clamps(start, coords)
     if m and stop.clamp_error(problem.clamp_violation(x)) > 1e-6:
@@ -302,7 +315,8 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             basis = null_basis(rows * inv_root[None, :]) * inv_root[:, None]
         else:
             basis = None
-        H = terms.reduced_hessian(mu, basis)
+        # the model's multipliers in the metric its trials are put back onto the clamps in
+        H = terms.reduced_hessian(clamp_tensions(A, g, root_kappa) if m else mu, basis)
         if not np.isfinite(H).all():  # a spring of zero length has no curvature direction
             return Outcome(x, it, False, "the Hessian is not finite (a spring of zero length?)")
         gr = basis.T @ g if basis is not None else g * inv_root
@@ -312,7 +326,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         level = None  # the energy change at round-off (computed when first needed)
         for _ in range(40):
             y, length, predicted, actual = _trial(
-                problem, model, radius, stiff, coords, full, m > 0
+                problem, model, radius, stiff, coords, full, metric
             )
             if math.isfinite(actual):
                 ratio = actual / predicted if predicted < 0 else -1.0
@@ -326,11 +340,11 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         # the model holds to the boundary: look further along it at the
                         # same Hessian while the energy keeps falling
                         for _ in range(_GROW_TRIES):
-                            wider = _trial(problem, model, 2 * radius, stiff, coords, full, m > 0)
+                            wider = _trial(problem, model, 2 * radius, stiff, coords, full, metric)
                             if not _better(wider, actual):
                                 # between the two: the falling energy's turning point
                                 mid = _trial(
-                                    problem, model, _MID * radius, stiff, coords, full, m > 0
+                                    problem, model, _MID * radius, stiff, coords, full, metric
                                 )
                                 if _better(mid, actual):
                                     y, length, actual = mid[0], mid[1], mid[3]
@@ -347,7 +361,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         shorter, r = None, length
                         for _ in range(_SHORTER_TRIES):
                             r *= 0.5
-                            trial = _trial(problem, model, r, stiff, coords, full, m > 0)
+                            trial = _trial(problem, model, r, stiff, coords, full, metric)
                             if not trial[3] < actual:
                                 break
                             y, length, predicted, actual = trial
