@@ -164,27 +164,6 @@ def _trial(
     order); ``metric`` (n,): ``1 / kappa`` on them, in which a trial is moved back onto
     exact clamps (None: the problem has none; see :func:`trust_region_newton`).
 
-    Kept per model by radius: the radius tries of :func:`trust_region_newton` come back to
-    a radius already tried at the same Hessian (a doubling from a quarter of a rejected
-    radius), whose step is then not computed again.
-    """
-    hit = model.trials.get(radius)
-    if hit is None:
-        hit = model.trials[radius] = _bent_step(problem, model, radius, stiff, coords, full, metric)
-    return hit
-
-
-def _bent_step(
-    problem: Problem,
-    model: Model,
-    radius: float,
-    stiff: StiffSprings | None,
-    coords: NDArray,
-    full: bool,
-    metric: NDArray | None,
-) -> tuple[NDArray, float, float, float]:
-    """:func:`_trial`, computed.
-
     The step is bent by its geodesic acceleration (Transtrum & Sethna 2012): the
     second-order length change ``|dd_perp|^2 / r`` of every spring along the linear step
     exerts forces, corrected by the same (shifted) model Hessian, so that a step that turns
@@ -280,6 +259,16 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
     scale = stop.scale if full else stop.scale[coords]
     rod = problem.clamp == "rod"
     model: Model | None = None  # the last iteration's model (its certificate)
+
+    def attempt(r: float) -> tuple[NDArray, float, float, float]:
+        """:func:`_trial` of radius ``r`` at the current model, kept by radius: the radius
+        tries come back to a radius already tried at the same Hessian (a doubling from a
+        quarter of a rejected one), whose step is then not computed again."""
+        hit = model.trials.get(r)
+        if hit is None:
+            hit = model.trials[r] = _trial(problem, model, r, stiff, coords, full, metric)
+        return hit
+
     for it in range(stop.max_iter + 1):
         g = terms.gradient(x)
         if problem.n_clamps:
@@ -325,9 +314,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
         accepted = newton_tried = False
         level = None  # the energy change at round-off (computed when first needed)
         for _ in range(40):
-            y, length, predicted, actual = _trial(
-                problem, model, radius, stiff, coords, full, metric
-            )
+            y, length, predicted, actual = attempt(radius)
             if math.isfinite(actual):
                 ratio = actual / predicted if predicted < 0 else -1.0
                 noise = False  # the energy change at round-off: judged by the force below
@@ -340,12 +327,10 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         # the model holds to the boundary: look further along it at the
                         # same Hessian while the energy keeps falling
                         for _ in range(_GROW_TRIES):
-                            wider = _trial(problem, model, 2 * radius, stiff, coords, full, metric)
+                            wider = attempt(2 * radius)
                             if not _better(wider, actual):
                                 # between the two: the falling energy's turning point
-                                mid = _trial(
-                                    problem, model, _MID * radius, stiff, coords, full, metric
-                                )
+                                mid = attempt(_MID * radius)
                                 if _better(mid, actual):
                                     y, length, actual = mid[0], mid[1], mid[3]
                                     radius *= _MID
@@ -361,7 +346,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         shorter, r = None, length
                         for _ in range(_SHORTER_TRIES):
                             r *= 0.5
-                            trial = _trial(problem, model, r, stiff, coords, full, metric)
+                            trial = attempt(r)
                             if not trial[3] < actual:
                                 break
                             y, length, predicted, actual = trial
