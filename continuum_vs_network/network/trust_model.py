@@ -206,7 +206,7 @@ class Model:
     the second-order certificate) is decided only when asked, by a Cholesky of
     ``H - sigma I``, or from the spectrum when :meth:`eigen` (the boundary step, negative
     curvature) has been computed. ``trials`` keeps the trust region's trials at this model
-    by radius (:func:`~.trust._trial`).
+    by radius (``attempt`` in :func:`~.trust.trust_region_newton`).
     """
 
     def __init__(
