@@ -351,16 +351,26 @@ def test_a_ladder_rung_takes_a_failed_float32_pivot_as_final(monkeypatch, solver
 
 def test_band_order_reports_the_assembled_bandwidth():
     """The Hessian pattern of a lattice in band_order's row order has exactly the lower
-    bandwidth band_order reports, about 2 sqrt(n) (a 2D lattice's band)."""
+    bandwidth band_order reports: one row of the lattice and a node (2 (side + 1) + 1
+    coordinates), where reverse Cuthill-McKee from a corner sweeps by diagonals, about
+    1.4x wider."""
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
     import continuum_vs_network as cvn
     from continuum_vs_network.network.energy import HessianPattern
-    from continuum_vs_network.network.ordering import band_order
+    from continuum_vs_network.network.ordering import _bandwidth, band_order, coordinate_order
 
-    net = cvn.triangular_lattice(20, 20, noise=0.1, rng=np.random.default_rng(1))
+    side = 20
+    net = cvn.triangular_lattice(side, side, noise=0.1, rng=np.random.default_rng(1))
     free = ~cvn.default_pins(net)
-    coords, width = band_order(net.springs, net.n_nodes, free)
+    coords, width = band_order(net.springs, net.n_nodes, free, net.positions)
     np.testing.assert_array_equal(np.sort(coords), np.flatnonzero(free.ravel()))
     pattern = HessianPattern(net.springs, net.n_nodes, coords=coords)
     W = pattern.assemble(np.tile(np.eye(2), (net.n_springs, 1, 1))).tocoo()
     assert int(np.max(W.row - W.col)) == width
-    assert width <= 3 * np.sqrt(coords.size)
+    assert width <= 2 * (side + 1) + 1
+    adj = sp.coo_matrix(
+        (np.ones(2 * net.n_springs), (net.springs.ravel(), net.springs[:, ::-1].ravel()))
+    ).tocsr()
+    rcm = coordinate_order(reverse_cuthill_mckee(adj, symmetric_mode=True), free)
+    assert _bandwidth(rcm, net.springs, net.n_nodes) > 1.3 * width

@@ -37,10 +37,11 @@ def pattern_for(
 ) -> HessianPattern:
     """The Hessian pattern of a topology and pin mask, cached while the springs array lives.
 
-    Above ``DENSE_MAX`` free coordinates the rows follow a reverse Cuthill-McKee order
-    where its band is narrow enough for the banded Cholesky (:func:`~.kkt.banded_pays`, up
-    to ~5e3 nodes on a lattice), else a nested-dissection elimination order computed from
-    ``positions`` (n_nodes, 2); ``pattern.ordered`` says so. Not with
+    Above ``DENSE_MAX`` free coordinates the rows follow a narrow-band order
+    (:func:`~.ordering.band_order`) where its band is narrow enough for the banded
+    Cholesky (:func:`~.kkt.banded_pays`, up to ~1e4 nodes on a lattice), else a
+    nested-dissection elimination order; both are computed from ``positions`` (n_nodes,
+    2); ``pattern.ordered`` says so. Not with
     PARDISO (:func:`~.kkt.sparse_solver`), which orders by METIS itself (the nested
     dissection took 3.5 s at 1e5 nodes, 10 s at 3e5). Networks
     made with ``with_*`` share their read-only springs array, so a learning loop builds the
@@ -56,7 +57,7 @@ def pattern_for(
         nested = None
         if _reordered(free):
             nested = coordinate_order(nested_dissection(positions, springs), free)
-            coords, width = band_order(springs, n_nodes, free)
+            coords, width = band_order(springs, n_nodes, free, positions)
             if not banded_pays(coords.size, width):
                 coords, nested = nested, None
         pattern = HessianPattern(springs, n_nodes, free, coords)

@@ -64,8 +64,9 @@ Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger on
 :func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
 unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
 diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
-``W > 0``; up to a few thousand nodes, where its band is narrow, LAPACK's banded Cholesky
-in reverse Cuthill-McKee order (2-3x faster; it too completes only for ``W > 0``). Where
+``W > 0``; up to about 1e4 nodes, where its band is narrow, LAPACK's banded Cholesky in
+a narrow-band order (:func:`~.ordering.band_order`: 2-3x faster; it too completes only for
+``W > 0``). Where
 ``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`, the banded Cholesky, and from
 :data:`~.spd.ROUGH_MIN` rows SuperLU, factorise ``W`` rounded to float32 when that solves
 to 1e-2 (``rough``: SuperLU's takes half the memory and is 1.8x faster at 1e6 nodes; the

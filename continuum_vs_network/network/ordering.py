@@ -1,5 +1,6 @@
 """Fill-reducing elimination orders for 2D networks: geometric nested dissection, and a
-narrow-band order (reverse Cuthill-McKee) for the banded Cholesky of mid-sized networks."""
+narrow-band order (reverse Cuthill-McKee, or a sweep across the network by rows) for the
+banded Cholesky of mid-sized networks."""
 
 from __future__ import annotations
 
@@ -74,15 +75,24 @@ def coordinate_order(node_order: NDArray, free: NDArray) -> NDArray[np.int64]:
     return coords[free.ravel()[coords]]
 
 
-def band_order(springs: NDArray, n_nodes: int, free: NDArray) -> tuple[NDArray[np.int64], int]:
-    """Free coordinates in reverse Cuthill-McKee order of the nodes, and the lower bandwidth
-    of the Hessian assembled in that order.
+def band_order(
+    springs: NDArray, n_nodes: int, free: NDArray, positions: NDArray
+) -> tuple[NDArray[np.int64], int]:
+    """Free coordinates in a narrow-band order of the nodes, and the lower bandwidth of the
+    Hessian assembled in that order.
+
+    The narrowest of reverse Cuthill-McKee and a sweep across the network along each axis
+    (:func:`_sweep`). Cuthill-McKee from one peripheral node (a corner) sweeps a lattice
+    by its diagonals, up to 1.45x longer than its rows: on a 64 x 64 noisy lattice under
+    default pins a band of 191 coordinates against the sweep's 131, and the banded
+    Cholesky's work ``n u^2`` 2.1x larger.
 
     Parameters
     ----------
     springs : (n_springs, 2) int array
     n_nodes : int
     free : (n_nodes, 2) bool array
+    positions : (n_nodes, 2) float array
 
     Returns
     -------
@@ -95,13 +105,40 @@ def band_order(springs: NDArray, n_nodes: int, free: NDArray) -> tuple[NDArray[n
         (np.ones(2 * len(springs)), (springs.ravel(), springs[:, ::-1].ravel())),
         shape=(n_nodes, n_nodes),
     ).tocsr()
-    coords = coordinate_order(reverse_cuthill_mckee(adj, symmetric_mode=True), free)
+    candidates = [reverse_cuthill_mckee(adj, symmetric_mode=True)]
+    candidates += [_sweep(adj, springs, positions, axis) for axis in (0, 1)]
+    best = None
+    for nodes in candidates:
+        coords = coordinate_order(nodes, free)
+        width = _bandwidth(coords, springs, n_nodes)
+        if best is None or width < best[1]:
+            best = coords, width
+    return best
+
+
+def _sweep(adj: sp.csr_matrix, springs: NDArray, positions: NDArray, axis: int) -> NDArray:
+    """Nodes (n_nodes,) by their graph distance from the side where ``positions[:, axis]``
+    is least (the nodes within half the median spring length of it), each level along the
+    other axis: a lattice's rows, one after the other, when they run across ``axis``."""
+    from scipy.sparse.csgraph import dijkstra
+
+    along = positions[:, axis]
+    lengths = np.linalg.norm(positions[springs[:, 1]] - positions[springs[:, 0]], axis=1)
+    reach = 0.5 * float(np.median(lengths)) if lengths.size else 0.0
+    side = np.flatnonzero(along <= along.min(initial=0.0) + reach)
+    level = dijkstra(adj, directed=False, indices=side, unweighted=True, min_only=True)
+    return np.lexsort((positions[:, 1 - axis], level))
+
+
+def _bandwidth(coords: NDArray, springs: NDArray, n_nodes: int) -> int:
+    """The lower bandwidth of the Hessian of ``springs`` with free coordinates ``coords``
+    (flat indices) as its rows, in that order."""
     row = np.full(2 * n_nodes, -1, dtype=np.int64)
     row[coords] = np.arange(coords.size)
     # rows of each spring's free coordinates (-1 where pinned): the band spans a spring's
     # extreme rows, and a node's own two coordinates are adjacent
     rows = row[np.stack([2 * springs[:, 0], 2 * springs[:, 0] + 1, 2 * springs[:, 1],
                          2 * springs[:, 1] + 1], axis=1)]  # fmt: skip
-    top = rows.max(axis=1)
-    low = np.where(rows >= 0, rows, top[:, None]).min(axis=1)
-    return coords, int(np.max(top - low, initial=1 if coords.size > 1 else 0))
+    top = rows.max(axis=1, initial=-1)
+    low = np.where(rows >= 0, rows, top[:, None]).min(axis=1, initial=2 * n_nodes)
+    return int(np.max(top - low, initial=1 if coords.size > 1 else 0))

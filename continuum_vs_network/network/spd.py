@@ -11,8 +11,8 @@ on spring-network Hessians it factorises 1.9x / 2.4x faster than SuperLU at 2e4 
 with half the memory (``benchmarks/bench_solvers_sparse.py``); it certifies ``W > 0`` by
 completing. Otherwise, or with :func:`set_sparse_solver` ``("superlu")`` or the
 environment variable ``CVN_SPARSE_SOLVER=superlu``, SuperLU; or, for a matrix whose rows
-are in a narrow-band order (:func:`banded_pays`, e.g. reverse Cuthill-McKee on a network of
-up to ~5e3 nodes), LAPACK's banded Cholesky, which is 2-3x faster there. A ``rough``
+are in a narrow-band order (:func:`banded_pays`, e.g. :func:`~.ordering.band_order` on a
+network of up to ~1e4 nodes), LAPACK's banded Cholesky, which is 2-3x faster there. A ``rough``
 factorisation (an approximate ``W^-1`` serves: a Newton step judged by the true residual,
 a preconditioner) is made in float32 where that is accurate: the banded Cholesky at any
 size, SuperLU from ``ROUGH_MIN`` rows.
@@ -54,7 +54,9 @@ DENSE_MAX = 400  # below this many unknowns dense LAPACK beats scipy.sparse's ov
 # with nested dissection, one core, on noisy triangular lattices in reverse Cuthill-McKee
 # order (u ~ 2.1 sqrt(n)): 0.19 / 0.67 / 1.7 / 4.9 / 22 ms against 0.77 / 2.1 / 4.4 / 10 /
 # 45 (28 with minimum degree) ms at n = 505 / 1145 / 2041 / 4043 / 8185 unknowns
-# (n (u + 1)^2 = 1.2e6 .. 3.0e8), even (87 / 82 ms) at n = 2e4 (1.8e9)
+# (n (u + 1)^2 = 1.2e6 .. 3.0e8), even (87 / 82 ms) at n = 2e4 (1.8e9). In band_order's
+# row sweep (u ~ 1.43 sqrt(n)): 45 against 77 ms at n = 2e4 (8.3e8), 149 against 121 at
+# 2.9e4 (1.7e9), 262 against 175 at 3.9e4 (3.2e9): the work, not n, sets the crossover
 BAND_MAX_WORK = 1e9
 SPARSE_SOLVERS = ("auto", "pardiso", "superlu")
 # From this many rows a ``rough`` factorisation (factor_spd) is SuperLU in float32: on a
