@@ -95,7 +95,7 @@ def test_a_banded_factor_preconditions_in_float32_and_the_step_stays_exact():
     problem, x0, x1 = _problem_and_two_points()
     net = problem.net
     pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
-    assert pattern.nested_rows is not None  # band order: the banded Cholesky is used
+    assert pattern.band_positions is not None  # band order: the banded Cholesky is used
     coords = pattern.coords
     lam = np.array([0.3, -0.2])
     old = factor_spd(_w(problem, pattern, x0, lam), ordered=pattern.ordered)
@@ -200,7 +200,7 @@ def test_band_order_and_banded_cholesky_follow_superlus_path(monkeypatch):
 
     net = build()
     pattern = pattern_for(net.springs, net.n_nodes, ~cvn.default_pins(net), net.positions)
-    assert pattern.nested_rows is not None  # the band order is in use at this size
+    assert pattern.band_positions is not None  # the band order is in use at this size
     clamp = {1457: float(net.clamp_length(1457, 2.0))}  # the spring nearest the centre
     banded = cvn.relax(net, clamped=clamp)
     monkeypatch.setattr(spd, "banded_pays", lambda n, width: False)
