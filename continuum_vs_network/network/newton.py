@@ -62,17 +62,16 @@ and on a 15 x 15 lattice with k over 10 decades started 1e3 away from 942 to 311
 
 Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones
 :func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
-unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose ``U``
-diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
-``W > 0``; up to about 1e4 nodes, where its band is narrow, LAPACK's banded Cholesky in
-a narrow-band order (:func:`~.ordering.band_order`: 2-3x faster; it too completes only for
-``W > 0``). Where
-``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`, the banded Cholesky, and from
-:data:`~.spd.ROUGH_MIN` rows SuperLU, factorise ``W`` rounded to float32 when that solves
-to 1e-2 (``rough``: SuperLU's takes half the memory and is 1.8x faster at 1e6 nodes; the
-banded one is 1.3-1.8x faster than float64 at 2e3-8e3 rows). Newton's step from such a
-factor is projected CG on the matrix factorised, preconditioned by it, to the forcing
-tolerance (:func:`_fresh_step`); the clamp predictor's step is taken as it is.
+unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose
+``U`` diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
+``W > 0``; up to about 1e4 nodes, where its band is narrow, LAPACK's banded Cholesky in a
+narrow-band order (:func:`~.ordering.band_order`: 2-3x faster; it too completes only for
+``W > 0``). Where ``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`, the banded
+Cholesky, and from :data:`~.spd.ROUGH_MIN` rows SuperLU, factorise ``W`` rounded to float32
+when that solves to 1e-2 (``rough``: SuperLU's takes half the memory and is 1.8x faster at
+1e6 nodes; the banded one is 1.3-1.8x faster than float64 at 2e3-8e3 rows). Newton's step
+from such a factor is projected CG on the matrix factorised, preconditioned by it, to the
+forcing tolerance (:func:`_fresh_step`); the clamp predictor's step is taken as it is.
 """
 
 from __future__ import annotations

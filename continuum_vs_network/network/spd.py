@@ -6,16 +6,16 @@ negative curvature read off a failed factorisation. The KKT systems of :mod:`.kk
 built on these factors.
 
 Sparse positive-definite factorisations (:func:`factor_spd`) use MKL PARDISO's Cholesky
-(``pypardiso``, the optional extra ``continuum_vs_network[pardiso]``) when it is importable:
-on spring-network Hessians it factorises 1.9x / 2.4x faster than SuperLU at 2e4 / 2e5 rows
-with half the memory (``benchmarks/bench_solvers_sparse.py``); it certifies ``W > 0`` by
-completing. Otherwise, or with :func:`set_sparse_solver` ``("superlu")`` or the
+(``pypardiso``, the optional extra ``continuum_vs_network[pardiso]``) when it is
+importable: on spring-network Hessians it factorises 1.9x / 2.4x faster than SuperLU at
+2e4 / 2e5 rows with half the memory (``benchmarks/bench_solvers_sparse.py``); it certifies
+``W > 0`` by completing. Otherwise, or with :func:`set_sparse_solver` ``("superlu")`` or the
 environment variable ``CVN_SPARSE_SOLVER=superlu``, SuperLU; or, for a matrix whose rows
 are in a narrow-band order (:func:`banded_pays`, e.g. :func:`~.ordering.band_order` on a
-network of up to ~1e4 nodes), LAPACK's banded Cholesky, which is 2-3x faster there. A ``rough``
-factorisation (an approximate ``W^-1`` serves: a Newton step judged by the true residual,
-a preconditioner) is made in float32 where that is accurate: the banded Cholesky at any
-size, SuperLU from ``ROUGH_MIN`` rows.
+network of up to ~1e4 nodes), LAPACK's banded Cholesky, which is 2-3x faster there. A
+``rough`` factorisation (an approximate ``W^-1`` serves: a Newton step judged by the true
+residual, a preconditioner) is made in float32 where that is accurate: the banded Cholesky
+at any size, SuperLU from ``ROUGH_MIN`` rows.
 """
 
 from __future__ import annotations
