@@ -105,8 +105,10 @@ def band_order(
         (np.ones(2 * len(springs)), (springs.ravel(), springs[:, ::-1].ravel())),
         shape=(n_nodes, n_nodes),
     ).tocsr()
+    lengths = np.linalg.norm(positions[springs[:, 1]] - positions[springs[:, 0]], axis=1)
+    reach = 0.5 * float(np.median(lengths)) if lengths.size else 0.0
     candidates = [reverse_cuthill_mckee(adj, symmetric_mode=True)]
-    candidates += [_sweep(adj, springs, positions, axis) for axis in (0, 1)]
+    candidates += [_sweep(adj, positions, axis, reach) for axis in (0, 1)]
     best = None
     for nodes in candidates:
         coords = coordinate_order(nodes, free)
@@ -116,15 +118,14 @@ def band_order(
     return best
 
 
-def _sweep(adj: sp.csr_matrix, springs: NDArray, positions: NDArray, axis: int) -> NDArray:
+def _sweep(adj: sp.csr_matrix, positions: NDArray, axis: int, reach: float) -> NDArray:
     """Nodes (n_nodes,) by their graph distance from the side where ``positions[:, axis]``
-    is least (the nodes within half the median spring length of it), each level along the
-    other axis: a lattice's rows, one after the other, when they run across ``axis``."""
+    is least (the nodes within ``reach`` of it: half the median spring length), each level
+    along the other axis: a lattice's rows, one after the other, when they run across
+    ``axis``."""
     from scipy.sparse.csgraph import dijkstra
 
     along = positions[:, axis]
-    lengths = np.linalg.norm(positions[springs[:, 1]] - positions[springs[:, 0]], axis=1)
-    reach = 0.5 * float(np.median(lengths)) if lengths.size else 0.0
     side = np.flatnonzero(along <= along.min(initial=0.0) + reach)
     level = dijkstra(adj, directed=False, indices=side, unweighted=True, min_only=True)
     return np.lexsort((positions[:, 1 - axis], level))
