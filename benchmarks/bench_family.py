@@ -14,6 +14,7 @@ iterations, overall and for the strongly prestressed half (rest lengths 0.3-3x).
     python benchmarks/bench_family.py --tol 1e-2           # a loose tolerance (no false saddles)
     python benchmarks/bench_family.py --pinned             # two far nodes pinned fully
     python benchmarks/bench_family.py --medium --displaced --count 60   # pinned nodes moved
+    python benchmarks/bench_family.py --stiffness 0.5,50 --count 300   # no stiff springs
 
 Targets: 0 failures, median <= 30, p95 <= 120 iterations. Clamp sets that no network can
 meet (three clamped springs forming a triangle that violates the triangle inequality) are
@@ -52,6 +53,12 @@ def _parse() -> argparse.Namespace:
         action="store_true",
         help="lattices of 24-33 per side and Delaunay meshes of 500-1100 nodes (no paper "
         "patches): above the dense trust-region size, so the sparse Newton solves them",
+    )
+    p.add_argument(
+        "--stiffness",
+        default="",
+        help="LO,HI: each network's stiffness drawn anew, uniform in [LO, HI] (the paper's "
+        "0.5,50 has no spring 10x the median), after the rest of the network",
     )
     p.add_argument(
         "--medium",
@@ -157,6 +164,9 @@ def main() -> None:
     t0 = time.perf_counter()
     for i in range(args.count):
         kind, prestressed, net, clamped = family_member(rng, large=args.large, medium=args.medium)
+        if args.stiffness:
+            low, high = (float(v) for v in args.stiffness.split(","))
+            net = net.with_stiffness(rng.uniform(low, high, net.n_springs))
         pinned = x0 = None
         if args.displaced:
             (net, pinned, x0), clamped = displaced(net, rng), {}
@@ -194,6 +204,7 @@ def main() -> None:
 
     pins = "two far nodes pinned" if args.pinned else "default pins"
     pins += ", 1-5 nodes displaced and pinned (stress-free)" if args.displaced else ""
+    pins += f", k uniform in [{args.stiffness}]" if args.stiffness else ""
     print(
         f"family of {args.count} networks, seed {args.seed}, method {args.method}, "
         f"tol {args.tol:g}, {pins}"
