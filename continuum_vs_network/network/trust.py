@@ -104,9 +104,10 @@ _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model 
 _MID = math.sqrt(2.0)  # the radius tried between the last good doubling and a worse one
 # halvings tried at one Hessian after a step of ratio below 0.75, only where stiff springs
 # are projected: they were made for trials whose projection gave up (see the module). With
-# no stiff spring they saved no iteration and cost trials: 300 networks of the family with
-# k in U(0.5, 50), 4095 -> 4054 iterations without them; the paper's N = 10 patch (k in
-# U(0.5, 50)) 21.3 -> 17.8 trials, 10.5 -> 10.4 iterations, 1.23 -> 1.06 ms
+# no stiff spring they saved no iteration and cost trials: bench_family.py --stiffness
+# 0.5,50 --count 300, seeds 0-2, p95 34 / 30.1 / 31 -> 30.1 / 28.1 / 30 iterations without
+# them; the paper's N = 10 patch (k in U(0.5, 50)) 21.3 -> 17.8 trials, 10.5 -> 10.4
+# iterations, 1.22 -> 1.05 ms (bench_patch.py)
 _SHORTER_TRIES = 4
 _NOISY = 4.0  # a ratio above this is checked for an energy change at round-off
 ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
