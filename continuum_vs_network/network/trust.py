@@ -57,7 +57,8 @@ median 34 / 36, p95 86 / 78 before) the projection's nearest iterate, the lower 
 the plain point, the shorter tries and the radius between doublings each took a share:
 30-33 / 65-68 with all four. On the full family (seeds 0-5) the overall median went from
 24-29 to 22-26 and the p95 from 71-83 to 58-64, with no new failure, in the same time;
-the N = 10 patch takes 10-18 % longer (more trials per Hessian).
+the N = 10 patch took 10-18 % longer (more trials per Hessian), until the shorter tries
+were kept to networks with stiff springs (:data:`_SHORTER_TRIES`).
 
 Cost on small problems (the paper's N = 10 patch: ~10 models and ~18 trials, 20
 coordinates), where numpy's per-call overhead is the cost: the spring terms are dense
