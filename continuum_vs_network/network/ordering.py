@@ -8,6 +8,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from .model import spring_vectors, vector_lengths
+
 __all__ = ["band_order", "coordinate_order", "nested_dissection"]
 
 
@@ -31,9 +33,7 @@ def nested_dissection(positions: NDArray, springs: NDArray, *, leaf: int = 64) -
     (n_nodes,) int array, a permutation of the nodes.
     """
     n = positions.shape[0]
-    adj = sp.coo_matrix(
-        (np.ones(2 * len(springs)), (springs.ravel(), springs[:, ::-1].ravel())), shape=(n, n)
-    ).tocsr()
+    adj = _adjacency(springs, n)
     on_right = np.zeros(n, dtype=bool)
     pieces: list[NDArray] = []
     stack: list[tuple[NDArray, bool]] = [(np.arange(n), False)]
@@ -101,11 +101,8 @@ def band_order(
     """
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-    adj = sp.coo_matrix(
-        (np.ones(2 * len(springs)), (springs.ravel(), springs[:, ::-1].ravel())),
-        shape=(n_nodes, n_nodes),
-    ).tocsr()
-    lengths = np.linalg.norm(positions[springs[:, 1]] - positions[springs[:, 0]], axis=1)
+    adj = _adjacency(springs, n_nodes)
+    lengths = vector_lengths(spring_vectors(positions, springs))
     reach = 0.5 * float(np.median(lengths)) if lengths.size else 0.0
     candidates = [reverse_cuthill_mckee(adj, symmetric_mode=True)]
     candidates += [_sweep(adj, positions, axis, reach) for axis in (0, 1)]
@@ -116,6 +113,14 @@ def band_order(
         if best is None or width < best[1]:
             best = coords, width
     return best
+
+
+def _adjacency(springs: NDArray, n_nodes: int) -> sp.csr_matrix:
+    """The nodes' adjacency (n_nodes, n_nodes), one entry each way per spring."""
+    return sp.coo_matrix(
+        (np.ones(2 * len(springs)), (springs.ravel(), springs[:, ::-1].ravel())),
+        shape=(n_nodes, n_nodes),
+    ).tocsr()
 
 
 def _sweep(adj: sp.csr_matrix, positions: NDArray, axis: int, reach: float) -> NDArray:
