@@ -288,6 +288,45 @@ def test_banded_cholesky_matches_superlu_and_refuses_an_indefinite_band(solver_c
     assert np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
 
 
+def test_the_kept_band_layout_follows_each_matrix_structure(solver_choice):
+    """The banded Cholesky keeps where a structure's entries go in the band, per
+    ``indptr``. A grid whose vertical edges are twisted by one column has the grid's row
+    counts (the same ``indptr``) but other columns; it, the grid again and a copy of the
+    grid with every entry stored twice (not canonical) each solve their own system, to
+    float64 and float32 round-off, against dense solves."""
+    set_sparse_solver("superlu")
+    side = 24
+    n = side * side
+    ids = np.arange(n).reshape(side, side)
+    across = np.c_[ids[:, :-1].ravel(), ids[:, 1:].ravel()]
+
+    def laplacian(up: NDArray) -> sp.csr_matrix:
+        """Grid Laplacian with vertical edges ``(r, c) - (r + 1, up[c])``, plus 4 I."""
+        edges = np.concatenate([across, np.c_[ids[:-1].ravel(), ids[1:, up].ravel()]])
+        rows, cols = np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]]
+        A = sp.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+        return sp.csr_matrix(sp.diags(np.asarray(A.sum(axis=1)).ravel() + 4.0) - A)
+
+    grid = laplacian(np.arange(side))
+    twisted = laplacian((np.arange(side) + 1) % side)
+    np.testing.assert_array_equal(twisted.indptr, grid.indptr)
+    assert not np.array_equal(twisted.indices, grid.indices)
+    twice = np.repeat(np.arange(grid.nnz), 2)  # every entry stored twice, halved
+    doubled = sp.csr_matrix(
+        (grid.data[twice] / 2, grid.indices[twice], 2 * grid.indptr), shape=grid.shape
+    )
+    assert not doubled.has_canonical_format
+    b = np.sin(np.arange(n, dtype=float))
+    for matrix in (grid, twisted, grid, doubled, twisted):
+        assert factor_spd(matrix, certify=True) is not None
+        exact = np.linalg.solve(matrix.toarray(), b)
+        np.testing.assert_allclose(factor_spd(matrix).solve(b), exact, rtol=1e-10)
+        rough = factor_spd(matrix, rough=True)
+        assert rough.approximate
+        error = np.linalg.norm(rough.solve(b) - exact) / np.linalg.norm(exact)
+        assert 1e-12 < error < 1e-5
+
+
 def test_a_rough_banded_factor_is_float32_and_still_refuses_indefinite_w(
     solver_choice, monkeypatch
 ):
