@@ -61,8 +61,9 @@ def _validate_topology(springs: NDArray, n_nodes: int) -> None:
 def spring_vectors(x: NDArray, springs: NDArray) -> NDArray:
     """``x[b] - x[a]`` for every spring ``a -> b``: (n_springs, 2) from positions (or any
     per-node vectors) ``x`` (n_nodes, 2). ``np.take`` gathers rows ~3x faster than fancy
-    indexing (24 against 69 us a call at 3e3 springs), with the same numbers."""
-    return np.take(x, springs[:, 1], axis=0) - np.take(x, springs[:, 0], axis=0)
+    indexing (24 against 69 us a call at 3e3 springs), with the same numbers; the method,
+    not ``np.take``, skips numpy's dispatch wrapper (0.5 us a call)."""
+    return x.take(springs[:, 1], axis=0) - x.take(springs[:, 0], axis=0)
 
 
 _SQRT_ROWS = 1000  # rows from which vector_lengths pays (below, np.hypot is as fast)

@@ -70,7 +70,8 @@ iterate) instead of an SVD; each model is first factored by Cholesky, whose succ
 shift of ``1e-8`` is the second-order certificate, and is eigen-decomposed only when a
 trial needs a boundary step, after which every trial at that model solves the secular
 equation and the bending correction on the eigenvalues (:mod:`.trust_model`); an accepted
-trial's spring geometry is the next gradient's. What the network, pins and clamp set alone
+trial's spring geometry is the next gradient's; products are ``ndarray.dot`` (see
+:mod:`.trust_kernels`). What the network, pins and clamp set alone
 decide (the frame, ``D^-1/2``, the stiff springs, the translation basis) is kept while the
 network lives (:func:`_setup`), so repeated solves of one network skip it.
 ``benchmarks/bench_patch.py --against OLD_CHECKOUT`` measures it.
@@ -180,25 +181,25 @@ def _trial(
     terms = model.terms
     if model.spectrum is None and model.newton_length <= radius:  # Newton, by Cholesky
         p, length = model.newton, model.newton_length
-        predicted = 0.5 * float(model.gr @ p)  # gr.p + p.H.p / 2 with H p = -gr
+        predicted = 0.5 * float(model.gr.dot(p))  # gr.p + p.H.p / 2 with H p = -gr
         step = model.lift(p)
         back = lapack.dpotrs(model.factor, terms.reduced_bending(p, step))[0]
     else:  # in the eigenbasis: the subproblem and the bending solve are vector operations
         spec = model.eigen()
         c, den, length = subproblem(spec, radius)
-        predicted = float(c @ (spec.gt + spec.half_vals * c))
+        predicted = float(c.dot(spec.gt + spec.half_vals * c))
         vecs = model.vecs
-        p = vecs @ c
+        p = vecs.dot(c)
         step = model.lift(p)
-        bend = terms.reduced_bending(p, step) @ vecs
+        bend = terms.reduced_bending(p, step).dot(vecs)
         if den[0] > spec.tiny:  # ascending: every shifted eigenvalue is kept
-            back = vecs @ (bend / den)
+            back = vecs.dot(bend / den)
         else:
             ok = den > spec.tiny
-            back = vecs @ np.where(ok, bend / np.where(ok, den, 1.0), 0.0)
+            back = vecs.dot(np.where(ok, bend / np.where(ok, den, 1.0), 0.0))
     # the acceleration is -lift(back): negated at the end (the same numbers, one call less)
     back = model.lift(back)
-    move = step - 0.5 * back if back @ back <= _ACCEL2 * (step @ step) else step
+    move = step - 0.5 * back if back.dot(back) <= _ACCEL2 * step.dot(step) else step
     x = model.x
     if full:
         move = move.reshape(x.shape)
@@ -283,7 +284,7 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                 return Outcome(x, it, False, "forces became non-finite (the network blew up)")
             A = problem.clamp_jacobian(x, coords, dense=True)
             mu = clamp_tensions(A, g, problem.scale[coords])
-            force = g + A.T @ mu
+            force = g + A.T.dot(mu)
         else:
             A, mu, force = None, _EMPTY, g
         # stop.imbalance (not finite where a force is not)
@@ -313,9 +314,11 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
             basis = None
         # the model's multipliers in the metric its trials are put back onto the clamps in
         H = terms.reduced_hessian(clamp_tensions(A, g, root_kappa) if m else mu, basis)
-        if not np.isfinite(H).all():  # a spring of zero length has no curvature direction
+        # a spring of zero length has no curvature direction; a finite sum (one reduction)
+        # proves every entry finite, an inf or NaN entry would make it inf or NaN
+        if not math.isfinite(np.add.reduce(H, None)) and not np.isfinite(H).all():
             return Outcome(x, it, False, "the Hessian is not finite (a spring of zero length?)")
-        gr = basis.T @ g if basis is not None else g * inv_root
+        gr = basis.T.dot(g) if basis is not None else g * inv_root
         model = Model(x, H, gr, basis, inv_root, terms)
 
         accepted = newton_tried = False

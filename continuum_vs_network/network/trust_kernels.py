@@ -12,7 +12,10 @@ per spring, ``u`` and ``u_perp`` on its node pair)::
 
 (``k u u^T + t (I - u u^T)`` per spring), so no (n, n) matrix is formed; ``J B`` and ``P B``
 also give the bending force of every trial step. At the paper's N = 10 patch numpy's
-per-call overhead, not arithmetic, is the cost. Larger problems get :class:`SparseKernels`
+per-call overhead, not arithmetic, is the cost: products are ``ndarray.dot``, not ``@``
+(matmul's dispatch took 0.95 against 0.35 us a call at these sizes; with it the patch
+took 1.04 -> 0.93 ms in ``benchmarks/bench_patch.py``, the same numbers), except where an
+operand is strided (there the two round differently). Larger problems get :class:`SparseKernels`
 (gathers, ``bincount`` scatters and the cached Hessian pattern). Both compute the same
 quantities; results agree to round-off.
 """
@@ -66,7 +69,7 @@ class SparseKernels:
         self.basis = basis
         if basis is None:
             return W * self.inv_root[:, None] * self.inv_root[None, :]
-        return basis.T @ W @ basis
+        return basis.T.dot(W).dot(basis)
 
     def bending(self, step: NDArray) -> NDArray:
         """:func:`~.energy.spring_bending_on` ``coords`` (n,) for an unscaled ``step`` (n,)
@@ -77,7 +80,7 @@ class SparseKernels:
     def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
         """``B^T`` :meth:`bending` ``(step)`` (r,) for ``step = B p``."""
         b = self.bending(step)
-        return self.basis.T @ b if self.basis is not None else b * self.inv_root
+        return self.basis.T.dot(b) if self.basis is not None else b * self.inv_root
 
     def energy_change(self, y: NDArray, move: NDArray | None = None) -> float:
         """``E(y) - E(x)`` from the last ``x``, free of cancellation (``move``: ``y - x``
@@ -113,19 +116,19 @@ class DenseKernels(SparseKernels):
             embedded = np.zeros((2 * self.n_nodes, basis.shape[1]))
             embedded[self.coords] = basis
             basis = embedded
-        return (self.E @ basis.reshape(self.n_nodes, -1)).reshape(len(self.k), 2, -1)
+        return self.E.dot(basis.reshape(self.n_nodes, -1)).reshape(len(self.k), 2, -1)
 
     def gradient(self, x: NDArray) -> NDArray:
         if x is self.tried[0]:  # the last trial's positions: their geometry is known
             d, r = self.tried[1:]
         else:
-            d = self.E @ x
+            d = self.E.dot(x)
             r = vector_lengths(d)
         self.x = x
         r_safe = np.maximum(r, _TINY)
         self.d, self.r, self.r_safe, self.r_rest = d, r, r_safe, r - self.L2
         t = (self.k * (r - self.L) / r_safe)[:, None] * d
-        g = (self.Et @ t).ravel()
+        g = self.Et.dot(t).ravel()
         return g if self.full else g[self.coords]
 
     def reduced_hessian(self, mu: NDArray, basis: NDArray | None) -> NDArray:
@@ -134,27 +137,28 @@ class DenseKernels(SparseKernels):
         if self.clamps is not None:
             tangential[self.clamps] += mu[: self.m] / r[self.clamps]
         self.weights[:, 1] = tangential
-        turn = ((self.d / r[:, None]) @ _TURN).reshape(-1, 2, 2)  # (u; u_perp) per spring
+        turn = (self.d / r[:, None]).dot(_TURN).reshape(-1, 2, 2)  # (u; u_perp) per spring
         # rows 2j, 2j + 1: spring j's length and rotation Jacobians times the basis
         KB = np.matmul(turn, self._incident_basis(basis)).reshape(self.w.size, -1)
         self.JBT, self.PB, self.k_r = KB[0::2].T, KB[1::2], self.k / r
         if np.count_nonzero(self.r) < r.size:  # a collapsed spring: u undefined, t I block
             return super().reduced_hessian(mu, basis)
-        return KB.T @ (self.w * KB)
+        return KB.T.dot(self.w * KB)
 
     def reduced_bending(self, p: NDArray, step: NDArray) -> NDArray:
-        perp = self.PB @ p
-        return self.JBT @ (self.k_r * perp * perp)
+        perp = self.PB.dot(p)
+        return self.JBT @ (self.k_r * perp * perp)  # strided: dot rounds otherwise
 
     def energy_change(self, y: NDArray, move: NDArray | None = None) -> float:
         d0 = self.d
-        du = self.E @ (y - self.x if move is None else move)
+        du = self.E.dot(y - self.x if move is None else move)
         d = d0 + du
         r = vector_lengths(d)
         self.tried = (y, d, r)
         # r - r0 = du . (d + d0) / (r + r0), without cancellation
-        dr = np.add.reduce(du * (d + d0), 1) / (r + self.r_safe)
-        return float(self.k_half @ (dr * (r + self.r_rest)))
+        both = du * (d + d0)
+        dr = (both[:, 0] + both[:, 1]) / (r + self.r_safe)
+        return float(self.k_half.dot(dr * (r + self.r_rest)))
 
 
 def _incidence(springs: NDArray, net) -> tuple[NDArray, NDArray]:

@@ -72,14 +72,14 @@ class RigidBasis:
         self.floor = (1e-12 * length) ** 2 * inv2
 
     def __call__(self, x: NDArray) -> NDArray:
-        v = x.ravel() @ self.B0S - self.v_centre  # the rotation in Q0's coordinates
-        v2 = float(v @ v)
+        v = x.ravel().dot(self.B0S) - self.v_centre  # the rotation in Q0's coordinates
+        v2 = float(v.dot(v))
         if v2 <= self.floor:
             return self.B0
         h = v.copy()
         h[0] += math.copysign(math.sqrt(v2), float(v[0]))
         B0 = self.B0
-        return B0[:, 1:] - (B0 @ h)[:, None] * (h[1:] * (2.0 / float(h @ h)))
+        return B0[:, 1:] - B0.dot(h)[:, None] * (h[1:] * (2.0 / float(h.dot(h))))
 
 
 _TRANSLATIONS: dict[bytes, tuple[NDArray, NDArray, float, NDArray]] = {}
@@ -131,13 +131,13 @@ class Spectrum:
         lowest, top = float(vals[0]), float(vals[-1])
         self.lowest, self.low = lowest, max(0.0, -lowest)
         self.abs_gt = np.abs(gt)
-        self.g_norm = math.sqrt(float(gt @ gt))
+        self.g_norm = math.sqrt(float(gt.dot(gt)))
         self.tiny = 1e-12 * max(abs(lowest), abs(top), 1e-300)
         self.top = abs(top) + self.tiny
         self.newton, self.newton_length = None, math.inf
         if lowest > 0:
             self.newton = -(gt / vals)
-            self.newton_length = math.sqrt(float(self.newton @ self.newton))
+            self.newton_length = math.sqrt(float(self.newton.dot(self.newton)))
         self.hard = None
         if lowest <= 0:  # the hard case: (almost) no gradient on the lowest eigenvectors
             on_low = np.abs(vals - lowest) <= self.tiny
@@ -178,7 +178,7 @@ def subproblem(spec: Spectrum, radius: float) -> tuple[NDArray, NDArray, float]:
     for _ in range(60):
         den = vals + shift
         h = gt / den  # -p(shift)
-        norm2 = float(h @ h)
+        norm2 = float(h.dot(h))
         norm = math.sqrt(norm2)
         if norm2 == 0.0:  # no gradient left in float64 (it underflowed): no step
             return -h, den, 0.0
@@ -189,12 +189,12 @@ def subproblem(spec: Spectrum, radius: float) -> tuple[NDArray, NDArray, float]:
         else:
             hi = shift
         # Newton on phi = 1/radius - 1/|p|, which is nearly linear in the shift
-        slope = float(h @ (h / den)) / (norm2 * norm)  # -d(phi)/d(shift)
+        slope = float(h.dot(h / den)) / (norm2 * norm)  # -d(phi)/d(shift)
         trial = shift + (1.0 / radius - 1.0 / norm) / slope
         shift = trial if lo < trial < hi else 0.5 * (lo + hi)
     den = vals + shift
     h = gt / den
-    return -h, den, math.sqrt(float(h @ h))
+    return -h, den, math.sqrt(float(h.dot(h)))
 
 
 class Model:
@@ -230,13 +230,13 @@ class Model:
 
     def lift(self, p: NDArray) -> NDArray:
         """The move (n,) of the free coordinates for reduced scaled coordinates ``p`` (r,)."""
-        return self.basis @ p if self.basis is not None else p * self.inv_root
+        return self.basis.dot(p) if self.basis is not None else p * self.inv_root
 
     def eigen(self) -> Spectrum:
         """The spectrum of ``H`` (the eigenvectors in ``vecs``), computed once."""
         if self.spectrum is None:
             vals, self.vecs = _eigh(self.H)
-            self.spectrum = Spectrum(vals, self.vecs.T @ self.gr)
+            self.spectrum = Spectrum(vals, self.vecs.T.dot(self.gr))
             self._certified = bool(vals.size == 0 or vals[0] > CURVATURE)
         return self.spectrum
 
@@ -251,7 +251,7 @@ def cholesky_newton(H: NDArray, gr: NDArray) -> tuple[NDArray | None, NDArray | 
     if info != 0:
         return None, None, math.inf
     step, info = lapack.dpotrs(factor, gr)
-    length = math.sqrt(float(step @ step))
+    length = math.sqrt(float(step.dot(step)))
     if info != 0 or not math.isfinite(length):
         return None, None, math.inf
     return factor, -step, length
