@@ -86,7 +86,6 @@ def main() -> None:
     from continuum_vs_network.network.constraints import Problem
     from continuum_vs_network.network.energy import spring_hessian_blocks
     from continuum_vs_network.network.kkt import set_sparse_solver, sparse_solver
-    from continuum_vs_network.network.lagrangian import nested_rows
     from continuum_vs_network.network.newton import factor_pd, pattern_for
     from continuum_vs_network.network.spd import sparse_lu
 
@@ -141,9 +140,9 @@ def main() -> None:
         """
         problem = Problem.build(net, clamped=clamp)
         pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
-        ordered = bool(getattr(pattern, "ordered", False))
+        ordered = pattern.ordered
         # band-ordered rows (lagrangian.pattern_for) mean kkt's banded Cholesky is used
-        rows = nested_rows(pattern)
+        rows = pattern.nested_rows()
 
         def hessian(x):
             return pattern.assemble(

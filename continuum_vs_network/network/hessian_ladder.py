@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from .constraints import Problem
 from .energy import HessianPattern
 from .kkt import DENSE_MAX, Factor, factor_spd, factor_spd_or_curvature
-from .lagrangian import lagrangian_blocks, nested_rows
+from .lagrangian import lagrangian_blocks
 
 __all__ = [
     "DAMP_MIN",
@@ -194,13 +194,13 @@ def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDA
     """``factor_spd`` of ``W``, with directions of negative curvature when it fails (sparse).
 
     The directions come from SuperLU in nested-dissection order also where the rows are in
-    band order (:func:`~.lagrangian.nested_rows`): which negative
+    band order (:meth:`~.energy.HessianPattern.nested_rows`): which negative
     pivots it finds depends on the order, and the shift estimated from them steers the
     iterations.
     """
     if isinstance(W, np.ndarray):
         return factor_spd(W, ordered=pattern.ordered), None
-    rows = nested_rows(pattern)
+    rows = pattern.nested_rows()
     if rows is None:
         return factor_spd_or_curvature(W, ordered=pattern.ordered, rough=True)
     factor = factor_spd(W, ordered=True, rough=True)

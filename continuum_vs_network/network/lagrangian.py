@@ -33,7 +33,6 @@ __all__ = [
     "Frame",
     "lagrangian_blocks",
     "lagrangian_hessian",
-    "nested_rows",
     "pattern_for",
     "trust_region",
 ]
@@ -48,7 +47,8 @@ def pattern_for(
     (:func:`~.ordering.band_order`) where its band is narrow enough for the banded
     Cholesky (:func:`~.kkt.banded_pays`, up to ~1e4 nodes on a lattice), else a
     nested-dissection elimination order; both are computed from ``positions`` (n_nodes,
-    2); ``pattern.ordered`` says so. Not with
+    2); ``pattern.ordered`` says so, and a band-ordered pattern keeps ``positions`` for
+    its nested-dissection rows (:meth:`~.energy.HessianPattern.nested_rows`). Not with
     PARDISO (:func:`~.kkt.sparse_solver`), which orders by METIS itself (the nested
     dissection took 3.5 s at 1e5 nodes, 10 s at 3e5). Networks
     made with ``with_*`` share their read-only springs array, so a learning loop builds the
@@ -67,31 +67,12 @@ def pattern_for(
             banded = banded_pays(coords.size, width)
             if not banded:
                 coords = coordinate_order(nested_dissection(positions, springs), free)
-        pattern = HessianPattern(springs, n_nodes, free, coords)
-        pattern.ordered = coords is not None
-        pattern.band_positions = positions if banded else None  # see nested_rows
-        pattern.nested_rows_made = None
+        pattern = HessianPattern(
+            springs, n_nodes, free, coords, ordered=coords is not None,
+            band_positions=positions if banded else None,
+        )  # fmt: skip
         per_topology[key] = pattern
     return per_topology[key]
-
-
-def nested_rows(pattern: HessianPattern) -> NDArray | None:
-    """The rows of ``pattern`` (from :func:`pattern_for`) in nested-dissection order where
-    they are in band order, else None; made on first use and kept.
-
-    SuperLU's directions of negative curvature depend on the order, and the shift newton
-    estimates from them steers its iterations: they are read in this order whatever
-    factorisation is used. Made with every pattern, the order took 4 / 16 ms of the first
-    relax of a 1e3- / 4e3-node lattice, which mostly reads no such direction.
-    """
-    positions = getattr(pattern, "band_positions", None)
-    if positions is None:
-        return None
-    if pattern.nested_rows_made is None:
-        free = (pattern.free_index >= 0).reshape(-1, 2)
-        nested = coordinate_order(nested_dissection(positions, pattern.springs), free)
-        pattern.nested_rows_made = pattern.free_index[nested]
-    return pattern.nested_rows_made
 
 
 def _reordered(free: NDArray) -> bool:

@@ -35,7 +35,7 @@ class ProximalSolver:
         self.net = net
         self.a = a
         self.pattern = pattern_for(net.springs, net.n_nodes, free, net.positions)
-        self.rows = getattr(self.pattern, "coords", np.flatnonzero(free.ravel()))
+        self.rows = self.pattern.coords
         self.force_tol = tol * net.force_scale
         self.length_tol = tol * float(np.mean(net.rest_length)) if net.n_springs else tol
         self.jacobian = jacobian
@@ -58,7 +58,7 @@ class ProximalSolver:
         direction a descent direction of ``Phi``; the line search does the rest.
         """
         net = self.net
-        ordered = bool(getattr(self.pattern, "ordered", False))
+        ordered = self.pattern.ordered
         for clip in (False, True):
             L = net.rest_length
             if clip:

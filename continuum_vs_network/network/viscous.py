@@ -238,8 +238,8 @@ class Stepper:
         self.pattern = pattern_for(
             springs_net.springs, springs_net.n_nodes, self.free, springs_net.positions
         )
-        self.rows = getattr(self.pattern, "coords", np.flatnonzero(self.free.ravel()))
-        self.ordered = bool(getattr(self.pattern, "ordered", False))
+        self.rows = self.pattern.coords
+        self.ordered = self.pattern.ordered
         self.reuse = bool(reuse)
         self._stored = None
         self.factorisations = 0
