@@ -36,6 +36,7 @@ from continuum_vs_network.continuum.materials import Material
 from continuum_vs_network.continuum.mesh import annulus_mesh, rectangle_mesh
 from continuum_vs_network.continuum.static import factorise, fix
 from continuum_vs_network.continuum.viscoelastic import Damping, simulate_body
+from continuum_vs_network.network.spd import fixed_vector
 
 
 def _best(fn, repeat: int):
@@ -99,7 +100,8 @@ def time_refinement(quick: bool) -> None:
     fixed = fix(body, lambda x, y: x < 1e-9)
     K, M = stiffness_matrix(body), mass_matrix(body, 1.0)
     free = np.setdiff1d(np.arange(body.n_dofs), fixed.dofs)
-    w2, phi = eigsh(K[free][:, free].tocsc(), k=1, M=M[free][:, free].tocsc(), sigma=0)
+    K_free, M_free = K[free][:, free].tocsc(), M[free][:, free].tocsc()
+    w2, phi = eigsh(K_free, k=1, M=M_free, sigma=0, v0=fixed_vector(free.size))
     w2 = float(w2[0])
     mode = np.zeros(body.n_dofs)
     mode[free] = phi[:, 0] / np.abs(phi[:, 0]).max()

@@ -49,6 +49,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from ..network.spd import fixed_vector
 from .body import ElasticBody, mass_matrix, stiffness_matrix
 from .damping import Damping, damping_matrix, lattice_damping
 from .maxwell import damping_arm
@@ -84,9 +85,11 @@ def explicit_limit(body: ElasticBody, *, density: float) -> float:
     K = stiffness_matrix(body).tocsc()
     M = mass_matrix(body, density).tocsc()
     lu = factorise(M)
-    lam_max = float(
-        eigsh(K, k=1, M=M, Minv=_inverse(lu), which="LA", return_eigenvectors=False, tol=1e-4)[0]
-    )
+    top = eigsh(
+        K, k=1, M=M, Minv=_inverse(lu), which="LA", return_eigenvectors=False, tol=1e-4,
+        v0=fixed_vector(K.shape[0]),
+    )  # fmt: skip
+    lam_max = float(top[0])
     return 2.0 / math.sqrt(lam_max)
 
 
@@ -426,7 +429,10 @@ def slowest_relaxation_time(K: sp.spmatrix, C: sp.spmatrix) -> float:
 
         lam = eigh(K.toarray(), C.toarray(), eigvals_only=True)[0]
     else:
-        lam = eigsh(K, k=1, M=C, sigma=0, which="LM", return_eigenvectors=False)[0]
+        lam = eigsh(
+            K, k=1, M=C, sigma=0, which="LM", return_eigenvectors=False,
+            v0=fixed_vector(K.shape[0]),
+        )[0]  # fmt: skip
     if not lam > 0:
         raise ValueError(f"the slowest mode does not decay (lambda_min = {lam:.3e}): fix more DOFs")
     return float(1.0 / lam)

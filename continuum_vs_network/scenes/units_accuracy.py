@@ -243,12 +243,14 @@ def _continuum_problem(problem: str) -> dict[str, Any]:
     from ..continuum.materials import Material
     from ..continuum.mesh import rectangle_mesh
     from ..continuum.static import fix
+    from ..network.spd import fixed_vector
 
     body = elastic_body(rectangle_mesh(2.0, 1.0, h=0.125), Material(1.0, 1.0), order=2)
     fixed = fix(body, lambda x, y: x < 1e-9)
     K, M = stiffness_matrix(body), mass_matrix(body, 1.0)
     free = np.setdiff1d(np.arange(body.n_dofs), fixed.dofs)
-    w2, phi = eigsh(K[free][:, free].tocsc(), k=1, M=M[free][:, free].tocsc(), sigma=0)
+    K_free, M_free = K[free][:, free].tocsc(), M[free][:, free].tocsc()
+    w2, phi = eigsh(K_free, k=1, M=M_free, sigma=0, v0=fixed_vector(free.size))
     w2 = float(w2[0])
     mode = np.zeros(body.n_dofs)
     mode[free] = phi[:, 0] / np.abs(phi[:, 0]).max()

@@ -244,6 +244,8 @@ def _decay_rate(lam_min: float, damping: float, inertia: bool) -> float:
 def _smallest_eigenvalue(K, M=None) -> float:
     import scipy.sparse.linalg as spla
 
+    from ..network.spd import fixed_vector
+
     vals = spla.eigsh(
         K.tocsc(),
         k=1,
@@ -251,6 +253,7 @@ def _smallest_eigenvalue(K, M=None) -> float:
         sigma=0.0,
         which="LM",
         return_eigenvectors=False,
+        v0=fixed_vector(K.shape[0]),
     )
     return float(vals[0])
 
