@@ -29,13 +29,7 @@ from .memo import per_array
 from .model import SpringNetwork, spring_vectors, vector_lengths
 from .ordering import band_order, coordinate_order, nested_dissection
 
-__all__ = [
-    "Frame",
-    "lagrangian_blocks",
-    "lagrangian_hessian",
-    "pattern_for",
-    "trust_region",
-]
+__all__ = ["Frame", "lagrangian_blocks", "lagrangian_hessian", "pattern_for", "trust_region"]
 
 
 def pattern_for(
