@@ -10,9 +10,14 @@ limit "one Hessian assembly + one sparse factorisation" of the same problem (flo
 the ratio in parentheses is against the ``rough`` factorisation Newton itself makes,
 float32 where that is accurate; in brackets, where the limit is the banded Cholesky,
 against SuperLU), measured in the same run; Newton and the limit are each the best of
-``--repeat`` (default 3) runs, the others are timed once. With PARDISO
-(``--sparse-solvers``) the kept symbolic analysis is dropped before the limit and before
-every timed run, so each pays one.
+``--repeat`` (default 3) runs, the others are timed once. Where the limit is the banded
+Cholesky, ``floor`` is what Newton's own linear algebra costs: one more solve is run
+untimed, its factorisations, Hessian assemblies and triangular solves (per column) are
+counted and each is priced at the limit's best time for it, everything else taken as free.
+A floor above 3x the limit says that no implementation of the same iteration (Python
+overhead removed) comes within 3x: fewer factorisations, assemblies or solves would be
+needed. With PARDISO (``--sparse-solvers``) the kept symbolic analysis is dropped before
+the limit and before every timed run, so each pays one.
 
     python benchmarks/bench_relax.py                 # N ~ 10, 1e3, 1e4
     python benchmarks/bench_relax.py --sizes 10,1024
@@ -80,11 +85,12 @@ def main() -> None:
     sys.path.extend(args.side)
 
     import numpy as np
+    import scipy.linalg as sla
 
     import continuum_vs_network as cvn
     from continuum_vs_network.network.builders import paper_network, triangular_lattice
     from continuum_vs_network.network.constraints import Problem
-    from continuum_vs_network.network.energy import spring_hessian_blocks
+    from continuum_vs_network.network.energy import HessianPattern, spring_hessian_blocks
     from continuum_vs_network.network.kkt import set_sparse_solver, sparse_solver
     from continuum_vs_network.network.newton import factor_pd, pattern_for
     from continuum_vs_network.network.spd import sparse_lu
@@ -161,15 +167,51 @@ def main() -> None:
             best[name] = min(best.get(name, np.inf), time.perf_counter() - t0)
             return out
 
+        b = np.ones(pattern.size)  # a right-hand side for the timed triangular solves
         for _ in range(args.repeat):
             W = timed("assembly", lambda: hessian(x))
-            timed("factor", lambda W=W: factor_pd(W, ordered=ordered))
+            f = timed("factor", lambda W=W: factor_pd(W, ordered=ordered))
             timed("rough", lambda W=W: factor_pd(W, ordered=ordered, rough=True))
             if rows is not None:
                 nested = W[rows][:, rows]
                 timed("superlu", lambda M=nested: sparse_lu(M, ordering="NATURAL"))
+            if rows is not None and sparse_solver() != "pardiso":  # banded: the floor's parts
+                f.precondition(b)  # its float32 copy is made at the first use, not timed
+                timed("dpbtrs", lambda f=f: f.solve(b))
+                timed("spbtrs", lambda f=f: f.precondition(b))
         used = ("banded Cholesky" if rows is not None else sparse_solver()) + ", " + where
         return best, used
+
+    def floor(net, clamp: dict, best: dict[str, float]) -> tuple[float, str]:
+        """Newton's floor: the seconds of one more (untimed) solve's banded factorisations,
+        Hessian assemblies and triangular solves, each counted (solves per column) and
+        priced at the limit's best time for it, all else taken as free; and the counts."""
+        counts = dict.fromkeys(("spbtrf", "cholesky_banded", "assemble", "spbtrs", "dpbtrs"), 0)
+        owners = {"cholesky_banded": sla, "assemble": HessianPattern}
+        saved = {name: getattr(owners.get(name, sla.lapack), name) for name in counts}
+
+        def counting(name: str):
+            def call(*a, **k):
+                rhs = a[1] if name.endswith("trs") else None
+                counts[name] += rhs.shape[1] if rhs is not None and rhs.ndim == 2 else 1
+                return saved[name](*a, **k)
+
+            return call
+
+        try:
+            for name in counts:
+                setattr(owners.get(name, sla.lapack), name, counting(name))
+            cvn.relax(net, clamped=clamp, method="newton", tol=1e-10)
+        finally:
+            for name, original in saved.items():
+                setattr(owners.get(name, sla.lapack), name, original)
+        price = {"spbtrf": "rough", "cholesky_banded": "factor", "assemble": "assembly"}
+        seconds = sum(counts[name] * best[price.get(name, name)] for name in counts)
+        factorisations = counts["spbtrf"] + counts["cholesky_banded"]
+        solves = counts["spbtrs"] + counts["dpbtrs"]
+        return seconds, (
+            f"{factorisations} factorisations + {counts['assemble']} assemblies + {solves} solves"
+        )
 
     def run(net, clamp: dict, strain: float, todo: list[str], tag: str, times: dict) -> None:
         for method in todo:
@@ -252,12 +294,20 @@ def main() -> None:
                 )
                 todo = [m for m in methods if m == "newton" or not which]
                 run(net, clamp, strain, todo, tag, times)
+                if "newton" + tag in times and "dpbtrs" in best:
+                    times["floor" + tag], parts = floor(net, clamp, best)
+                    print(
+                        f"{net.n_nodes:>7} {strain:>5g} {'floor' + tag:>16} "
+                        f"{times['floor' + tag]:>9.4f} {'':>7} {'':>11}  {parts}, each at "
+                        "the limit's time"
+                    )
             set_sparse_solver(solvers[0])
             summary.append((net.n_nodes, strain, times))
 
     print(
         "\n# ratios (same run): newton/limit per sparse solver (against the rough limit; "
-        "[against SuperLU where the limit is banded]), fire/newton, lbfgs/newton"
+        "[against SuperLU where the limit is banded]; floor/limit where it is banded), "
+        "fire/newton, lbfgs/newton"
     )
     for n_nodes, strain, times in summary:
 
@@ -268,6 +318,8 @@ def main() -> None:
             out = f"{ratio('newton' + t, 'limit' + t)} ({ratio('newton' + t, 'rough' + t).strip()})"
             if "superlu" + t in times:
                 out += f" [{ratio('newton' + t, 'superlu' + t).strip()}]"
+            if "floor" + t in times:
+                out += f" floor {ratio('floor' + t, 'limit' + t).strip()}"
             return out
 
         per_solver = " ".join(against(t) for t in tags)
