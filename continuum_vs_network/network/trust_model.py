@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack
 
+from .memo import per_array
 from .trust_kernels import SparseKernels
 
 __all__ = ["CURVATURE", "Model", "RigidBasis", "Spectrum", "null_basis", "rigid_motions"]
@@ -82,17 +83,15 @@ class RigidBasis:
         return B0[:, 1:] - B0.dot(h)[:, None] * (h[1:] * (2.0 / float(h.dot(h))))
 
 
-_TRANSLATIONS: dict[bytes, tuple[NDArray, NDArray, float, NDArray]] = {}
-_TRANSLATIONS_N = 64  # coordinates up to which they are cached (by the bytes of inv_root)
-_TRANSLATIONS_MAX = 64  # entries kept (the oldest is dropped)
+_TRANSLATIONS_N = 64  # coordinates up to which they are kept (memo.per_array, by content)
 
 
 def _translations(inv_root: NDArray) -> tuple[NDArray, NDArray, float, NDArray]:
     """:class:`RigidBasis`'s constants for ``inv_root`` (n,): ``B0``, ``B0S`` (read-only),
-    ``inv_root . inv_root`` and the flat index ``0, 1, 0, 1, ...`` (n,); cached for small
+    ``inv_root . inv_root`` and the flat index ``0, 1, 0, 1, ...`` (n,); kept for small
     ``n`` (repeated solves of one network at the same stiffness)."""
-    key = inv_root.tobytes() if inv_root.size <= _TRANSLATIONS_N else None
-    hit = _TRANSLATIONS.get(key) if key is not None else None
+    store = per_array(inv_root, "rigid_translations") if inv_root.size <= _TRANSLATIONS_N else {}
+    hit = store.get("constants")
     if hit is not None:
         return hit
     n = inv_root.size
@@ -108,11 +107,7 @@ def _translations(inv_root: NDArray) -> tuple[NDArray, NDArray, float, NDArray]:
     B0S[0::2], B0S[1::2] = B0[1::2], -B0[0::2]
     B0.setflags(write=False)
     B0S.setflags(write=False)
-    hit = (B0, B0S, float(inv_root @ inv_root), np.arange(n) % 2)
-    if key is not None:
-        if len(_TRANSLATIONS) >= _TRANSLATIONS_MAX:
-            _TRANSLATIONS.pop(next(iter(_TRANSLATIONS)))
-        _TRANSLATIONS[key] = hit
+    hit = store["constants"] = (B0, B0S, float(inv_root @ inv_root), np.arange(n) % 2)
     return hit
 
 
