@@ -85,14 +85,17 @@ def main() -> None:
         t, i = np.array(times), np.array(iterations)
         return 1e3 * float(np.median(t)), float(np.median(i)), 1e3 * float(np.median(t / i))
 
+    cases = {  # each row's arguments of measure
+        "default pins": {"pinned": False},
+        "explicit pins": {"pinned": True},
+        "fresh network": {"pinned": False, "fresh": True},
+        "new network": {"pinned": False, "new": True},
+        "new topology": {"pinned": False, "relabel": True},
+    }
+    names = tuple(cases)
+
     def measure_all() -> dict[str, tuple[float, float, float]]:
-        return {
-            "default pins": measure(False),
-            "explicit pins": measure(True),
-            "fresh network": measure(False, fresh=True),
-            "new network": measure(False, new=True),
-            "new topology": measure(False, relabel=True),
-        }
+        return {name: measure(**kw) for name, kw in cases.items()}
 
     def there() -> dict[str, float]:
         """The rows' median ms of the package in ``--against`` (one round, a subprocess)."""
@@ -106,7 +109,6 @@ def main() -> None:
                     other[name] = float(line.split("median")[1].split("ms")[0])
         return other
 
-    names = ("default pins", "explicit pins", "fresh network", "new network", "new topology")
     rounds = args.rounds if args.against else 1
     here_rounds, there_rounds = [], []
     for _ in range(rounds):  # alternating: a burst of load on the shared host hits both
