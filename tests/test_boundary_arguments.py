@@ -156,7 +156,7 @@ def test_solver_refuses_bad_fields_at_construction(kwargs, words):
     ("make", "words"),
     [
         (lambda: cvn.CoupledLearning("a", 0.1), ("alpha", "'a'")),
-        (lambda: cvn.CoupledLearning(None, 0.1), ("alpha", "None")),
+        (lambda: cvn.CoupledLearning(rate=0.1), ("rate", "0.1")),
         (lambda: cvn.CoupledLearning(1e-3, float("inf")), ("eta",)),
         (lambda: cvn.ProspectiveConfiguration(-1.0), ("alpha",)),
         (lambda: cvn.ExactGradient(1.0, cost="energy"), ("cost",)),

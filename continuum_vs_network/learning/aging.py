@@ -31,8 +31,9 @@ task error only as far as the free state follows the clamped one.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
-from .. import _validate as check
+from .rates import Rate, Scaled
 from .rules import Rule, Step
 
 __all__ = ["DirectedAging"]
@@ -44,15 +45,13 @@ class DirectedAging(Rule):
 
     Parameters
     ----------
-    alpha : float
-        Aging rate per step (> 0, dimensionless).
+    alpha : float or None
+        Aging rate per step (> 0, dimensionless). None (the default): the scale-free
+        ``rate`` (:class:`~.rates.Scaled` unless given).
     """
 
-    alpha: float = field(kw_only=False)
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check.real("alpha", self.alpha, low=0, low_open=True)
+    alpha: float | None = field(default=None, kw_only=False)
+    default_rate: ClassVar[Rate] = Scaled()
 
     @property
     def uses_free_state(self) -> bool:
@@ -61,8 +60,8 @@ class DirectedAging(Rule):
     def _update(self, net, task, warm, tracker, read, rng) -> Step:
         def local(dof: str, k, L, r_c):
             if dof == "rest_length":
-                return self.alpha * (r_c - L)
-            return -0.5 * self.alpha * k * (r_c / L - 1.0) ** 2
+                return self._alpha * (r_c - L)
+            return -0.5 * self._alpha * k * (r_c / L - 1.0) ** 2
 
         return self._clamped_only_step(net, task, warm, tracker, read, rng, local)
 

@@ -9,6 +9,7 @@ file's, and each resumed trial's network must have the saved digest.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -23,6 +24,7 @@ from ..network.model import SpringNetwork
 from .history import LEGACY, History
 from .medium import is_medium, learning_arrays, with_learning_arrays
 from .record import COUNTERS, new_record
+from .rates import RateState
 from .step import Warm
 from .tasks import AllosteryTask
 
@@ -30,6 +32,7 @@ __all__ = ["Checkpoint", "check_checkpoint"]
 
 _LEARNING = ("rest_length", "stiffness", "eigenstrain", "modulus")
 _CURRENT_STATE = frozenset({*_LEARNING, "warm_free", "warm_clamped", "warm_previous_free"})
+_RATE = "cur/rate_"  # the learning rate's state (.rates.RateState)
 
 
 def check_checkpoint(checkpoint: str | Path) -> Path:
@@ -64,9 +67,11 @@ def _digest(net: SpringNetwork) -> str:
 
 
 def _saved_warm(files: dict, examples: int | None) -> Warm:
+    rate = RateState.from_arrays(files, _RATE)
     if examples is not None:
-        return Warm(examples=tuple(_saved_warm_one(files, f"example{e}_") for e in range(examples)))
-    return _saved_warm_one(files, "")
+        ones = tuple(_saved_warm_one(files, f"example{e}_") for e in range(examples))
+        return Warm(examples=ones, rate=rate)
+    return dataclasses.replace(_saved_warm_one(files, ""), rate=rate)
 
 
 def _saved_warm_one(files: dict, infix: str) -> Warm:
@@ -156,6 +161,8 @@ class Checkpoint:
             arrays["cur/warm_clamped"] = np.asarray(warm.clamped)
         if warm.previous_free is not None:
             arrays["cur/warm_previous_free"] = np.asarray(warm.previous_free)
+        if warm.rate is not None:
+            arrays.update(warm.rate.to_arrays(_RATE))
         for e, w in enumerate(warm.examples or ()):
             for name in ("free", "clamped", "previous_free"):
                 if getattr(w, name) is not None:
@@ -266,6 +273,7 @@ class Checkpoint:
                     if k.startswith("cur/")
                     and k[4:] not in _CURRENT_STATE | LEGACY
                     and not k.startswith("cur/warm_example")
+                    and not k.startswith(_RATE)
                 },
                 "learning": {k: files[f"cur/{k}"] for k in _LEARNING if f"cur/{k}" in files},
                 "warm": _saved_warm(files, progress.get("examples")),

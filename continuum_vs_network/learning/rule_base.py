@@ -15,13 +15,20 @@ without the bulk transmitting anything, see :mod:`.coupling`),
 ``strain_reference`` (``"initial"``, the default: fixed clamp lengths from the task's
 recorded rest lengths, the convention in which the rules learn; ``"current"``: the paper's
 literal ``S = r / L - 1`` with the learning ``L``),
-floors ``min_rest_length`` / ``min_stiffness``, and the equilibrium ``solver``.
+floors ``min_rest_length`` / ``min_stiffness``, the physical range ``stiffness_range`` /
+``rest_length_range`` (factors of the values when training started, :mod:`.ranges`), the
+rate (``alpha``, the paper's raw rate, or ``rate``, a per-spring adaptive rate, the default
+when ``alpha`` is left out: :mod:`.rates`), and the equilibrium ``solver``.
+
+A step is made in one place (:meth:`Rule.update`): the rule's raw line, masked, then the
+rate, then the floors and the range.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,6 +38,8 @@ from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
 from .examples import TaskSet
 from .node_tasks import NodeTask
+from .ranges import STIFFNESS_RANGE, check_range, clip_to_range
+from .rates import Adaptive, Rate, RateState, Scaled
 from .readout import Readout
 from .states import Solver, Tracker
 from .step import JOINT, Dof, Step, Warm, check_finite_update
@@ -56,9 +65,23 @@ class Rule:
     strain_reference: StrainReference = "initial"
     min_rest_length: float | None = None
     min_stiffness: float | None = None
+    stiffness_range: tuple[float, float] | None = STIFFNESS_RANGE
+    rest_length_range: tuple[float, float] | None = None
+    rate: Rate | None = None
     solver: Solver = field(default_factory=Solver)
 
     def __post_init__(self) -> None:
+        for name in ("stiffness_range", "rest_length_range"):
+            object.__setattr__(self, name, check_range(name, getattr(self, name)))
+        if self.rate is not None and not isinstance(self.rate, Adaptive | Scaled):
+            raise check.ArgumentError("rate", self.rate, "None, an Adaptive or a Scaled rate")
+        alpha = getattr(self, "alpha", None)
+        if alpha is not None:
+            check.real("alpha", alpha, low=0, low_open=True)
+            if self.rate is not None:
+                raise ValueError(
+                    "give alpha (the paper's raw rate) or rate (an adaptive rate), not both"
+                )
         check.choice(
             "dof", self.dof, ("rest_length", "stiffness", "both", "eigenstrain", "modulus")
         )
@@ -81,12 +104,35 @@ class Rule:
     def uses_free_state(self) -> bool:
         return True
 
+    #: the rate used when neither ``alpha`` nor ``rate`` is given
+    default_rate: ClassVar[Rate] = Adaptive()
+
+    @property
+    def adaptive(self) -> Rate | None:
+        """The scale-free rate in use (``rate``, or ``default_rate`` when ``alpha`` is None);
+        None when the rule runs at the raw rate ``alpha``."""
+        if getattr(self, "alpha", None) is not None:
+            return None
+        return self.rate or self.default_rate
+
+    @property
+    def _alpha(self) -> float:
+        """The factor of the rule's raw line: ``alpha``, or 1 under an adaptive rate (which
+        does not depend on it)."""
+        alpha = getattr(self, "alpha", None)
+        return 1.0 if alpha is None else float(alpha)
+
     def settings(self) -> dict[str, object]:
         """The rule's parameters as a flat dict of plain values (for histories)."""
         out: dict[str, object] = {"rule": self.name}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, Solver):
+            if f.name == "rate":
+                value = self.adaptive
+                out["rate"] = "raw" if value is None else type(value).__name__
+                for g in dataclasses.fields(Adaptive):
+                    out[f"rate.{g.name}"] = getattr(value, g.name, None)
+            elif isinstance(value, Solver):
                 for g in dataclasses.fields(value):
                     out[f"solver.{g.name}"] = _plain(getattr(value, g.name))
             else:
@@ -107,19 +153,52 @@ class Rule:
         return mask
 
     def _delta(self, net: SpringNetwork, task: AllosteryTask, raw: NDArray) -> NDArray:
-        """Mask and floor a raw update. A floor stops a decrease; it never lifts a value."""
-        if self.dof == "both":
-            return np.stack([self._delta_one(net, task, r, d) for r, d in zip(raw, JOINT)])
-        return self._delta_one(net, task, raw, self.dof)
+        """``raw`` with the springs that do not learn set to 0 (rows for "both")."""
+        mask = self.learning_mask(net, task)
+        return np.where(mask, raw, 0.0)
 
-    def _delta_one(self, net, task, raw: NDArray, dof: str) -> NDArray:
-        raw = np.where(self.learning_mask(net, task), raw, 0.0)
-        old = net.rest_length if dof == "rest_length" else net.stiffness
-        floor = self.min_rest_length if dof == "rest_length" else self.min_stiffness
-        if floor is None:
-            return raw
-        new = np.maximum(old + raw, np.minimum(old, floor))
-        return new - old
+    def _values(self, net: SpringNetwork) -> NDArray:
+        """The learning dofs of ``net``: ``(n,)``, or ``(2, n)`` rows JOINT for "both"."""
+        pick = {"rest_length": net.rest_length, "stiffness": net.stiffness}
+        if self.dof == "both":
+            return np.stack([pick[d] for d in JOINT])
+        return pick[self.dof].copy()
+
+    def _rate_step(self, net, task, raw: NDArray, warm: Warm) -> tuple[NDArray, RateState]:
+        """The step from the summed, masked raw line: the rate, then floors and range."""
+        state = warm.rate
+        if state is None or np.shape(state.initial) != np.shape(raw):
+            state = RateState.start(self._values(net))
+        raw = self._delta(net, task, raw)
+        dofs = JOINT if self.dof == "both" else (self.dof,)
+        adaptive = self.adaptive
+        if adaptive is not None:
+            initial = np.atleast_2d(state.initial)
+            scale = np.array([
+                np.mean(initial[i]) * (_strain_scale(task) if d == "rest_length" else 1.0)
+                for i, d in enumerate(dofs)
+            ])  # fmt: skip
+            step, state = adaptive.delta(raw, scale[:, None] if raw.ndim == 2 else scale, state)
+        else:
+            step = raw
+        rows = [
+            self._bounded(net, d, row, init)
+            for d, row, init in zip(dofs, np.atleast_2d(step), np.atleast_2d(state.initial))
+        ]
+        return (np.stack(rows) if self.dof == "both" else rows[0]), state
+
+    def _bounded(self, net, dof: str, delta: NDArray, initial: NDArray | None) -> NDArray:
+        """Floor (stops a decrease; never lifts a value), then the physical range relative
+        to ``initial`` (none when None)."""
+        rest = dof == "rest_length"
+        old = net.rest_length if rest else net.stiffness
+        floor = self.min_rest_length if rest else self.min_stiffness
+        if floor is not None:
+            delta = np.maximum(old + delta, np.minimum(old, floor)) - old
+        factors = self.rest_length_range if rest else self.stiffness_range
+        if initial is None:
+            return delta
+        return clip_to_range(old, delta, initial, factors)
 
     def _per_dof(self, local) -> NDArray:
         """``local(dof)`` for the rule's ``dof``; rows :data:`JOINT` stacked for "both"."""
@@ -232,10 +311,13 @@ class Rule:
         tracker = tracker or Tracker(self.solver)
         warm = warm or Warm()
         if isinstance(task, TaskSet):
-            return self._update_examples(net, task, warm, tracker, read, rng)
-        step = self._update(net, task, warm, tracker, read, rng)
-        check_finite_update(step.delta, self.dof)
-        return dataclasses.replace(step, previous=warm)
+            step = self._update_examples(net, task, warm, tracker, read, rng)
+        else:
+            step = self._update(net, task, warm, tracker, read, rng)
+        check_finite_update(step.raw, self.dof)
+        delta, rate = self._rate_step(net, task, step.raw, warm)
+        check_finite_update(delta, self.dof)
+        return dataclasses.replace(step, delta=delta, previous=warm, rate=rate)
 
     def _update_examples(self, net, tasks, warm, tracker, read, rng) -> Step:
         """Several examples at once: the sum of the per-example updates (.examples)."""
@@ -245,12 +327,9 @@ class Rule:
             step = self._update(net, task, w, tracker, read, rng)
             steps.append(dataclasses.replace(step, previous=w))
         raw = np.sum([s.raw for s in steps], axis=0)
-        delta = self._delta(net, tasks, raw)
-        check_finite_update(delta, self.dof)
         return Step(
-            delta=delta, dof=self.dof, free=None, clamped=None, raw=raw,
-            previous=warm, examples=tuple(steps),
-        )  # fmt: skip
+            delta=raw, dof=self.dof, free=None, clamped=None, raw=raw, examples=tuple(steps)
+        )
 
     def _update(
         self,
@@ -274,6 +353,10 @@ class Rule:
             )
         if noise != 0.0:
             raise ValueError("read-out noise is implemented for spring networks only")
+        if self.alpha is None:
+            raise ValueError(
+                "alpha: a continuum learns at the raw rate for now; give alpha > 0"
+            )
         check_rule_on_medium(medium, task, self)
         return self._medium_step(medium, task, tracker)
 
@@ -293,3 +376,15 @@ class Rule:
             clamp_lengths=lengths,
             raw=raw,
         )
+
+
+def _strain_scale(task) -> float:
+    """The largest strain a task asks for (sources and targets, every example): the scale of
+    a rest-length step (a step of ``0.02`` moves ``L`` by about 2 % of that strain)."""
+    tasks = task.tasks if isinstance(task, TaskSet) else (task,)
+    values = [0.0]
+    for t in tasks:
+        values.append(float(np.max(np.abs(t.source_strain), initial=0.0)))
+        values.append(float(np.max(np.abs(getattr(t, "target_strain", ())), initial=0.0)))
+    largest = max(values)
+    return largest if largest > 0 else 1.0

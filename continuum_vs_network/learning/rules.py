@@ -61,12 +61,14 @@ Options every rule honours: see :mod:`.rule_base`. The base :class:`Rule`, the
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .. import _validate as check
 from .node_tasks import NodeTask, node_cost_gradient
+from .rates import Rate, Scaled
 from .readout import Readout
 from .rule_base import Rule
 from .sensitivity import Cost, Sensitivity, cost_gradient
@@ -100,18 +102,18 @@ class CoupledLearning(Rule):
 
     Parameters
     ----------
-    alpha : float
-        Learning rate (> 0).
+    alpha : float or None
+        The paper's raw learning rate (> 0): ``delta = alpha * line``. None (the default):
+        the scale-free ``rate`` (:class:`~.rates.Adaptive` unless given; :mod:`.rates`).
     eta : float
-        Nudge amplitude (> 0; 1 clamps the targets at their desired strains).
+        Nudge amplitude (> 0; 1 clamps the targets at their desired strains; default 0.1).
     """
 
-    alpha: float = field(kw_only=False)
-    eta: float = field(kw_only=False)
+    alpha: float | None = field(default=None, kw_only=False)
+    eta: float = field(default=0.1, kw_only=False)
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        _check_rate("alpha", self.alpha)
         _check_rate("eta", self.eta)
 
     def _update(self, net, task, warm, tracker, read, rng) -> Step:
@@ -125,8 +127,8 @@ class CoupledLearning(Rule):
 
         def local(dof: str) -> NDArray:
             if dof == "rest_length":
-                return (self.alpha / self.eta) * k * (r_nudged - r_free)
-            return (self.alpha / (2 * self.eta)) * ((r_free - L) ** 2 - (r_nudged - L) ** 2)
+                return (self._alpha / self.eta) * k * (r_nudged - r_free)
+            return (self._alpha / (2 * self.eta)) * ((r_free - L) ** 2 - (r_nudged - L) ** 2)
 
         raw = self._per_dof(local)
         return Step(
@@ -186,15 +188,14 @@ class ProspectiveConfiguration(Rule):
 
     Parameters
     ----------
-    alpha : float
-        Learning rate (> 0).
+    alpha : float or None
+        The paper's raw learning rate (> 0). None (the default): the scale-free ``rate``
+        (:class:`~.rates.Scaled` unless given: the raw line has one sign for every
+        stiffness, so a per-spring adaptive rate would weaken every stressed spring alike).
     """
 
-    alpha: float = field(kw_only=False)
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        _check_rate("alpha", self.alpha)
+    alpha: float | None = field(default=None, kw_only=False)
+    default_rate: ClassVar[Rate] = Scaled()
 
     @property
     def uses_free_state(self) -> bool:
@@ -203,8 +204,8 @@ class ProspectiveConfiguration(Rule):
     def _update(self, net, task, warm, tracker, read, rng) -> Step:
         def local(dof: str, k: NDArray, L: NDArray, r_c: NDArray) -> NDArray:
             if dof == "rest_length":
-                return self.alpha * k * (r_c - L)
-            return -0.5 * self.alpha * (r_c - L) ** 2
+                return self._alpha * k * (r_c - L)
+            return -0.5 * self._alpha * (r_c - L) ** 2
 
         return self._clamped_only_step(net, task, warm, tracker, read, rng, local)
 
@@ -226,17 +227,17 @@ class ExactGradient(Rule):
 
     Parameters
     ----------
-    alpha : float
-        Learning rate (> 0).
+    alpha : float or None
+        Raw learning rate (> 0): a fixed-step gradient descent. None (the default): the
+        scale-free ``rate`` (:class:`~.rates.Adaptive` unless given).
     cost : {"strain", "length"}
     """
 
-    alpha: float = field(kw_only=False)
+    alpha: float | None = field(default=None, kw_only=False)
     cost: Cost = "strain"
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        _check_rate("alpha", self.alpha)
         check.choice("cost", self.cost, ("strain", "length"))
 
     def _update(self, net, task, warm, tracker, read, rng) -> Step:
@@ -268,7 +269,7 @@ class ExactGradient(Rule):
         except (np.linalg.LinAlgError, RuntimeError) as err:
             raise LearningError(f"exact gradient: singular KKT system ({err})") from err
         tracker.stats.factorisations += 1
-        raw = -self.alpha * grad
+        raw = -self._alpha * grad
         return Step(
             delta=self._delta(net, task, raw),
             dof=self.dof,

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from ..network.equilibrium import Equilibrium
 from ..network.model import SpringNetwork
+from .rates import RateState
 
 __all__ = ["JOINT", "Dof", "LearningError", "Step", "Warm", "check_finite_update"]
 
@@ -42,12 +43,16 @@ class Warm:
         state (a guess for the fast solver; the warm start stays ``free``).
     examples : tuple of Warm or None
         One warm start per example of a :class:`~.examples.TaskSet`.
+    rate : RateState or None
+        The learning rate's state and the dofs' initial values (:mod:`.rates`); None
+        before the first step.
     """
 
     free: NDArray | None = None
     clamped: NDArray | None = None
     previous_free: NDArray | None = None
     examples: tuple[Warm, ...] | None = None
+    rate: RateState | None = None
 
     def example(self, e: int) -> Warm:
         """The warm start of example ``e`` (empty when there is none)."""
@@ -82,7 +87,10 @@ class Step:
         The rule's update before masks and floors.
     examples : tuple of Step or None
         For a :class:`~.examples.TaskSet`: each example's step (its states and raw
-        update); ``delta`` is their summed ``raw``, masked and floored once.
+        update, masked, as its ``delta``); ``delta`` is their summed ``raw`` made a step
+        once (rate, floors and range).
+    rate : RateState or None
+        The rate's state after this step (carried to the next by :attr:`warm`).
     """
 
     delta: NDArray[np.float64]
@@ -95,17 +103,19 @@ class Step:
     raw: NDArray | None = field(default=None, repr=False)
     previous: Warm | None = field(default=None, repr=False)
     examples: tuple[Step, ...] | None = field(default=None, repr=False)
+    rate: RateState | None = field(default=None, repr=False)
 
     @property
     def warm(self) -> Warm:
         """Warm starts for the next step (this step's states; the older ones kept)."""
         if self.examples is not None:
-            return Warm(examples=tuple(s.warm for s in self.examples))
+            return Warm(examples=tuple(s.warm for s in self.examples), rate=self.rate)
         before = self.previous or Warm()
         return Warm(
             free=before.free if self.free is None else self.free.positions,
             clamped=before.clamped if self.clamped is None else self.clamped.positions,
             previous_free=before.free if self.free is not None else before.previous_free,
+            rate=self.rate,
         )
 
     def apply(self, net: SpringNetwork) -> SpringNetwork:

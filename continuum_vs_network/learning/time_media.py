@@ -133,7 +133,8 @@ class NetworkTime:
             raw = dt_learn * (rule.alpha / rule.eta) * k * (clamped - free)
         else:
             raw = dt_learn * (rule.alpha / (2 * rule.eta)) * ((free - L) ** 2 - (clamped - L) ** 2)
-        step = Step(delta=rule._delta(net, self.task, raw), dof=rule.dof, free=None, clamped=None)
+        delta = rule._bounded(net, rule.dof, rule._delta(net, self.task, raw), None)
+        step = Step(delta=delta, dof=rule.dof, free=None, clamped=None)
         return step.apply(net)
 
     def rate_bound(self, rule, net) -> float:

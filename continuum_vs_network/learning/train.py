@@ -258,12 +258,14 @@ def _run_trial(
                 examples=tuple(
                     next_warm(warm.example(e), s, None if free is None else free[e])
                     for e, s in enumerate(step.examples)
-                )
+                ),
+                rate=step.rate,
             )
         return Warm(
             free=free.positions if free is not None else warm.free,
             clamped=step.warm.clamped,
             previous_free=warm.free if free is not None else warm.previous_free,
+            rate=step.rate,
         )
 
     t = state.step

@@ -96,8 +96,10 @@ def gradient(doc: Document, result, h) -> None:
             for r in result.scene.learning.rules
         ]
         doc.add(
-            "Final `C/C0` of every rule next to the exact gradient's (what the task allows "
-            "with these steps):",
+            "Final `C/C0` of every rule next to `exact`, a fixed-step exact-gradient descent "
+            "(`ExactGradient` at the scene's raw rate, the same steps): a rule at that rate, "
+            "not the task's optimum (what the task allows is `exact_optimum`'s, reported by "
+            "the allostery scene):",
             "",
         )
         doc.table(["rule", "final C/C0 median [quartiles]"], rows)
