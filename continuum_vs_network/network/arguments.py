@@ -85,8 +85,13 @@ def relax_arguments(
 def pin_mask_or_indices(net: SpringNetwork, pinned: Any) -> NDArray:
     """``pinned`` as a (n_nodes, 2) bool mask or a (k,) int64 array of node indices.
 
-    A 2-D array that is not bool (a 0/1 integer mask, say) is refused: read as indices it
-    would pin nodes 0 and 1, which is never what was meant.
+    Allowed: a bool mask of shape ``(n_nodes, 2)`` (an ndarray of dtype bool or nested
+    lists of Python bools), one integer node index, or a 1-D sequence of integer node
+    indices. Everything else is refused, not guessed at: a 2-D array that is not bool (a
+    0/1 integer or float mask, say: read as indices it would pin nodes 0 and 1, which is
+    never what was meant), any float array or float entry (``[0.0, 7.0]`` is neither
+    indices nor a mask), and a 1-D sequence of 0s and 1s with a repeat (a flattened or
+    per-node 0/1 mask, not a list of nodes).
     """
     if (isinstance(pinned, np.ndarray) and pinned.dtype == bool) or _is_bool_nested(pinned):
         arr = np.asarray(pinned)
@@ -102,10 +107,50 @@ def pin_mask_or_indices(net: SpringNetwork, pinned: Any) -> NDArray:
         raise check.ArgumentError(
             "pinned",
             pinned,
-            f"node indices (a 1-D sequence) or a bool mask of shape ({net.n_nodes}, 2)",
+            _pins_allowed(net),
             detail="an integer or float 2-D array is ambiguous; use dtype=bool for a mask",
         )
-    return check.index_array("pinned", pinned, net.n_nodes, what="node indices")
+    if _has_float(pinned):
+        raise check.ArgumentError(
+            "pinned",
+            pinned,
+            _pins_allowed(net),
+            detail="floats are neither node indices nor a mask; use integers for indices "
+            "or dtype=bool for a mask",
+        )
+    try:
+        idx = check.index_array("pinned", pinned, net.n_nodes, what="node indices")
+    except check.ArgumentError as err:
+        if err.argument != "pinned":  # one entry named (pinned[1]: out of range, say)
+            raise
+        raise check.ArgumentError("pinned", pinned, _pins_allowed(net)) from None
+    if 1 < idx.size and idx.max() <= 1 and np.unique(idx).size < idx.size:
+        raise check.ArgumentError(
+            "pinned",
+            pinned,
+            _pins_allowed(net),
+            detail="repeated 0s and 1s read as indices would pin nodes 0 and 1 only; "
+            "for a mask use a bool array of shape "
+            f"({net.n_nodes}, 2), for nodes list each index once",
+        )
+    return idx
+
+
+def _pins_allowed(net: SpringNetwork) -> str:
+    return f"node indices (a 1-D sequence of integers) or a bool mask of shape ({net.n_nodes}, 2)"
+
+
+def _has_float(value: Any) -> bool:
+    """True when ``value`` is a non-empty float (or complex) array or holds a float entry."""
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind == "O":
+            return any(isinstance(v, float | complex | np.inexact) for v in value.ravel())
+        return value.dtype.kind in "fc" and value.size > 0
+    if isinstance(value, float | complex | np.inexact):
+        return True
+    if isinstance(value, list | tuple):
+        return any(isinstance(v, float | complex | np.inexact) for v in value)
+    return False
 
 
 def _is_nested(value: Any) -> bool:

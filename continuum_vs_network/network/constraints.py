@@ -344,8 +344,12 @@ class Problem:
     def residual(self, x: NDArray, *, force: tuple[NDArray, NDArray] | None = None) -> Residual:
         """Net force on free coordinates after removing clamp-normal forces, judged locally.
 
-        The multipliers ``mu`` (the clamp tensions) minimise ``|grad E + A^T mu|_2`` over
-        free coordinates; pin reactions are removed by looking at free coordinates only.
+        The multipliers ``mu`` (the clamp tensions) minimise
+        ``sum_k ((grad E + A^T mu)_k / f_k)^2`` over the free coordinates ``k``, ``f_k``
+        their local force scale (:func:`clamp_tensions`): the least squares of the very
+        quantities the imbalance judges, not of the absolute forces (which the stiff
+        coordinates would dominate); pin reactions are removed by looking at free
+        coordinates only.
         The same definition holds for exact clamps and rods (whose axial force is a
         clamp-normal component). ``force``: ``unbalanced_force(x, free_flat)`` when the
         caller has it. Returns a :class:`Residual`.

@@ -7,8 +7,9 @@ The stop rule judges equilibrium *locally* (the same definition for ``newton``, 
     e_ic = |F_ic| / f_i,      f_i = sum over the springs j at node i of k_j L_j,
 
 where ``F = grad E + A^T mu`` is the net force with the clamp-normal components removed
-(``mu`` the least-squares clamp tensions; a rod's axial force is such a component too) and
-``f_i`` is the force the node's own springs exert at unit strain (network springs only:
+(``mu`` the clamp tensions minimising ``sum (F_ic / f_i)^2`` over the free coordinates, all
+clamps at once; a rod's axial force is such a component too) and ``f_i`` is the force the
+node's own springs exert at unit strain (network springs only:
 rods and exact clamps are constraints, so the scale is the same in both clamp modes). A
 node whose springs all have ``k = 0`` (held by a clamp alone) takes the network's mean
 scale ``mean(k) mean(L)``. A clamp is met when ``|r_c - l_c| <= tol L_c`` with ``L_c`` the
