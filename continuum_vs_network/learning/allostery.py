@@ -70,8 +70,12 @@ def allostery_task(
         (in (0, 1)); targets are drawn among the candidates within +-10 % of it (the nearest
         to it when fewer are there).
     candidates : int array or bool mask, optional
-        Springs the sources and targets are drawn from (default
-        :func:`~continuum_vs_network.network.strain_tunable`).
+        Springs the sources and targets are drawn from. Default: every spring whose two
+        nodes each have at least 3 springs (a dyad's springs stay at rest whatever is
+        learned). A cheap local test, so that a 1e5-node network draws its task at once;
+        :func:`~continuum_vs_network.network.strain_tunable` is the exact one (a global
+        self-stress computation). A target that still cannot be made to respond is found
+        by the optimum.
 
     Returns
     -------
@@ -89,6 +93,9 @@ def allostery_task(
         raise check.ArgumentError("ratio", ratio, "a non-zero response ratio S_T / S_S")
     source_strain = check.real("source_strain", source_strain, low=0, low_open=True, high=1)
     distance = check.real("distance", distance, low=0, high=1, low_open=True, high_open=True)
+    if candidates is None:
+        degree = np.bincount(net.springs.ravel(), minlength=net.n_nodes)
+        candidates = np.all(degree[net.springs] >= 3, axis=1)
     pool = _candidates(net, candidates)
     if pool.size < n_sources + n_targets:
         raise ValueError(

@@ -7,9 +7,10 @@ A README holds generated blocks between markers::
     <!-- /cvn:findings -->
 
 :func:`render_block` builds a block's text from every ``<reports>/<scene>/report.json``
-(``findings``: one line per claim and verdict, scene by scene; ``benchmarks``: the summary
-tables the sections keep, e.g. seconds to tolerance of every equilibrium method and the
-convergence orders and costs of the finite elements and time integrators).
+(``headline``: the allostery scene's summary of what learns, how fast, against the task's
+optimum; ``findings``: one line per claim and verdict, scene by scene; ``benchmarks``: the
+summary tables the sections keep, e.g. seconds to tolerance of every equilibrium method and
+the convergence orders and costs of the finite elements and time integrators).
 :func:`update_readme` rewrites the blocks a README has (``cvn report`` and ``cvn run`` call
 it for ``<out>/README.md``); :func:`stale_blocks` names those that differ from what the
 reports give (the repository's test of its README).
@@ -28,7 +29,8 @@ from .findings import Finding
 __all__ = ["BLOCKS", "render_block", "stale_blocks", "update_readme"]
 
 #: Blocks a README may hold, and the summary tables (scene, key) of the benchmarks block.
-BLOCKS = ("findings", "benchmarks")
+BLOCKS = ("headline", "findings", "benchmarks")
+_HEADLINE = (("allostery", "headline"),)
 _BENCHMARKS = (
     ("solvers", "time_to_tolerance"),
     ("accuracy", "finite_elements"),
@@ -75,9 +77,9 @@ def render_block(
             lines.append("")
         if not lines:
             lines = ["No report with findings yet: run `cvn report`.", ""]
-    elif name == "benchmarks":
+    elif name in ("benchmarks", "headline"):
         by_name = {e["name"]: e for e in entries}
-        for scene, key in _BENCHMARKS:
+        for scene, key in _BENCHMARKS if name == "benchmarks" else _HEADLINE:
             table = by_name.get(scene, {}).get("summaries", {}).get(key)
             if table is None:
                 continue
@@ -88,7 +90,7 @@ def render_block(
             lines += ["| " + " | ".join(row) + " |" for row in table["rows"]]
             lines.append("")
         if not lines:
-            lines = ["No benchmark summary in the reports yet: run `cvn report`.", ""]
+            lines = [f"No {name} summary in the reports yet: run `cvn report`.", ""]
     else:
         raise ValueError(f"name must be one of {', '.join(map(repr, BLOCKS))}, got {name!r}")
     return "\n".join(lines).rstrip() + "\n"

@@ -108,6 +108,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_beyond import plan_beyond_paper
 
         return plan_beyond_paper(scene)
+    if scene.kind == "allostery":
+        from .units_allostery import plan_allostery
+
+        return plan_allostery(scene)
     if scene.kind in ("transmission", "relaxation"):
         from .units_physics import plan_physics
 

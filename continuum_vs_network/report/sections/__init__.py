@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 from . import (
     accuracy,
+    allostery,
     beyond_paper,
     continuum_learning,
     learning,
@@ -36,4 +37,5 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "physical_time": physical_time.section,
     "continuum_learning": continuum_learning.section,
     "beyond_paper": beyond_paper.section,
+    "allostery": allostery.section,
 }

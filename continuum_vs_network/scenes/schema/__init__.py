@@ -7,11 +7,11 @@ A scene is data only (no code is executed from it). Top-level keys::
     seed = 0                  # first seed; trial i uses seed + i
     kind = "learning"         # learning | transmission | relaxation | stability | solvers
                               # | accuracy | continuum_learning | beyond_paper
-                              # | physical_time
+                              # | physical_time | allostery
 
 and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
 ``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[physical_time]``,
-``[export]``, ``[report]``, and ``[sweep]`` (the scene as a grid of variants,
+``[allostery]``, ``[export]``, ``[report]``, and ``[sweep]`` (the scene as a grid of variants,
 :class:`SweepSpec`). Which tables a kind needs and which it accepts is in
 :data:`KIND_TABLES`; a table a kind does not use is an error (a scene never carries settings
 that are silently ignored). Every key of every table is
@@ -22,8 +22,8 @@ Unknown keys, wrong types and impossible values raise :class:`SceneError`, a ``V
 whose message and attributes name the file, the table and the key.
 
 Modules: :mod:`.keys` (vocabulary and key declarations), :mod:`.values` (:class:`SceneError`,
-value conversion), :mod:`.tables_learning` and :mod:`.tables_physics` (one dataclass per
-table), :mod:`.tables` (tables by name), :mod:`.sweep` (``[sweep]``), :mod:`.scene`
+value conversion), :mod:`.tables_learning`, :mod:`.tables_physics` and :mod:`.tables_allostery` (one
+dataclass per table), :mod:`.tables` (tables by name), :mod:`.sweep` (``[sweep]``), :mod:`.scene`
 (:class:`Scene`, parsing, per-kind checks), :mod:`.builtin` (files, built-in scenes, key
 reference).
 """
@@ -45,6 +45,7 @@ from .keys import (
 from .scene import Scene, parse_scene
 from .sweep import SweepSpec, check_zip, parse_sweep, sweep_values
 from .tables import _TABLES as _TABLES
+from .tables_allostery import ALLOSTERY_RULES, AllosterySpec
 from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
 from .tables_physics import (
     TIME_RULES,
@@ -59,6 +60,7 @@ from .tables_physics import (
 from .values import SceneError
 
 __all__ = [
+    "ALLOSTERY_RULES",
     "BEYOND_RULES",
     "CONTINUUM_RULES",
     "KINDS",
@@ -70,6 +72,7 @@ __all__ = [
     "STERN_RULES",
     "TIME_RULES",
     "AccuracySpec",
+    "AllosterySpec",
     "ContinuumSpec",
     "DynamicsSpec",
     "ExportSpec",

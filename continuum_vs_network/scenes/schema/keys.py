@@ -24,6 +24,7 @@ KINDS = (
     "physical_time",
     "continuum_learning",
     "beyond_paper",
+    "allostery",
 )
 
 #: For each kind: (tables it needs, tables it also accepts).
@@ -52,6 +53,7 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
         frozenset({"export", "report"}),
     ),
     "beyond_paper": (frozenset({"network", "task", "learning"}), frozenset({"report"})),
+    "allostery": (frozenset({"allostery"}), frozenset({"report"})),
 }
 
 #: Learning runs a scene can name. Paper task: the paper's experiments (see

@@ -21,6 +21,7 @@ from .keys import (
 )
 from .sweep import SweepSpec, parse_sweep
 from .tables import _TABLES
+from .tables_allostery import AllosterySpec
 from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
 from .tables_physics import (
     AccuracySpec,
@@ -49,7 +50,7 @@ class Scene:
     kind : str
         One of :data:`KINDS`.
     network, task, learning, solver, continuum, dynamics, stability, accuracy, physical_time,
-    export : spec or None
+    allostery, export : spec or None
         The tables given (None when absent).
     report : ReportSpec
         Always present (defaults when the table is absent).
@@ -72,6 +73,7 @@ class Scene:
     stability: StabilitySpec | None = None
     accuracy: AccuracySpec | None = None
     physical_time: PhysicalTimeSpec | None = None
+    allostery: AllosterySpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
     sweep: SweepSpec | None = None
@@ -273,7 +275,7 @@ def _check_kind(scene: Scene, file: str) -> None:
     if kind == "beyond_paper":
         _check_beyond_paper(scene, file, need_key)
         return
-    if kind == "accuracy":
+    if kind in ("accuracy", "allostery"):
         return
     if kind == "physical_time":
         _check_physical_time(scene, file, need_key)

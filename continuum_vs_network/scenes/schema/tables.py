@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .tables_allostery import AllosterySpec
 from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
 from .tables_physics import (
     AccuracySpec,
@@ -23,6 +24,7 @@ _TABLES: dict[str, type] = {
     "stability": StabilitySpec,
     "accuracy": AccuracySpec,
     "physical_time": PhysicalTimeSpec,
+    "allostery": AllosterySpec,
     "export": ExportSpec,
     "report": ReportSpec,
 }
