@@ -215,6 +215,7 @@ def _group(doc: Document, scene, g) -> None:
             for i in range(o["draws"])
         ],
     )
+    _clamped_note(doc, g, tallies)
     if g.task == "1to1" and g.dof == "stiffness":
         for t in tallies:
             if t.rule in ("gcl", "exact"):
@@ -238,6 +239,26 @@ def _group(doc: Document, scene, g) -> None:
         ncols=min(4, len(a.rules)),
     )
     _render(doc, g, a.rules, tallies)
+
+
+def _clamped_note(doc: Document, g, tallies) -> None:
+    """Why the clamped-only rules do not learn a stiffness task, where they did not."""
+    stuck = [t for t in tallies if t.rule in CLAMPED and t.learned == 0 and t.feasible]
+    if g.dof != "stiffness" or not stuck:
+        return
+    doc.add(
+        "Why "
+        + " and ".join(RULE_NAMES[t.rule] for t in stuck)
+        + " do not learn here: their stiffness lines, -(alpha/2) (r^C - L)^2 (GPC) and "
+        "-(alpha/2) k S^C^2 (aging), are <= 0 for every spring. They descend the energy of "
+        "the clamped state (sources and targets held at the task's strains), which asks "
+        "nothing of the free state's response, so every stressed spring only softens, "
+        "towards the range's floor "
+        f"({STIFFNESS_RANGE[0]:g} k0; median contrast reached: "
+        + ", ".join(f"{RULE_NAMES[t.rule]} {fmt(t.contrast, 2)}" for t in stuck)
+        + f", the floor's 1/{STIFFNESS_RANGE[0]:g} = {1 / STIFFNESS_RANGE[0]:g} when reached).",
+        "",
+    )
 
 
 def _render(doc: Document, g, rules, tallies) -> None:
