@@ -14,8 +14,8 @@ from continuum_vs_network.learning import (
     train,
 )
 from continuum_vs_network.learning.allostery import allostery_task, spring_distances
-from continuum_vs_network.learning.rates import NOISE, Adaptive, RateState, Scaled
 from continuum_vs_network.learning.ranges import STIFFNESS_RANGE
+from continuum_vs_network.learning.rates import NOISE, Adaptive, RateState, Scaled
 
 
 def _raw(seed: int, n: int = 50) -> np.ndarray:

@@ -23,8 +23,8 @@ from .. import _validate as check
 from ..network.model import SpringNetwork
 from .history import LEGACY, History
 from .medium import is_medium, learning_arrays, with_learning_arrays
-from .record import COUNTERS, new_record
 from .rates import RateState
+from .record import COUNTERS, new_record
 from .step import Warm
 from .tasks import AllosteryTask
 

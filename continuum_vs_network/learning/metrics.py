@@ -21,6 +21,7 @@ __all__ = [
     "bound",
     "cosine",
     "final_values",
+    "first_below",
     "length_error",
     "normalised",
     "relative_error",
@@ -35,6 +36,13 @@ __all__ = [
 #: falling (the value read is an upper bound of where the run settles) or still rising (a
 #: lower bound)
 PLATEAU = 0.1
+
+
+def first_below(values: ArrayLike, level: float) -> int | None:
+    """Index of the first entry of ``values`` (a 1-D curve, e.g. C/C0 per step) that is
+    ``<= level``; None when none is."""
+    hit = np.flatnonzero(np.asarray(values) <= level)
+    return int(hit[0]) if hit.size else None
 
 
 def normalised(values: ArrayLike) -> NDArray:

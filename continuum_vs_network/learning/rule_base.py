@@ -17,8 +17,8 @@ recorded rest lengths, the convention in which the rules learn; ``"current"``: t
 literal ``S = r / L - 1`` with the learning ``L``),
 floors ``min_rest_length`` / ``min_stiffness``, the physical range ``stiffness_range`` /
 ``rest_length_range`` (factors of the values when training started, :mod:`.ranges`), the
-rate (``alpha``, the paper's raw rate, or ``rate``, a per-spring adaptive rate, the default
-when ``alpha`` is left out: :mod:`.rates`), and the equilibrium ``solver``.
+rate (``alpha``, the paper's raw rate, or ``rate``, a scale-free rate, the rule's
+``default_rate`` when ``alpha`` is left out: :mod:`.rates`), and the equilibrium ``solver``.
 
 A step is made in one place (:meth:`Rule.update`): the rule's raw line, masked, then the
 rate, then the floors and the range.
@@ -195,9 +195,9 @@ class Rule:
         floor = self.min_rest_length if rest else self.min_stiffness
         if floor is not None:
             delta = np.maximum(old + delta, np.minimum(old, floor)) - old
-        factors = self.rest_length_range if rest else self.stiffness_range
         if initial is None:
             return delta
+        factors = self.rest_length_range if rest else self.stiffness_range
         return clip_to_range(old, delta, initial, factors)
 
     def _per_dof(self, local) -> NDArray:
@@ -353,10 +353,8 @@ class Rule:
             )
         if noise != 0.0:
             raise ValueError("read-out noise is implemented for spring networks only")
-        if self.alpha is None:
-            raise ValueError(
-                "alpha: a continuum learns at the raw rate for now; give alpha > 0"
-            )
+        if self.adaptive is not None:
+            raise ValueError("alpha: a continuum learns at the raw rate for now; give alpha > 0")
         check_rule_on_medium(medium, task, self)
         return self._medium_step(medium, task, tracker)
 
@@ -380,7 +378,8 @@ class Rule:
 
 def _strain_scale(task) -> float:
     """The largest strain a task asks for (sources and targets, every example): the scale of
-    a rest-length step (a step of ``0.02`` moves ``L`` by about 2 % of that strain)."""
+    a rest-length step (a rate's ``step`` moves ``L`` by about that fraction of this strain
+    times ``L``)."""
     tasks = task.tasks if isinstance(task, TaskSet) else (task,)
     values = [0.0]
     for t in tasks:

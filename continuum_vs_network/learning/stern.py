@@ -24,7 +24,7 @@ import numpy as np
 
 from ..network.model import SpringNetwork
 from .history import History
-from .metrics import summary
+from .metrics import first_below, summary
 from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
 from .states import Solver
 from .tasks import stern_task
@@ -123,11 +123,6 @@ def stern_study(
     return out
 
 
-def _first_below(values: np.ndarray, level: float) -> int | None:
-    hit = np.flatnonzero(values <= level)
-    return int(hit[0]) if hit.size else None
-
-
 def stern_table(
     histories: dict[tuple[int, str], History], *, level: float = 1e-3
 ) -> list[dict[str, str]]:
@@ -154,7 +149,7 @@ def stern_table(
         reach_steps, reach_seconds = [], []
         for i in range(h.trials):
             ratio = error[i] / error[i, 0]
-            t = _first_below(ratio, level)
+            t = first_below(ratio, level)
             if t is not None:
                 reach_steps.append(t)
                 reach_seconds.append(h.seconds[i, t])

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from ..learning.metrics import first_below
 from .schema import Scene
 from .units import Unit, UnitContext
 
@@ -42,7 +43,7 @@ __all__ = ["FEASIBLE", "LEVELS", "RULES", "SCALES", "TASKS", "optimum", "plan_al
 
 #: A draw is feasible when the bounded optimum reaches C/C0 <= FEASIBLE.
 FEASIBLE = 1e-3
-#: C/C0 levels whose first step is recorded (``steps_to``).
+#: C/C0 levels whose first step is recorded (``steps_to``, by :func:`first_below`).
 LEVELS = (1e-2, 1e-3)
 #: Source scales lambda of the sweeps.
 SCALES = (0.0, 0.5, 1.0, 1.5, 2.0)
@@ -171,12 +172,6 @@ def contrast(k0, k, mask) -> float:
     return float(np.max(r) / np.min(r)) if r.size else 1.0
 
 
-def steps_to(ratio, level: float) -> int | None:
-    """First step at which ``ratio`` (steps + 1,) is ``<= level``; None if never."""
-    hit = np.flatnonzero(np.asarray(ratio) <= level)
-    return int(hit[0]) if hit.size else None
-
-
 def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict[str, Any]]:
     """One rule on one draw (see the module)."""
     from ..learning import measure_coupling, train
@@ -223,7 +218,7 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict
         "steps": steps,
         "completed": int(h.completed[0]),
         "stop_reason": h.stop_reason[0],
-        "steps_to": {f"{lv:g}": steps_to(r, lv) for lv in LEVELS},
+        "steps_to": {f"{lv:g}": first_below(r, lv) for lv in LEVELS},
         "share": share,
         "coupling": verdict,
         "outcome": outcome(ratio, None if verdict == "not measured" else verdict),
