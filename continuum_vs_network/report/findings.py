@@ -30,6 +30,8 @@ __all__ = [
     "NOT_COMPARABLE",
     "NOT_REPRODUCED",
     "REPRODUCED",
+    "BASES",
+    "SOURCES",
     "VERDICTS",
     "Finding",
 ]
@@ -44,6 +46,15 @@ CONTRADICTED = "contradicted"
 NOT_COMPARABLE = "not comparable"
 #: Every verdict a finding may carry.
 VERDICTS = (REPRODUCED, NOT_REPRODUCED, CONTRADICTED, NOT_COMPARABLE)
+
+#: Whose claim a finding judges: the paper's, the field's (published work other than the
+#: paper), or the package's own check of its numerics.
+SOURCES = ("paper", "field", "check")
+
+#: What a learning finding's verdict rests on: runs where the sources drive the target
+#: (``"coupled"``), runs that met the task by prestress alone (``"met trivially"``); ``""``
+#: for a finding that is not about learning.
+BASES = ("", "coupled", "met trivially")
 
 
 @dataclass(frozen=True)
@@ -67,6 +78,10 @@ class Finding:
     section : str
         Where in the report the finding is shown (a heading); filled in by the document
         when empty.
+    source : str
+        Whose claim it is, one of :data:`SOURCES` (default ``"check"``).
+    basis : str
+        For a learning claim, what the verdict rests on, one of :data:`BASES`.
     """
 
     claim: str
@@ -75,6 +90,8 @@ class Finding:
     verdict: str
     rule: str
     section: str = ""
+    source: str = "check"
+    basis: str = ""
     _values: tuple[tuple[str, float], ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -86,6 +103,12 @@ class Finding:
                 f"Finding.verdict must be one of {', '.join(map(repr, VERDICTS))}, "
                 f"not {self.verdict!r}"
             )
+        for name, allowed in (("source", SOURCES), ("basis", BASES)):
+            if getattr(self, name) not in allowed:
+                raise ValueError(
+                    f"Finding.{name} must be one of {', '.join(map(repr, allowed))}, "
+                    f"not {getattr(self, name)!r}"
+                )
         if not isinstance(self.measured, Mapping) or not self.measured:
             raise ValueError("Finding.measured must be a non-empty mapping of name to number")
         values = []
@@ -113,6 +136,8 @@ class Finding:
             "verdict": self.verdict,
             "rule": self.rule,
             "section": self.section,
+            "source": self.source,
+            "basis": self.basis,
         }
         infinite = {k: ("inf" if v > 0 else "-inf") for k, v in self._values if math.isinf(v)}
         if infinite:
@@ -134,6 +159,8 @@ class Finding:
             verdict=d["verdict"],
             rule=d["rule"],
             section=d.get("section", ""),
+            source=d.get("source", "check"),
+            basis=d.get("basis", ""),
         )
 
     def measured_text(self, digits: int = 3) -> str:
