@@ -20,7 +20,11 @@ def test_the_readme_names_the_paper_and_needs_no_shared_folder():
     text = (ROOT / "README.md").read_text()
     assert "../shared" not in text
     assert "Computation in Physical Media" in text
-    assert "<!-- cvn:findings -->" in text and "<!-- cvn:benchmarks -->" in text
+    assert "<!-- cvn:paper -->" in text and "<!-- cvn:benchmarks -->" in text
+    assert "<!-- cvn:headline -->" in text
+    # the findings live in reports/README.md (three tables by source), not copied here
+    assert "<!-- cvn:findings -->" not in text and "reports/README.md" in text
+    assert len(text.splitlines()) < 360
 
 
 def _report(root: Path, name: str, verdict: str, seconds: str) -> None:
@@ -72,3 +76,39 @@ def test_a_readme_without_markers_is_left_alone(tmp_path):
     assert readme.read_text() == "plain\n"
     assert update_readme(tmp_path / "missing.md", tmp_path) == []
     assert "No report with findings yet" in render_block("findings", tmp_path, tmp_path)
+
+
+def _paper_report(root: Path, verdict: str) -> None:
+    folder = root / "reports" / "paper"
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "report.md").write_text("# x\n")
+    mine = Finding(
+        claim="paper, Fig. 4 (gcl, paper): GCL lowers C by orders of magnitude",
+        metric="m",
+        measured={"value": 1.09},
+        verdict=verdict,
+        rule="r",
+        source="paper",
+    )
+    check = Finding(
+        claim="package check", metric="m", measured={"x": 1}, verdict=REPRODUCED, rule="r"
+    )
+    why = {
+        "title": "Why",
+        "headers": ["topic", "number", "text"],
+        "rows": [["Eq. 23 sign", "3/3", "t"]],
+    }
+    meta = {
+        "name": "paper",
+        "findings": [mine.to_dict(), check.to_dict()],
+        "summaries": {"explanations": why},
+    }
+    (folder / "report.json").write_text(json.dumps(meta))
+
+
+def test_the_paper_block_lists_the_paper_claims_only_with_their_verdicts(tmp_path):
+    _paper_report(tmp_path, CONTRADICTED)
+    text = render_block("paper", tmp_path / "reports", tmp_path)
+    assert "| GCL lowers C by orders of magnitude (gcl) | value = 1.09 | **contradicted** |" in text
+    assert "package check" not in text  # a check is not a claim of the paper
+    assert "Eq. 23 sign: 3/3" in text

@@ -22,18 +22,19 @@ from continuum_vs_network.report.sections.physical_time_findings import _finding
 
 # -- physical_time: learning speed needs coupling; the quasi-static limit does not ----------
 def _time_unit(n, coupling=None):
-    """A unit whose learning time falls 100-fold from ratio 1 to 100 and is past at 1000
-    (oscillation), closed bracket (100, 1000], error at ratio 1 equal to the quasi-static."""
+    """A unit whose learning time falls 100-fold from ratio 0.01 to 1 and is past at 10
+    (oscillation), closed bracket (1, 10] (rho* of order one), error at ratio 0.01 equal to
+    the quasi-static."""
     runs = [
         {"ratio": r, "T": T, "diverged": False, "error_at_qs_end": 0.01, "error_qs_end": 0.01}
-        for r, T in ((1.0, 100.0), (10.0, 10.0), (100.0, 1.0), (1000.0, 50.0))
+        for r, T in ((0.01, 100.0), (0.1, 10.0), (1.0, 1.0), (10.0, 50.0))
     ]
     meta = {
         "runs": runs,
         "n_nodes": n,
-        "critical_low": 100.0,
-        "critical_high": 1000.0,
-        "critical_ratio": 316.0,
+        "critical_low": 1.0,
+        "critical_high": 10.0,
+        "critical_ratio": 3.16,
         "critical_by": "oscillation",
         "tau": 1.0,
         "tau_force": 0.1,

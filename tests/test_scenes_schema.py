@@ -98,6 +98,20 @@ def test_tiny_scene_parses_with_defaults(tmp_path):
         ("trials = 2", "trials = 0", "learning", "trials", "must be >= 1"),
         ('rules = ["gcl_floor"]', 'rules = ["gcl", "hebb"]', "learning", "rules", "'hebb'"),
         ('rules = ["gcl_floor"]', 'rules = ["gcl", "gcl"]', "learning", "rules", "repeat"),
+        (
+            'rules = ["gcl_floor"]',
+            'rules = ["gcl_notebook"]',
+            "learning",
+            "rules",
+            "needs paper_setting",
+        ),
+        (
+            'rules = ["gcl_floor"]',
+            'rules = ["gcl_floor"]\npaper_setting = true',
+            "learning",
+            "rules",
+            "paper's own setting",
+        ),
         ('rules = ["gcl_floor"]', "rules = []", "learning", "rules", "at least one"),
         ('builder = "paper"', 'builder = "paper"\nnoise = -0.1', "network", "noise", ">= 0"),
         ('builder = "paper"', 'builder = "hexagonal"', "network", "builder", "'hexagonal'"),
@@ -191,3 +205,19 @@ def test_key_reference_lists_every_key():
         assert f"[{table}]" in text
         for f in dataclasses.fields(cls):
             assert f"  {f.name} (" in text
+
+
+def test_paper_scene_runs_each_rule_with_its_own_steps():
+    from continuum_vs_network.scenes.schema import load_scene
+    from continuum_vs_network.scenes.units_learning import plan_learning
+    from continuum_vs_network.scenes.units_learning_build import rule_steps
+
+    scene = load_scene("paper")
+    assert scene.learning.paper_setting
+    assert rule_steps(scene, "gcl") == rule_steps(scene, "gcl_notebook") == 100
+    assert rule_steps(scene, "gpc") == rule_steps(scene, "gpc_frozen") == 150
+    weights = {
+        u.key.split("/")[2]: u.weight for u in plan_learning(scene) if u.key.startswith("train/")
+    }
+    assert weights["gpc"] == 150 and weights["gcl_notebook"] == 100
+    assert any(u.key == "feasibility" for u in plan_learning(scene))

@@ -47,7 +47,7 @@ class DampedStepper:
     def __init__(self, medium, task, damping, dt: float) -> None:
         from .damping import Damping, damping_matrix
         from .maxwell import arm_step, damping_arm
-        from .probes import chord_strain_probe
+        from .probes import material_spring_probe
 
         if not isinstance(damping, Damping):
             raise ValueError(f"damping must be a Damping, got {type(damping).__name__}")
@@ -73,10 +73,11 @@ class DampedStepper:
             Bf = self.arm.operators.strain.tocsc()[:, self.free]
             self._arm_pull = (Bf.T @ self.arm.stiffness).tocsr()  # B^T S_dt, free rows
             self._arm_matrix = (self._arm_pull @ Bf).tocsr()
-        probe = chord_strain_probe(
+        probe = material_spring_probe(
             medium.body,
             np.vstack([task.source_a, task.target_a]),
             np.vstack([task.source_b, task.target_b]),
+            task.radius,
         )
         self.G = probe.operator.tocsc()[:, self.free].tocsr()
         self.n_sources = task.n_sources

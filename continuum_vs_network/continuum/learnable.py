@@ -288,7 +288,8 @@ class LearnableBody:
         self, task: Any, *, learn_sources: bool = True, learn_targets: bool = True
     ) -> NDArray[np.bool_]:
         """Elements whose fields may learn, (n_elements,) bool: not those a source (or
-        target) material spring crosses when ``learn_sources`` (``learn_targets``) is False."""
+        target) material spring crosses, nor its disc ends, when ``learn_sources``
+        (``learn_targets``) is False."""
         key = (
             "mask",
             learn_sources,
@@ -297,6 +298,7 @@ class LearnableBody:
             task.target_a.tobytes(),
             task.source_b.tobytes(),
             task.target_b.tobytes(),
+            task.radius,
         )
         if key in self._ops.memo:
             return self._ops.memo[key]
@@ -307,9 +309,19 @@ class LearnableBody:
         ):
             if not learn:
                 mask[self.elements_crossed(a, b)] = False
+                mask[self._end_elements(a, b, task.radius)] = False
         mask.setflags(write=False)
         self._ops.memo[key] = mask
         return mask
+
+    def _end_elements(self, a: NDArray, b: NDArray, radius: float) -> NDArray[np.int64]:
+        """Elements of the disc ends of material springs (none for point ends)."""
+        if radius == 0:
+            return np.zeros(0, dtype=np.int64)
+        from .probes import disc_elements
+
+        ends = [disc_elements(self.body, x, radius) for x in np.vstack([a, b])]
+        return np.unique(np.concatenate(ends))
 
     def elements_crossed(self, a: ArrayLike, b: ArrayLike) -> NDArray[np.int64]:
         """Elements that the segments ``a_i -> b_i`` pass through (both sides of an edge)."""

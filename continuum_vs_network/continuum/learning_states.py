@@ -83,7 +83,7 @@ class _System:
 
     def __init__(self, medium, task, tracker) -> None:
         from ..network.kkt import factor_spd
-        from .probes import chord_strain_probe
+        from .probes import material_spring_probe
 
         n = medium.n_dofs
         keep = np.ones(n, dtype=bool)
@@ -99,10 +99,11 @@ class _System:
             )
         self.factor = factor
         body = medium.body
-        G = chord_strain_probe(
+        G = material_spring_probe(
             body,
             np.vstack([task.source_a, task.target_a]),
             np.vstack([task.source_b, task.target_b]),
+            task.radius,
         ).operator
         self.G = G.tocsc()[:, self.free].tocsr()
         self.Z = np.asarray(factor.solve(self.G.T.toarray()))  # (n_free, n_s + n_t)
@@ -151,6 +152,7 @@ def _key(task) -> str:
     h = hashlib.sha1()
     for a in (task.fixed, task.source_a, task.source_b, task.target_a, task.target_b):
         h.update(np.ascontiguousarray(a).tobytes())
+    h.update(np.float64(task.radius).tobytes())
     return h.hexdigest()
 
 

@@ -26,6 +26,7 @@ _FIELDS = (
     "target_b",
     "target_strain",
     "fixed",
+    "radius",
 )
 
 
@@ -53,6 +54,10 @@ class MaterialTask:
         Desired free-state strains.
     fixed : (n_fixed,) int array
         Displacement DOFs held at zero in every state (rigid-body motion removed).
+    radius : float
+        Size of a spring's ends (length units, >= 0): 0 reads the displacement at the
+        points ``a`` and ``b``; > 0 its area mean over a disc of that radius about each
+        (:func:`~.probes.material_spring_probe`), a clamp with a size of its own.
     """
 
     source_a: NDArray[np.float64]
@@ -62,6 +67,7 @@ class MaterialTask:
     target_b: NDArray[np.float64]
     target_strain: NDArray[np.float64]
     fixed: NDArray[np.int64]
+    radius: float = 0.0
 
     def __post_init__(self) -> None:
         ns = np.shape(self.source_strain)[0] if np.ndim(self.source_strain) else -1
@@ -84,6 +90,10 @@ class MaterialTask:
         }
         for name, v in vals.items():
             object.__setattr__(self, name, v)
+        radius = float(np.asarray(self.radius))
+        if not (np.isfinite(radius) and radius >= 0):
+            raise ValueError(f"radius must be finite and >= 0, got {self.radius!r}")
+        object.__setattr__(self, "radius", radius)
         for kind in ("source", "target"):
             d = vals[f"{kind}_b"] - vals[f"{kind}_a"]
             if np.any(np.hypot(d[:, 0], d[:, 1]) == 0):
@@ -119,12 +129,12 @@ class MaterialTask:
 
     def to_arrays(self) -> dict[str, NDArray]:
         """Plain arrays (the fields) for files."""
-        return {f: getattr(self, f) for f in _FIELDS}
+        return {f: np.asarray(getattr(self, f)) for f in _FIELDS}
 
     @classmethod
     def from_arrays(cls, arrays: dict[str, NDArray]) -> MaterialTask:
         """Inverse of :meth:`to_arrays`."""
-        return cls(**{f: np.asarray(arrays[f]) for f in _FIELDS})
+        return cls(**{f: np.asarray(arrays[f]) for f in _FIELDS if f in arrays})
 
     @classmethod
     def from_network(cls, net, task, body) -> MaterialTask:

@@ -9,7 +9,9 @@ time-stepping loop or a training loop needs. Probes:
 - :func:`directional_strain_probe`: normal strain ``n.eps.n`` along given directions;
 - :func:`chord_strain_probe`: the relative length change of segments ``a -> b``, what a
   spring between ``a`` and ``b`` measures (exact for uniform strain, linearised);
-- :func:`region_strain_probe`: the mean strain tensor over a set of elements.
+- :func:`region_strain_probe`: the mean strain tensor over a set of elements;
+- :func:`disc_elements` and :func:`material_spring_probe`: a chord between two small
+  regions (discs of a fixed radius), the continuum's spring with a size of its own.
 """
 
 from __future__ import annotations
@@ -27,8 +29,10 @@ __all__ = [
     "Probe",
     "chord_strain_probe",
     "directional_strain_probe",
+    "disc_elements",
     "displacement_probe",
     "locate",
+    "material_spring_probe",
     "region_strain_probe",
     "strain_probe",
 ]
@@ -280,3 +284,63 @@ def region_strain_probe(body: ElasticBody, elements: ArrayLike) -> Probe:
     op = sp.csr_matrix(np.vstack(rows))
     op.eliminate_zeros()
     return Probe(op, (3,), "region")
+
+
+def disc_elements(body: ElasticBody, centre: ArrayLike, radius: float) -> NDArray[np.int64]:
+    """Elements whose centroid lies within ``radius`` of ``centre`` (2,), plus the element
+    holding ``centre``: never empty, and the disc itself as the mesh is refined."""
+    c = _points("centre", centre)[0]
+    if not (np.isfinite(radius) and radius >= 0):
+        raise ValueError(f"radius must be finite and >= 0, got {radius}")
+    near = np.flatnonzero(np.hypot(*(body.centroids - c).T) <= radius)
+    cells, _ = locate(body, c[None, :], tol=1e-6)
+    return np.union1d(near, cells).astype(np.int64)
+
+
+def _mean_displacement_rows(body: ElasticBody, elements: NDArray) -> sp.csr_matrix:
+    """(2, n_dofs): the area mean of ``(u_x, u_y)`` over ``elements``."""
+    from skfem import Basis, LinearForm
+
+    sub = Basis(body.mesh, body.basis.elem, elements=elements)
+    area = float(sub.dx.sum())
+    rows = []
+    for c in range(2):
+
+        @LinearForm
+        def comp(v: Any, w: Any, c: int = c) -> Any:
+            return v[c]
+
+        rows.append(comp.assemble(sub) / area)
+    return sp.csr_matrix(np.vstack(rows))
+
+
+def material_spring_probe(
+    body: ElasticBody, ends_a: ArrayLike, ends_b: ArrayLike, radius: float = 0.0
+) -> Probe:
+    """Linearised strain of material springs whose ends are discs of ``radius`` about
+    ``a_i`` and ``b_i``: ``n.(<u>_B - <u>_A) / |b - a|`` with ``<u>`` the area mean of the
+    displacement over the disc's elements (:func:`disc_elements`); shape (n,).
+
+    ``radius = 0`` is :func:`chord_strain_probe` (point ends). A point end is a point
+    constraint when clamped, whose force is singular in 2D and whose neighbourhood a
+    learned field collapses onto as the mesh is refined; a disc of fixed radius has a limit.
+    """
+    if radius == 0:
+        return chord_strain_probe(body, ends_a, ends_b)
+    a = _points("ends_a", ends_a)
+    b = _points("ends_b", ends_b)
+    if a.shape != b.shape:
+        raise ValueError(f"ends_a and ends_b must have the same shape, got {a.shape}, {b.shape}")
+    d = b - a
+    length = np.linalg.norm(d, axis=1)
+    if np.any(length == 0):
+        raise ValueError("segments must have non-zero length")
+    nrm = d / length[:, None]
+    rows = []
+    for ai, bi, ni, li in zip(a, b, nrm, length):
+        mean_a = _mean_displacement_rows(body, disc_elements(body, ai, radius))
+        mean_b = _mean_displacement_rows(body, disc_elements(body, bi, radius))
+        rows.append(sp.csr_matrix(ni[None, :] / li) @ (mean_b - mean_a))
+    op = sp.vstack(rows).tocsr()
+    op.eliminate_zeros()
+    return Probe(op, (a.shape[0],), "chord")

@@ -19,8 +19,9 @@ each on the histories of a run and gives a verdict by the rule printed next to i
 
 Claims of a *direction* (rises, descends, lowers) are judged on every trial at any run
 length; claims of a *size* reached (orders of magnitude, C = 0, ~50 %, 33 %, converges to
-0) only on the trials that completed at least :data:`MIN_STEPS` steps (a third of the
-paper's 300; :func:`last_measured`), and are "not comparable" when fewer than
+0) only on the trials that completed at least :data:`MIN_STEPS` steps (the GCL notebook's
+100 epochs; :func:`last_measured`) or whose learning ran away (:func:`diverged`: judged with
+their last value, a failure), and are "not comparable" when fewer than
 :func:`enough_trials` of them did.
 
 A claim that a quantity *converges to 0* (C falls by orders of magnitude, all trials but
@@ -73,13 +74,15 @@ __all__ = [
     "VERDICTS",
     "ClaimCheck",
     "check_claims",
+    "diverged",
     "enough_trials",
     "last_measured",
     "majority",
 ]
 
 VERDICTS = ("reproduced", "not reproduced", "contradicted", "not comparable")
-#: fewest learning steps on which a claim about a size reached is judged (the paper: 300)
+#: fewest learning steps on which a claim about a size reached is judged (the GCL notebook's
+#: 100 epochs; the GPC notebook's 150)
 MIN_STEPS = 100
 
 #: the strain conventions in which the paper's run of each rule family is reproduced
@@ -148,6 +151,24 @@ def last_measured(h: History) -> NDArray[np.int64]:
     return idx - ((~np.isfinite(at)) & (idx > 0)).astype(np.int64)
 
 
+#: stop reasons of a trial whose learning ran away (a rest length to 0, a target nudged to
+#: over 1e6 x its rest length): a failure of the rule, judged with its last value
+_RUNAWAY = ("rest length", "nudged target length")
+
+
+def diverged(h: History) -> NDArray[np.bool_]:
+    """Per trial: it stopped early because its learning ran away (:data:`_RUNAWAY`); such a
+    trial is judged on a size claim with its last measured value (it failed), not left out
+    as too short."""
+    return np.array(
+        [
+            int(c) < h.steps and any(t in r for t in _RUNAWAY)
+            for c, r in zip(h.completed, h.stop_reason, strict=True)
+        ],
+        dtype=bool,
+    )
+
+
 def enough_trials(trials: int) -> int:
     """Fewest trials a size claim is judged on: half of them and at least 3 (all of them
     when fewer than 3 ran)."""
@@ -199,7 +220,7 @@ def check_claims(
         verdicts = list(coupling.get(exp.name, ()))
         if len(verdicts) != h.trials:
             verdicts = []  # not measured (or not one verdict per trial)
-        ran = last_measured(h) >= MIN_STEPS
+        ran = (last_measured(h) >= MIN_STEPS) | diverged(h)
         for st in statements(exp.name):
             keep = ran if st.size else np.ones(h.trials, dtype=bool)
             judged = _subset(h, keep) if keep.sum() < h.trials else h
@@ -217,8 +238,9 @@ def check_claims(
                     measured=m,
                     rule=st.rule
                     + (
-                        f"; judged on the trials that completed >= {MIN_STEPS} steps, not "
-                        f"comparable with fewer than {enough_trials(h.trials)} of {h.trials}"
+                        f"; judged on the trials that completed >= {MIN_STEPS} steps or whose "
+                        "learning ran away (last value), not comparable with fewer than "
+                        f"{enough_trials(h.trials)} of {h.trials}"
                         if st.size
                         else ""
                     )
@@ -303,8 +325,8 @@ def _judge(st, h, judged, keep, m, family, verdicts) -> tuple[str, str]:
     if st.size and keep.sum() < enough_trials(h.trials):
         done = ", ".join(str(int(c)) for c in last_measured(h))
         return "not comparable", (
-            f"a size the paper reports after its 300 steps: {int(keep.sum())} of {h.trials} "
-            f"trials completed >= {MIN_STEPS} steps (steps measured per trial: {done})"
+            f"run too short for a size: {int(keep.sum())} of {h.trials} trials completed "
+            f">= {MIN_STEPS} steps or ran away (steps measured per trial: {done})"
         )
     if not np.isfinite(m):
         return "not comparable", "no trial measured"

@@ -66,6 +66,8 @@ class Medium(Protocol):
 
     def apply_update(self, dof: str, delta: NDArray) -> Any: ...
 
+    def parameters(self, dof: str) -> NDArray: ...
+
     def measurements(self, task: Any, free: Any, dof: str, mask: NDArray) -> dict: ...
 
     def to_arrays(self) -> dict[str, NDArray]: ...
@@ -111,7 +113,10 @@ def with_learning_arrays(net: Any, arrays: dict[str, NDArray]) -> Any:
     return net.with_rest_length(arrays["rest_length"]).with_stiffness(arrays["stiffness"])
 
 
-_KINDS = {"LearnableBody": ("continuum_vs_network.continuum.learnable", "LearnableBody")}
+_KINDS = {
+    "LearnableBody": ("continuum_vs_network.continuum.learnable", "LearnableBody"),
+    "FilteredModulus": ("continuum_vs_network.continuum.filtered", "FilteredModulus"),
+}
 _TASKS = {
     "MaterialTask": ("continuum_vs_network.continuum.material_task", "MaterialTask"),
     "TaskSet": ("continuum_vs_network.learning.examples", "TaskSet"),

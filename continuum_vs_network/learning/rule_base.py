@@ -291,7 +291,7 @@ class Rule:
         if not isinstance(net, SpringNetwork):
             if temperature != 0.0:
                 raise ValueError("temperature is implemented for spring networks only")
-            return self._medium_update(net, task, tracker=tracker, noise=noise)
+            return self._medium_update(net, task, tracker=tracker, noise=noise, warm=warm)
         if self.dof not in _NETWORK_DOFS:
             raise ValueError(
                 f"a SpringNetwork learns 'rest_length' or 'stiffness', not {self.dof!r}"
@@ -343,7 +343,10 @@ class Rule:
         raise NotImplementedError
 
     # -- any other learning medium (.medium): the rule asks it for states and gradients --
-    def _medium_update(self, medium, task, *, tracker, noise: float) -> Step:
+    def _medium_update(self, medium, task, *, tracker, noise: float, warm=None) -> Step:
+        """One step on a medium: its raw line, or under a scale-free rate (the modulus
+        field only, scale the mean initial modulus, then ``min_stiffness`` and
+        ``stiffness_range`` as for a network's stiffnesses)."""
         from .medium import check_rule_on_medium, is_medium
 
         if not is_medium(medium):
@@ -353,10 +356,25 @@ class Rule:
             )
         if noise != 0.0:
             raise ValueError("read-out noise is implemented for spring networks only")
-        if self.adaptive is not None:
-            raise ValueError("alpha: a continuum learns at the raw rate for now; give alpha > 0")
+        rate = self.adaptive
+        if rate is not None and medium.learning_dof(self.dof) != "modulus":
+            raise ValueError(
+                "alpha: a continuum's eigenstrain learns at the raw rate for now (the "
+                "scale-free rates serve its modulus field); give alpha > 0"
+            )
         check_rule_on_medium(medium, task, self)
-        return self._medium_step(medium, task, tracker)
+        step = self._medium_step(medium, task, tracker)
+        if rate is None:
+            return step
+        values = medium.parameters("modulus")
+        state = None if warm is None else warm.rate
+        if state is None or np.shape(state.initial) != np.shape(values):
+            state = RateState.start(values)
+        delta, state = rate.delta(step.raw, float(np.mean(state.initial)), state)
+        delta = medium.floor(self.dof, delta, self.min_stiffness)
+        delta = clip_to_range(values, delta, state.initial, self.stiffness_range)
+        check_finite_update(delta, self.dof)
+        return dataclasses.replace(step, delta=delta, previous=warm or Warm(), rate=state)
 
     def _medium_step(self, medium, task, tracker) -> Step:  # pragma: no cover - abstract
         raise NotImplementedError

@@ -160,6 +160,13 @@ class CoupledLearning(Rule):
         lengths = task.target_rest(net, ref) * (1.0 + s_nudge)
         if np.any(lengths <= 0):
             raise LearningError(f"nudged target length {lengths.min():.3g} <= 0")
+        rest = net.rest_length[task.targets]
+        if np.any(lengths > 1e6 * rest):
+            # no clamp holds a spring at over 1e6 x its rest length (a target whose rest
+            # length ran to the floor in the "current" convention): the trial stops here
+            raise LearningError(
+                f"nudged target length {np.max(lengths / rest):.3g} x the target's rest length"
+            )
         clamps = task.source_clamps(net, ref)
         clamps.update(zip(task.targets.tolist(), lengths.tolist()))
         guess = None
@@ -174,7 +181,7 @@ class CoupledLearning(Rule):
         free = medium.free_state(task, tracker=tracker)
         nudge = free.target_strain + self.eta * (task.target_strain - free.target_strain)
         nudged = medium.clamped_state(task, nudge, tracker=tracker)
-        raw = -(self.alpha / self.eta) * medium.local_gradient(nudged, self.dof, minus=free)
+        raw = -(self._alpha / self.eta) * medium.local_gradient(nudged, self.dof, minus=free)
         return self._medium_result(medium, task, raw, free, nudged, nudge)
 
 
@@ -211,7 +218,7 @@ class ProspectiveConfiguration(Rule):
 
     def _medium_step(self, medium, task, tracker) -> Step:
         clamped = medium.clamped_state(task, task.target_strain, tracker=tracker)
-        raw = -self.alpha * medium.local_gradient(clamped, self.dof)
+        raw = -self._alpha * medium.local_gradient(clamped, self.dof)
         return self._medium_result(medium, task, raw, None, clamped, task.target_strain)
 
 
@@ -282,4 +289,4 @@ class ExactGradient(Rule):
     def _medium_step(self, medium, task, tracker) -> Step:
         free = medium.free_state(task, tracker=tracker)
         grad = medium.task_gradient(task, free, self.dof, cost=self.cost, tracker=tracker)
-        return self._medium_result(medium, task, -self.alpha * grad, free, None, None)
+        return self._medium_result(medium, task, -self._alpha * grad, free, None, None)

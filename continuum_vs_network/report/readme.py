@@ -8,7 +8,9 @@ A README holds generated blocks between markers::
 
 :func:`render_block` builds a block's text from every ``<reports>/<scene>/report.json``
 (``headline``: the allostery scene's summary of what learns, how fast, against the task's
-optimum; ``findings``: one line per claim and verdict, scene by scene; ``benchmarks``: the
+optimum; ``paper``: the paper scene's verdicts on the paper's claims, one line each, and its
+explanations' numbers; ``findings``: one line per claim and verdict, scene by scene
+(``reports/README.md`` has them in tables by source); ``benchmarks``: the
 summary tables the sections keep, e.g. seconds to tolerance of every equilibrium method and
 the convergence orders and costs of the finite elements and time integrators).
 :func:`update_readme` rewrites the blocks a README has (``cvn report`` and ``cvn run`` call
@@ -24,12 +26,13 @@ from pathlib import Path
 
 from ..io.atomic import write_text_atomic
 from ..io.strict_json import loads_record
+from . import escape
 from .findings import Finding
 
 __all__ = ["BLOCKS", "render_block", "stale_blocks", "update_readme"]
 
 #: Blocks a README may hold, and the summary tables (scene, key) of the benchmarks block.
-BLOCKS = ("headline", "findings", "benchmarks")
+BLOCKS = ("headline", "findings", "benchmarks", "paper")
 _HEADLINE = (("allostery", "headline"),)
 _BENCHMARKS = (
     ("solvers", "time_to_tolerance"),
@@ -77,6 +80,35 @@ def render_block(
             lines.append("")
         if not lines:
             lines = ["No report with findings yet: run `cvn report`.", ""]
+    elif name == "paper":
+        from .index_summary import cap
+
+        entry = next((e for e in entries if e["name"] == "paper"), None)
+        found = [Finding.from_dict(f) for f in (entry or {}).get("findings", ())]
+        found = [f for f in found if f.source == "paper"]
+        if found:
+            link = _link(reports, readme_dir, "paper")
+            lines += [f"Verdicts on the paper's claims ([paper]({link})):", ""]
+            lines += ["| claim | measured | verdict |", "|---|---|---|"]
+            for f in found:
+                claim = f.claim.split("): ", 1)[-1]
+                run = f.claim.split("(", 1)[-1].split(",")[0] if "(" in f.claim else ""
+                lines.append(
+                    f"| {escape.cell(cap(claim, 80))} ({run}) | "
+                    f"{escape.cell(cap(f.measured_text().split(', ')[0], 30))} | **{f.verdict}** |"
+                )
+            lines.append("")
+        why = (entry or {}).get("summaries", {}).get("explanations")
+        if why:
+            lines.append(
+                "Why: "
+                + "; ".join(escape.text(f"{r[0]}: {r[1]}") for r in why["rows"])
+                + " (the report "
+                "gives a paragraph each)."
+            )
+            lines.append("")
+        if not lines:
+            lines = ["No paper report yet: run `cvn report`.", ""]
     elif name in ("benchmarks", "headline"):
         by_name = {e["name"]: e for e in entries}
         for scene, key in _BENCHMARKS if name == "benchmarks" else _HEADLINE:

@@ -6,8 +6,9 @@ runs nothing), hands a :class:`~.document.Document` to the section of the scene'
 asks for images and off-screen rendering works, sections draw pyvista renders. Every file is
 written atomically; figures of an earlier report that the new one does not use are removed.
 ``report.json`` beside the report holds its metadata and findings;
-:func:`write_index` writes ``reports/README.md``: the findings of every scene (one line per
-claim and verdict), then the list of reports.
+:func:`write_index` writes ``reports/README.md``: a one-page summary and the findings of
+every scene in three tables by whose claim they judge (:mod:`.index_summary`), then the list
+of reports.
 """
 
 from __future__ import annotations
@@ -204,21 +205,11 @@ def write_index(root: str | os.PathLike[str], *, note: str | None = None) -> Pat
         lines += [note, ""]
     findings = [(e["name"], Finding.from_dict(f)) for e in entries for f in e.get("findings", ())]
     if findings:
-        lines += [
-            "## Findings",
-            "",
-            "Every claim a report judges, with the verdict its rule computed from the same "
-            "run (`reproduced`, `not reproduced`, `contradicted`, `not comparable`); the "
-            "scene's report gives the rule and the figures.",
-            "",
-            "| scene | claim | measured | verdict |",
-            "|---|---|---|---|",
-        ]
-        lines += [
-            f"| [{name}]({name}/report.md) | {f.claim} | {f.measured_text()} | **{f.verdict}** |"
-            for name, f in findings
-        ]
-        lines += ["", "## Reports", ""]
+        from .index_summary import findings_tables, summary_lines
+
+        lines += summary_lines(entries, findings)
+        lines += findings_tables(findings)
+        lines += ["## Reports", ""]
     lines += [
         "| scene | kind | default | description | compute s | report s |",
         "|---|---|---|---|---|---|",

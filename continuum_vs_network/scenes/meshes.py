@@ -117,6 +117,12 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
                         targets=a["net/targets"],
                     )
                 )
+        if key.startswith("continuum_mechanism/"):
+            if "triangles" in a:
+                from .meshes_mechanism import mechanism_field_mesh
+
+                written.append(mechanism_field_mesh(key, a, folder))
+            continue
         if key.startswith("continuum_learning/"):
             if export.continuum and "triangles" in a:
                 written.append(_learned_field_mesh(key, a, folder))

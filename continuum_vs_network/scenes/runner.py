@@ -112,6 +112,10 @@ def plan(scene: Scene) -> list[Unit]:
         from .units_allostery import plan_allostery
 
         return plan_allostery(scene)
+    if scene.kind == "continuum_mechanism":
+        from .units_mechanism import plan_mechanism
+
+        return plan_mechanism(scene)
     if scene.kind in ("transmission", "relaxation"):
         from .units_physics import plan_physics
 

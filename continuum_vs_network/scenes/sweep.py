@@ -134,13 +134,13 @@ def column_name(key: str) -> str:
 
 
 def _check_sweepable(scene: Scene) -> None:
-    if scene.kind != "learning":
+    if scene.kind not in ("learning", "allostery"):
         raise SceneError(
             scene.source,
             "sweep",
             "",
-            f"sweeps run learning scenes (a table row per trial); this scene is kind "
-            f"{scene.kind!r}",
+            f"sweeps run learning and allostery scenes (a table row per trial or draw); this "
+            f"scene is kind {scene.kind!r}",
         )
 
 
@@ -148,6 +148,17 @@ def training_only(scene: Scene) -> tuple[Scene, str]:
     """``scene`` without the per-scene outputs a sweep point does not produce, and a note
     naming those the scene asked for ("" when none): meshes, renders, source sweeps and the
     gradient comparison are drawn per scene, the sweep's report reads only its table."""
+    if scene.kind == "allostery":  # the feasibility map is drawn per scene
+        a = scene.allostery
+        asked = [n for n, on in (("[export]", scene.export is not None),
+                                 ("[allostery] map_draws", a.map_draws > 0)) if on]
+        scene = dataclasses.replace(
+            scene,
+            export=None,
+            report=dataclasses.replace(scene.report, images=False),
+            allostery=dataclasses.replace(a, map_draws=0),
+        )
+        return scene, ", ".join(asked)
     L = scene.learning
     asked = [
         name
@@ -207,11 +218,65 @@ def _finite(x: Any) -> float | None:
     return x if np.isfinite(x) else None
 
 
+def allostery_rows(result, threshold: float) -> list[dict[str, Any]]:
+    """Table rows of an allostery scene's result: one per run and draw (``trial`` = draw).
+
+    ``relative_error`` is the run's final C/C0 (its rest example included); a draw whose
+    bounded optimum shows it infeasible gets the outcome ``"infeasible"``.
+    """
+    from .units_allostery import runs
+
+    scene = result.scene
+    a = scene.allostery
+    rows = []
+    for n in a.n_nodes:
+        for task in a.tasks:
+            for dof in a.dofs:
+                for i in range(a.draws):
+                    base = f"n{n}/{task}/{dof}/draw{i}"
+                    opt = result.units.get(f"allostery/opt/{base}")
+                    feasible = None if opt is None else bool(opt.meta["feasible"])
+                    for run in runs(scene):
+                        u = result.units[f"allostery/train/{base}/{run.name}"]
+                        m = u.meta
+                        r = np.asarray(u.arrays["error"], dtype=float)
+                        r = r / r[0] if r[0] > 0 else r * np.nan
+                        below = np.flatnonzero(r[: m["completed"] + 1] <= threshold)
+                        rows.append(
+                            {
+                                "solver": "newton",
+                                "rule": run.name,
+                                "noise": float(run.noise),
+                                "trial": i,
+                                "seed": int(scene.seed),
+                                "strain_reference": "initial",
+                                "initial_error": _finite(u.arrays["error"][0]),
+                                "final_error": _finite(u.arrays["error"][m["completed"]]),
+                                "relative_error": _finite(m["ratio"]),
+                                "steps_to_threshold": int(below[0]) if below.size else None,
+                                "completed": int(m["completed"]),
+                                "stop_reason": m["stop_reason"],
+                                "wall_seconds": float(u.seconds),
+                                "solves": None,
+                                "iterations": None,
+                                "factorisations": None,
+                                "max_residual": None,
+                                "source_share": _finite(m["share"]),
+                                "coupling": m["coupling"],
+                                "outcome": "infeasible" if feasible is False else m["outcome"],
+                            }
+                        )
+    return rows
+
+
 def point_rows(result, threshold: float) -> list[dict[str, Any]]:
-    """Table rows of a learning scene's result: one per learning run and trial."""
+    """Table rows of a learning scene's result: one per learning run and trial (an
+    allostery scene's: :func:`allostery_rows`)."""
     from ..learning.coupling import outcome
 
     scene = result.scene
+    if scene.kind == "allostery":
+        return allostery_rows(result, threshold)
     L = scene.learning
     rows = []
     for group, h in result.histories.items():

@@ -55,7 +55,17 @@ class Cost:
         return line
 
 
+def _steps(scene: Scene) -> int:
+    """Learning steps of one trial (an allostery run: its rule's steps, the longest)."""
+    return scene.allostery.steps if scene.kind == "allostery" else scene.learning.steps
+
+
 def _runs(scene: Scene) -> int:
+    if scene.kind == "allostery":
+        from .units_allostery import runs
+
+        a = scene.allostery
+        return len(runs(scene)) * a.draws * len(a.n_nodes) * len(a.tasks) * len(a.dofs)
     from .units_learning import run_names
 
     L = scene.learning
@@ -66,8 +76,8 @@ def _runs(scene: Scene) -> int:
 def estimate_cost(points: Sequence[GridPoint], todo: Sequence[GridPoint]) -> Cost:
     """Count the work of ``todo`` and time a few learning steps of its first point."""
     trials = sum(_runs(p.scene) for p in todo)
-    steps = sum(_runs(p.scene) * p.scene.learning.steps for p in todo)
-    timing = _calibrate(todo[0].scene) if todo else None
+    steps = sum(_runs(p.scene) * _steps(p.scene) for p in todo)
+    timing = _calibrate(todo[0].scene) if todo and todo[0].scene.kind == "learning" else None
     if timing is None:
         return Cost(len(points), len(todo), trials, steps, None, None)
     return Cost(len(points), len(todo), trials, steps, *timing)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import functools
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -39,7 +40,17 @@ from ..learning.metrics import first_below
 from .schema import Scene
 from .units import Unit, UnitContext
 
-__all__ = ["FEASIBLE", "LEVELS", "RULES", "SCALES", "TASKS", "optimum", "plan_allostery"]
+__all__ = [
+    "FEASIBLE",
+    "LEVELS",
+    "RULES",
+    "SCALES",
+    "TASKS",
+    "Run",
+    "optimum",
+    "plan_allostery",
+    "runs",
+]
 
 #: A draw is feasible when the bounded optimum reaches C/C0 <= FEASIBLE.
 FEASIBLE = 1e-3
@@ -53,8 +64,18 @@ TASKS = {"1to1": (1, 1), "10to3": (10, 3)}
 CLAMPED = ("gpc", "aging")
 
 
-def _rule(name: str, dof: str):
-    """The package's default rule object ``name`` learning ``dof`` (nothing tuned)."""
+def _rule(
+    name: str,
+    dof: str,
+    *,
+    eta: float | None = None,
+    step: float | None = None,
+    alpha: float | None = None,
+):
+    """The package's default rule object ``name`` learning ``dof``: nothing tuned unless the
+    scene sets GCL's nudge ``eta``, the default rate's ``step`` or the raw rate ``alpha``."""
+    from dataclasses import replace
+
     from ..learning import CoupledLearning, DirectedAging, ExactGradient, ProspectiveConfiguration
 
     cls = {
@@ -63,7 +84,41 @@ def _rule(name: str, dof: str):
         "gpc": ProspectiveConfiguration,
         "aging": DirectedAging,
     }[name]
-    return cls(dof=dof)
+    kw: dict[str, Any] = {"dof": dof}
+    if eta is not None:
+        kw["eta"] = eta
+    if step is not None:
+        kw["rate"] = replace(cls.default_rate, step=step)
+    if alpha is not None:
+        kw["alpha"] = alpha
+    return cls(**kw)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One training run of a draw: ``rule`` at nudge ``eta`` (GCL; None: its default) and
+    read-out noise ``noise``; ``name`` labels its units (``rule``, ``_eta<eta>`` when the
+    scene lists nudges, ``_noise<noise>`` when it lists noise levels other than 0)."""
+
+    name: str
+    rule: str
+    eta: float | None
+    noise: float
+
+
+def runs(scene: Scene) -> list[Run]:
+    """Every run of a draw, rules outermost, then nudges, then noise levels."""
+    a = scene.allostery
+    noisy = a.noise != (0.0,)
+    out = []
+    for rule in a.rules:
+        etas = a.etas if (rule == "gcl" and a.etas) else (None,)
+        for eta in etas:
+            for sigma in a.noise:
+                name = rule + ("" if eta is None else f"_eta{eta:g}")
+                name += f"_noise{sigma:g}" if noisy else ""
+                out.append(Run(name, rule, eta, float(sigma)))
+    return out
 
 
 #: The rule classes by scene name (for the text).
@@ -146,15 +201,18 @@ def plan_allostery(scene: Scene) -> list[Unit]:
                 for i in range(a.draws):
                     p = {"n": n, "task": task, "dof": dof, "draw": i}
                     base = f"n{n}/{task}/{dof}/draw{i}"
-                    units.append(Unit(f"allostery/opt/{base}", optimum_unit, p, depends))
-                    for rule in a.rules:
+                    if a.optimum:
+                        units.append(Unit(f"allostery/opt/{base}", optimum_unit, p, depends))
+                    for run in runs(scene):
+                        steps = steps_of(scene, run.rule)
                         units.append(
                             Unit(
-                                f"allostery/train/{base}/{rule}",
+                                f"allostery/train/{base}/{run.name}",
                                 train_unit,
-                                {**p, "rule": rule, "steps": steps_of(scene, rule)},
-                                depends,
-                                weight=steps_of(scene, rule),
+                                {**p, "rule": run.rule, "eta": run.eta, "noise": run.noise,
+                                 "steps": steps},
+                                {**depends, "step": a.step, "alpha": a.alpha},
+                                weight=steps * (1 + (run.noise > 0)),
                             )
                         )
     return units
@@ -179,10 +237,17 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict
     from ..network.equilibrium import EquilibriumError
 
     net, task, tasks = draw(scene, params["n"], params["task"], params["draw"])
-    rule = _rule(params["rule"], params["dof"])
+    rule = _rule(
+        params["rule"],
+        params["dof"],
+        eta=params.get("eta"),
+        step=scene.allostery.step,
+        alpha=scene.allostery.alpha,
+    )
     steps = steps_of(scene, params["rule"])
+    noise = float(params.get("noise", 0.0))
     cb = None if ctx.on_step is None else (lambda trial, step, net: ctx.on_step())
-    h = train(net, tasks, rule, steps, progress=False, callback=cb)
+    h = train(net, tasks, rule, steps, noise=noise, progress=False, callback=cb)
     e = np.asarray(h.error_initial[0], dtype=float)
     r = e / e[0]
     done = int(h.completed[0]) == steps
@@ -215,6 +280,9 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict
     }
     meta = {
         "ratio": ratio,
+        "floor": _floor(r, done),
+        "noise": noise,
+        "eta": getattr(rule, "eta", float("nan")),
         "steps": steps,
         "completed": int(h.completed[0]),
         "stop_reason": h.stop_reason[0],
@@ -230,6 +298,15 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict
         "task_ratio": float(task.target_strain[0] / task.source_strain[0]),
     }
     return arrays, meta
+
+
+def _floor(r: np.ndarray, done: bool, fraction: float = 0.25) -> float:
+    """C/C0 averaged over the last ``fraction`` of the steps (the level a noisy run settles
+    at); NaN for a run that stopped early."""
+    if not done:
+        return float("nan")
+    steps = r.size - 1
+    return float(np.mean(r[steps - max(1, round(fraction * steps)) + 1 :]))
 
 
 def optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict[str, Any]]:

@@ -12,6 +12,9 @@
   with the sources on, off and over a source sweep, and of the initial network with the
   sources off (:mod:`~continuum_vs_network.learning.coupling`), so that every learning
   result states whether the sources cause the target strains;
+* ``feasibility`` (paper task, ``[learning] paper_setting``): what each draw of the task
+  allows (linear response, the exact optimum, self-stress, collapse;
+  :func:`~continuum_vs_network.learning.paper_setting.draw_feasibility`);
 * ``fields/<solver>/<rule>`` (only with ``[export]`` or ``[report] images``): free states of
   the exported trials' initial and final networks and, with ``[export] series``, of the
   trajectory frames.
@@ -32,10 +35,16 @@ from typing import Any
 from .schema import Scene
 from .units import Unit
 from .units_learning_build import aging_rules as aging_rules
-from .units_learning_build import build_rules, experiments
+from .units_learning_build import build_rules, experiments, rule_steps
 from .units_learning_build import builders as builders
 from .units_learning_build import task_example as task_example
-from .units_learning_measure import coupling_unit, fields_unit, gradient_unit, sweeps_unit
+from .units_learning_measure import (
+    coupling_unit,
+    feasibility_unit,
+    fields_unit,
+    gradient_unit,
+    sweeps_unit,
+)
 from .units_learning_train import frames_file, train_unit
 
 __all__ = [
@@ -121,7 +130,7 @@ def plan_learning(scene: Scene) -> list[Unit]:
                                 "series_every": series,
                             },
                             depends=dep,
-                            weight=L.steps,
+                            weight=rule_steps(scene, rule),
                         )
                     )
     first = {"sweep_span": L.sweep_span, "sweep_points": L.sweep_points}
@@ -163,6 +172,16 @@ def plan_learning(scene: Scene) -> list[Unit]:
                         phase=1,
                     )
                 )
+    if scene.task.kind == "paper" and L.paper_setting:
+        units.append(
+            Unit(
+                key="feasibility",
+                func=feasibility_unit,
+                params={"group": group_key(_solvers(scene)[0], L.rules[0], 0)},
+                depends={**dep, "trials": L.trials},
+                phase=1,
+            )
+        )
     if L.compare_gradient:
         solver = "newton" if "newton" in _solvers(scene) else _solvers(scene)[0]
         for rule in run_names(scene):

@@ -118,18 +118,7 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
     L = scene.learning
     eq_solver = _solver(scene, solver)
     if scene.task.kind == "paper":
-        from ..learning.replication import paper_experiments
-
-        exps = paper_experiments(
-            strain_reference=L.strain_reference,
-            solver=eq_solver,
-            alpha_gcl=L.alpha_gcl,
-            eta=L.eta,
-            alpha_gpc=L.alpha_gpc,
-            alpha_exact=L.alpha_exact,
-            floor=L.floor,
-        )
-        table = {e.name: e.rule for e in exps}
+        table = {e.name: e.rule for e in _paper_experiments(scene, eq_solver)}
     else:
         from ..learning.stern import stern_rules
 
@@ -175,16 +164,36 @@ def aging_rules(alpha: float, like) -> dict[str, Any]:
 
 def experiments(scene: Scene, solver: str = "newton"):
     """The paper's :class:`~.learning.replication.Experiment` objects the scene names."""
+    exps = _paper_experiments(scene, _solver(scene, solver))
+    return tuple(e for e in exps if e.name in scene.learning.rules)
+
+
+def _paper_experiments(scene: Scene, eq_solver):
+    """The paper's runs: the author's notebooks' setting with ``[learning] paper_setting``
+    (:func:`~continuum_vs_network.learning.paper_setting.paper_setting_experiments`), else
+    the package's (:func:`~continuum_vs_network.learning.replication.paper_experiments`)."""
+    L = scene.learning
+    common = {
+        "solver": eq_solver,
+        "alpha_gcl": L.alpha_gcl,
+        "eta": L.eta,
+        "alpha_gpc": L.alpha_gpc,
+        "alpha_exact": L.alpha_exact,
+        "floor": L.floor,
+    }
+    if L.paper_setting:
+        from ..learning.paper_setting import paper_setting_experiments
+
+        return paper_setting_experiments(**common)
     from ..learning.replication import paper_experiments
 
+    return paper_experiments(strain_reference=L.strain_reference, **common)
+
+
+def rule_steps(scene: Scene, rule: str) -> int:
+    """Learning steps of one run: ``[learning] steps_gpc`` for a GPC run of the paper task
+    when set, else ``steps``."""
     L = scene.learning
-    exps = paper_experiments(
-        strain_reference=L.strain_reference,
-        solver=_solver(scene, solver),
-        alpha_gcl=L.alpha_gcl,
-        eta=L.eta,
-        alpha_gpc=L.alpha_gpc,
-        alpha_exact=L.alpha_exact,
-        floor=L.floor,
-    )
-    return tuple(e for e in exps if e.name in L.rules)
+    if scene.task.kind == "paper" and L.steps_gpc and rule.startswith("gpc"):
+        return L.steps_gpc
+    return L.steps

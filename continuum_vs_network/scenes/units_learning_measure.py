@@ -20,7 +20,7 @@ from .units import UnitContext
 from .units_learning_build import build_rules, task_example
 from .units_learning_train import _load_frames, frames_file
 
-__all__ = ["coupling_unit", "fields_unit", "gradient_unit", "sweeps_unit"]
+__all__ = ["coupling_unit", "feasibility_unit", "fields_unit", "gradient_unit", "sweeps_unit"]
 
 
 def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
@@ -133,7 +133,7 @@ def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
     from ..network.equilibrium import EquilibriumError
 
     history = ctx.history(params["group"])
-    ref = scene.learning.strain_reference
+    ref = history.strain_reference  # the run's own convention (paper_setting: per rule)
     arrays: dict[str, np.ndarray] = {}
     meta: dict[str, Any] = {"trials": [], "failed": []}
     for k in params["trials"]:
@@ -182,3 +182,15 @@ def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
                 arrays[f"t{k}/series/rest_length"] = np.array(rest)
                 arrays[f"t{k}/series/stiffness"] = np.array(stiff)
     return arrays, meta
+
+
+def feasibility_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """Per draw of the paper's task (the untrained networks of run ``group``): linear
+    response, nonlinearity, the exact optimum, self-stress share and collapse
+    (:func:`~continuum_vs_network.learning.paper_setting.draw_feasibility`)."""
+    from ..learning.paper_setting import draw_feasibility
+
+    history = ctx.history(params["group"])
+    rows = [draw_feasibility(history.initial[i], history.tasks[i]) for i in range(history.trials)]
+    keys = sorted(rows[0]) if rows else []
+    return {k: np.array([r[k] for r in rows]) for k in keys}, {"keys": keys}

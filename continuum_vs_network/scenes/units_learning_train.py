@@ -14,7 +14,7 @@ import numpy as np
 from ..io.atomic import atomic_path
 from .schema import Scene
 from .units import UnitContext
-from .units_learning_build import build_rules, builders
+from .units_learning_build import build_rules, builders, rule_steps
 
 __all__ = ["frames_file", "train_unit"]
 
@@ -27,11 +27,12 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext):
     rule = build_rules(scene, params["solver"])[params["rule"]]
     net, task = builders(scene)
     every = int(params["series_every"])
+    steps = rule_steps(scene, params["rule"])
     frames_path = ctx.checkpoint.with_name(ctx.checkpoint.stem + ".frames.npz")
     frames = _load_frames(frames_path) if every else {}
 
     def callback(trial: int, step: int, cur) -> None:
-        if every and (step % every == 0 or step == L.steps):
+        if every and (step % every == 0 or step == steps):
             frames[step] = (np.array(cur.rest_length), np.array(cur.stiffness))
             _save_frames(frames_path, frames)
         if ctx.on_step is not None:
@@ -41,7 +42,7 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext):
         net,
         task,
         rule,
-        L.steps,
+        steps,
         seeds=(int(params["seed"]),),
         noise=float(params["noise"]),
         measure=L.measure,

@@ -16,6 +16,7 @@ from . import (
     allostery,
     beyond_paper,
     continuum_learning,
+    continuum_mechanism,
     learning,
     physical_time,
     relaxation,
@@ -38,4 +39,5 @@ SECTIONS: dict[str, Callable[..., None]] = {
     "continuum_learning": continuum_learning.section,
     "beyond_paper": beyond_paper.section,
     "allostery": allostery.section,
+    "continuum_mechanism": continuum_mechanism.section,
 }

@@ -125,6 +125,7 @@ def _finite_elements(doc: Document, result, a) -> None:
         expected = FE_ORDER[element]
         doc.finding(
             Finding(
+                source="check",
                 claim=f"{_ELEMENT_NAMES[element]} elements converge at order {expected:g} in h "
                 "(L2 displacement error)",
                 metric="relative L2 displacement error on Lamé's cylinder against h",
@@ -233,6 +234,7 @@ def _integrators(doc: Document, result, a) -> None:
                 expected = SCHEME_ORDER[scheme]
                 doc.finding(
                     Finding(
+                        source="check",
                         claim=f"{name} converges at order {expected:g} in dt ({medium}, {problem})",
                         metric="largest error over the run against the time step",
                         measured={"order": rate, "smallest-step error": _at_smallest(dt, err)},
@@ -290,6 +292,7 @@ def _integrators(doc: Document, result, a) -> None:
     if refused_ok:
         doc.finding(
             Finding(
+                source="check",
                 claim="the explicit network scheme refuses exactly the steps above its "
                 "stability limit and runs every step below it",
                 metric="explicit runs whose refusal matches dt > limit",

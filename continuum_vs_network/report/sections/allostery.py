@@ -18,6 +18,7 @@ from ..document import Document, fmt
 from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 from .allostery_data import LEARNED, feasibility_map, groups, optimum_summary, tally
 from .allostery_figures import RULE_NAMES, curve_panels, map_panel, render, sweep_panels
+from .allostery_noise import noise_section
 
 __all__ = ["CLAIM_SHARE", "section"]
 
@@ -27,10 +28,10 @@ TASK_NAMES = {"1to1": "1 -> 1 (Rocks 2017)", "10to3": "10 -> 3 (Stern 2021)"}
 DOF_NAMES = {"stiffness": "k", "rest_length": "L", "both": "k and L"}
 
 
-def _rates(rules) -> str:
+def _rates(rules, step=None) -> str:
     parts = []
     for rule in rules:
-        rate = type(_rule(rule, "stiffness")).default_rate
+        rate = _rule(rule, "stiffness", step=step).adaptive
         parts.append(
             f"{RULE_NAMES[rule]} ({RULES[rule]}): {type(rate).__name__.lower()} rate, "
             f"step {rate.step:g}"
@@ -63,7 +64,7 @@ def _intro(doc: Document, scene, grps) -> None:
         f"draw trains the same network on the same task; {a.draws} draws.",
         "",
         f"**Rules and rates.** The package's default rule objects, nothing tuned: "
-        f"{_rates(a.rules)} (`learning/rates.py`: the adaptive rate is per spring and "
+        f"{_rates(a.rules, a.step)} (`learning/rates.py`: the adaptive rate is per spring and "
         "scale-free; the scaled rate is fixed after the first step). Learned stiffnesses "
         f"stay within [{STIFFNESS_RANGE[0]:g}, {STIFFNESS_RANGE[1]:g}] x k0 "
         "(`learning/ranges.py`, every rule and the optimum); the optimum keeps rest lengths "
@@ -145,6 +146,8 @@ def _finding(doc: Document, g, t) -> None:
             verdict=v,
             rule=f"reproduced when learned / feasible >= {CLAIM_SHARE:g}, not reproduced "
             "otherwise; not comparable without a feasible draw",
+            source="field",
+            basis="coupled" if t.learned else "",
         )
     )
 
@@ -289,6 +292,10 @@ def section(doc: Document, result) -> None:
     units = result.units
     grps = groups(scene, units)
     _intro(doc, scene, grps)
+    if scene.allostery.noise != (0.0,) or scene.allostery.etas:
+        for g in grps:
+            noise_section(doc, scene, g)
+        return
     _map(doc, scene, units)
     for g in grps:
         _group(doc, scene, g)

@@ -8,11 +8,11 @@ in a success rate. Medians are over the feasible draws.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...scenes.units_allostery import FEASIBLE, LEVELS
+from ...scenes.units_allostery import FEASIBLE, LEVELS, Run, runs
 from ..document import quiet
 
 __all__ = [
@@ -33,8 +33,9 @@ LEARNED = "learned (coupled)"
 
 def verdict(train_meta, opt_meta) -> str:
     """The verdict of one rule on one draw: ``"infeasible (optimum C/C0 = x)"`` when the
-    optimum shows the draw infeasible, else the rule's outcome (coupling vocabulary)."""
-    if not opt_meta["feasible"]:
+    optimum (None: not computed) shows the draw infeasible, else the rule's outcome
+    (coupling vocabulary)."""
+    if opt_meta is not None and not opt_meta["feasible"]:
         return f"infeasible (optimum C/C0 = {opt_meta['ratio']:.2g})"
     return str(train_meta["outcome"])
 
@@ -49,6 +50,7 @@ class Group:
     dof: str
     opt: list
     train: dict[str, list]
+    runs: dict[str, Run] = field(default_factory=dict)
 
     @property
     def key(self) -> str:
@@ -56,22 +58,27 @@ class Group:
 
     @property
     def feasible(self) -> list[bool]:
+        """Per draw: the optimum reaches C/C0 <= FEASIBLE (every draw when the scene computes
+        no optimum: then nothing is known to be infeasible)."""
+        if not self.opt:
+            return [True] * len(next(iter(self.train.values())))
         return [bool(u.meta["feasible"]) for u in self.opt]
 
 
 def groups(scene, units) -> list[Group]:
-    """Every (size, task, dof) of the scene, in plan order."""
+    """Every (size, task, dof) of the scene, in plan order; ``train`` keyed by run name."""
     a = scene.allostery
     out = []
     for n in a.n_nodes:
         for task in a.tasks:
             for dof in a.dofs:
                 base = f"allostery/%s/n{n}/{task}/{dof}/draw"
-                opt = [units[f"{base % 'opt'}{i}"] for i in range(a.draws)]
+                opt = [units[f"{base % 'opt'}{i}"] for i in range(a.draws)] if a.optimum else []
+                rs = {r.name: r for r in runs(scene)}
                 train = {
-                    r: [units[f"{base % 'train'}{i}/{r}"] for i in range(a.draws)] for r in a.rules
+                    r: [units[f"{base % 'train'}{i}/{r}"] for i in range(a.draws)] for r in rs
                 }
-                out.append(Group(n, task, dof, opt, train))
+                out.append(Group(n, task, dof, opt, train, rs))
     return out
 
 
@@ -109,7 +116,8 @@ def tally(group: Group, rule: str) -> Tally:
     """The :class:`Tally` of ``rule`` in ``group``."""
     units = group.train[rule]
     ok = group.feasible
-    verdicts = [verdict(u.meta, o.meta) for u, o in zip(units, group.opt, strict=True)]
+    opts = group.opt or [None] * len(units)
+    verdicts = [verdict(u.meta, o and o.meta) for u, o in zip(units, opts, strict=True)]
     good = [u for u, f in zip(units, ok, strict=True) if f]
     steps_to, reached = {}, {}
     for level in LEVELS:

@@ -39,6 +39,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     )
     doc.finding(
         Finding(
+            source="check",
             claim=f"one rule object ({rule}) learns one task, not trivially, in a lattice and in "
             "its continuum",
             metric="final C/C0 and source share of the network and of the continuum on the "
@@ -55,6 +56,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     )
     doc.finding(
         Finding(
+            source="check",
             claim=f"the continuum gets the network's coupling verdict ({rule})",
             metric="source share of the trained media (learning.coupling; 'coupled' >= "
             f"0.5, 'decoupled' < {DECOUPLED_BELOW:g})",
@@ -70,6 +72,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     unless = "; not comparable when either medium is decoupled (its field is prestress)"
     doc.finding(
         Finding(
+            source="check",
             claim=f"at the lattice's resolution the continuum's learned field matches the "
             f"network's ({rule})",
             metric="correlation of the learned rest strains on the lattice triangles",
@@ -85,6 +88,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
         verdict = refinement_verdict(change, decoupled=decoupled)
         doc.finding(
             Finding(
+                source="check",
                 claim=f"the learned field converges under refinement ({rule})",
                 metric="relative L2 change of the field on the lattice triangles per halving of h",
                 measured={f"change h/{2 ** (i + 1)}": c for i, c in enumerate(change)},
@@ -103,6 +107,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
         falls = all(b < a for a, b in itertools.pairwise(loc))
         doc.finding(
             Finding(
+                source="check",
                 claim=f"the learned change localises as the mesh is refined ({rule})",
                 metric=f"area fraction whose change exceeds {LOCALISED:g} of the largest",
                 measured={_h(r).removeprefix("continuum "): x for r, x in enumerate(loc)},
@@ -175,6 +180,7 @@ def _rules_agree(doc, units, rules, R: int) -> None:
     verdict = fields_agree_verdict(diff, [m["source_share"] for m in metas.values()])
     doc.finding(
         Finding(
+            source="check",
             claim="coupled learning and the exact gradient learn the same continuum field",
             metric=f"relative difference of the learned eigenstrain at {_h(R)}",
             measured={

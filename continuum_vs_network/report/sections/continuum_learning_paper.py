@@ -56,7 +56,9 @@ def _paper(doc, units, R: int, rule: str) -> None:
     learned = worst <= TOLERANCE and share >= DECOUPLED_BELOW
     doc.finding(
         Finding(
-            claim="an elastic continuum learns the paper's 1 -> 1 task by a local rule",
+            source="paper",
+            claim="paper, discussion (Sec. 1, 8): a visco-elastic material learns the paper's "
+            "1 -> 1 task by a local rule (here: an elastic continuum)",
             metric=f"final C/C0 and source share at every refinement (rule {rule})",
             measured={"largest C/C0": worst, "smallest source share": share},
             verdict=REPRODUCED if learned else NOT_REPRODUCED,

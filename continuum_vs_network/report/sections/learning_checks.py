@@ -37,30 +37,33 @@ __all__ = [
 
 
 def claims(doc: Document, result, h, solvers) -> dict[str, str]:
-    """The paper's claims table with computed verdicts; one finding per statement. Returns,
-    per solver whose stored states are not equilibria, the note its findings carry."""
+    """The paper's claims table with computed verdicts; one finding per statement (only in
+    the paper's own setting, ``[learning] paper_setting``; another paper scene says where
+    they are judged). Returns, per solver whose stored states are not equilibria, the note
+    its findings carry."""
     from ...learning.claims import MIN_STEPS, check_claims
     from ...scenes.units_learning import experiments
 
     L = result.scene.learning
     doc.heading("The paper's claims and what this package measures")
+    if not L.paper_setting:
+        doc.add(
+            "The paper's claims are judged in scene `paper`, which runs each rule in the "
+            "setting of the author's notebooks. This scene runs "
+            f"{CONVENTION_TEXT[L.strain_reference]} for every rule, with the package's "
+            "derived update signs: its results are in the coupling table and the figures."
+        )
+        return _equilibria(doc, h, solvers, L.rules)
     doc.add(
-        "Each claim of the paper is split into its statements and measured on this run; "
-        "the verdict follows from the rule in the last column (reproduced / not reproduced "
-        "/ contradicted / not comparable). The paper's task error is Eq. 26 with strains "
-        "against the *learning* rest length (Eq. 24 as printed): claims about C are judged "
-        "on that metric whatever this run's convention, which is "
-        f"{CONVENTION_TEXT[L.strain_reference]}. Claims that the task is learned also need "
-        "the trained networks not to be decoupled (coupling section), counted per trial: "
-        "a trial counts when its own final value meets the claim and its own coupling "
-        "verdict is not decoupled. The paper's coupled learning clamps in the `current` "
-        "convention, its prospective configuration in the `initial` one (Sec. 7.2: the "
-        "rod's length stays fixed while the rest lengths learn), so a GCL run in `initial` "
-        "and a GPC run in `current` ran another procedure and their claims are not "
-        "comparable. The paper ran 300 steps: a size reached (orders of magnitude, C = 0, "
-        f"~50 %, 33 %) is judged only on the trials that completed at least {MIN_STEPS} "
-        f"steps, and is not comparable when fewer than half of the trials (or fewer than "
-        "3) did; a direction (rises, descends) is judged on every trial."
+        "Each claim of the paper is split into its statements and measured on the run of its "
+        "rule in the paper's own setting (table above). C is Eq. 26 as printed (strains "
+        "against the learning L, `error_current`). A claim that the task is learned counts "
+        "a trial only when its own final value meets the claim and its own coupling verdict "
+        "is not decoupled (coupling section). A size reached (orders of magnitude, C = 0, "
+        f"~50 %, 33 %) is judged on the trials that completed at least {MIN_STEPS} steps or "
+        "whose learning ran away (judged with their last value: a failure); a direction "
+        "(rises, descends) on every trial. Each verdict's rule is listed once below the "
+        "table; the cell gives the reason in short."
     )
     notes = _equilibria(doc, h, solvers, L.rules)
     for solver in solvers:
@@ -69,43 +72,64 @@ def claims(doc: Document, result, h, solvers) -> dict[str, str]:
         checks = check_claims(hs, experiments(result.scene, solver), coupling=coupling_of)
         if len(solvers) > 1:
             doc.add("", f"**{solver}**", "")
-        rows = []
+        rows, rules = [], {}
         for c in checks:
+            key = rules.setdefault((c.claim, c.rule), f"R{len(rules) + 1}")
             rows.append(
                 [
                     c.experiment,
                     c.figures,
                     c.claim,
-                    c.metric,
                     fmt(c.measured),
-                    f"**{c.verdict}**" + (f" ({c.reason})" if c.reason else ""),
-                    c.rule,
+                    f"**{c.verdict}**" + (f" ({_short(c.reason)})" if c.reason else ""),
+                    key,
                 ]
             )
             if solver == solvers[0]:
+                basis = (
+                    "met trivially"
+                    if "met trivially" in c.reason
+                    else "coupled"
+                    if c.verdict == "reproduced" and "not decoupled" in c.reason
+                    else ""
+                )
                 doc.finding(
                     Finding(
                         claim=f"paper, {c.figures} ({c.experiment}, {result.scene.name}"
                         + (", non-equilibrium states" if solver in notes else "")
                         + f"): {c.claim}",
                         metric=c.metric,
-                        measured={"value": c.measured}
+                        measured={_measured_name(c.metric): c.measured}
                         | {f"{r} (same metric)": v for r, v in c.references},
                         verdict=c.verdict,
                         rule=c.rule
                         + (f" [{c.reason}]" if c.reason else "")
                         + (f" [{notes[solver]}]" if solver in notes else ""),
+                        source="paper",
+                        basis=basis,
                     ),
                     shown=True,  # the claims table below
                 )
-        doc.table(
-            ["run", "figures", "paper's claim", "metric", "measured", "verdict", "rule"], rows
+        doc.table(["run", "figures", "paper's claim", "measured", "verdict", "rule"], rows)
+        doc.add(
+            "Rules: "
+            + "; ".join(f"**{k}** ({claim}): {rule}" for (claim, rule), k in rules.items())
+            + ". Metrics: "
+            + "; ".join(sorted({f"{c.claim}: {c.metric}" for c in checks}))
+            + "."
         )
-        others = [r for r in L.rules if r not in {c.experiment for c in checks}]
-        if others:
-            doc.add(
-                "Runs without a claim in the paper (references): "
-                + ", ".join(f"`{r}`" for r in others)
-                + "; their results are in the coupling table and the figures."
-            )
     return notes
+
+
+#: longest reason shown in a claims-table cell (the finding keeps it whole)
+REASON_CHARS = 160
+
+
+def _short(reason: str) -> str:
+    """A claims-table cell's reason, cut at :data:`REASON_CHARS` characters."""
+    return reason if len(reason) <= REASON_CHARS else reason[: REASON_CHARS - 3].rstrip() + "..."
+
+
+def _measured_name(metric: str) -> str:
+    """The name of a claim's measured value: a count of trials, or the value itself."""
+    return "trials" if metric.startswith("trials") else "value"

@@ -249,7 +249,10 @@ def _sweep_figure(doc: Document, result, solver: str, names, noise_index: int) -
             "Source sweeps of every trained network: each target's strain minus its "
             "desired strain against the source strains scaled by 0 ... 2 (one line per "
             "trial and target; the task is at 1, where a met task crosses 0). A flat "
-            "line is a target the sources do not drive.",
+            "line is a target the sources do not drive; a sloped line can still be "
+            "decoupled when its slope is the untrained network's (the drive was left as it "
+            "was and prestress met the task), which the table's source share measures and "
+            "this figure does not show.",
             ncols=min(4, len(panels)),
             panel_size=(3.2, 2.6),
         )

@@ -48,7 +48,7 @@ def sweeps(doc: Document, result, solver: str) -> None:
                             color="black",
                         ),
                     ],
-                    f"{rule}, trial {i}",
+                    f"{rule}, trial {i}" + ("" if np.isfinite(t).any() else " (not solved)"),
                     "source strain",
                     "target strain",
                     legend=(i == 0),

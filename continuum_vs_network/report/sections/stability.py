@@ -166,6 +166,7 @@ def _equilibria(doc: Document, result) -> None:
             found.append(
                 doc.finding(
                     Finding(
+                        source="check",
                         claim=f"README: Newton converges to {tol:g} on {group}",
                         metric="Newton's local imbalance at the returned positions",
                         measured={
@@ -186,6 +187,7 @@ def _equilibria(doc: Document, result) -> None:
         found.append(
             doc.finding(
                 Finding(
+                    source="check",
                     claim="README: floppy networks raise a ValueError that counts their zero modes",
                     metric="error raised by every method on a lattice with 2N - 6 springs",
                     measured={"methods": len(floppy), "raised": sum(raised)},
@@ -199,6 +201,7 @@ def _equilibria(doc: Document, result) -> None:
     found.append(
         doc.finding(
             Finding(
+                source="check",
                 claim="no method returns a non-converged state as converged",
                 metric=f"cases x methods reported converged with local imbalance > {SLACK:g} x tol",
                 measured={"rows": len(honest), "silent": len(honest) - sum(honest)},
@@ -277,6 +280,7 @@ def _dynamics(doc: Document, result) -> None:
         found.append(
             doc.finding(
                 Finding(
+                    source="check",
                     claim="the explicit scheme refuses a step above its stability limit and is "
                     "stable below it",
                     metric="explicit runs: refusal above the limit, no energy growth below",
@@ -292,6 +296,7 @@ def _dynamics(doc: Document, result) -> None:
         found.append(
             doc.finding(
                 Finding(
+                    source="check",
                     claim="every implicit step's Newton solve converges far above the "
                     "explicit limit on stiff lattices (a claim about the solves, not the "
                     "trajectory's stability)",
@@ -323,10 +328,29 @@ def _dynamics(doc: Document, result) -> None:
                 else "No implicit run ends with more mechanical energy than it started with."
             ),
         )
+    newmark = [g for g in growth if "newmark" in str(g[1]).lower()] if implicit_ran else []
+    if newmark:
+        worst_nm = max(newmark)
+        found.append(
+            doc.finding(
+                Finding(
+                    source="field",
+                    claim="the damped trapezoidal (Newmark) step adds no mechanical energy at "
+                    "steps far above the explicit limit (A-stable)",
+                    metric="mechanical energy at the end over the start, Newmark runs with drag",
+                    measured={"runs": len(newmark), "largest ratio": worst_nm[0]},
+                    verdict=REPRODUCED if worst_nm[0] <= 1.0 else CONTRADICTED,
+                    rule="reproduced when no Newmark run ends with more mechanical energy than "
+                    "it started with; contradicted otherwise (the nonlinear springs are outside "
+                    "the linear A-stability argument)",
+                )
+            )
+        )
     if be_energy:
         found.append(
             doc.finding(
                 Finding(
+                    source="check",
                     claim="backward Euler never adds mechanical energy, whatever the step "
                     "(L-stable)",
                     metric="mechanical energy at the end over the start, backward Euler runs",
@@ -384,6 +408,7 @@ def _locking(doc: Document, result) -> None:
             [
                 doc.finding(
                     Finding(
+                        source="check",
                         claim="P1 warns where locking inflates its error, and not elsewhere",
                         metric="P1 cases: warned iff error >= "
                         f"{LOCKED:g} x the error at the smallest nu",
@@ -426,6 +451,7 @@ def _learning(doc: Document, result) -> None:
         [
             doc.finding(
                 Finding(
+                    source="check",
                     claim="learning on stiff lattices completes or stops with a stated reason, "
                     "never NaN",
                     metric="runs that completed, or stopped with a reason, with finite errors",

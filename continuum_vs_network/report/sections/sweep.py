@@ -402,7 +402,12 @@ def section(doc: Document, result) -> None:
         doc.add("Only the seed is swept: no parameter axis to draw.")
     cells = _cells(result, params)
     _best_worst(doc, cells, params, threshold)
-    _eta_finding(doc, result, params)
+    if scene.kind == "allostery":
+        from .sweep_rates import rate_findings
+
+        rate_findings(doc, result, params)
+    else:
+        _eta_finding(doc, result, params)
     doc.heading("Every grid cell")
     doc.add(
         "Outcomes count the trials by `learning.coupling.outcome`: the final / initial error "

@@ -46,6 +46,7 @@ from .scene import Scene, parse_scene
 from .sweep import SweepSpec, check_zip, parse_sweep, sweep_values
 from .tables import _TABLES as _TABLES
 from .tables_allostery import ALLOSTERY_RULES, AllosterySpec
+from .tables_mechanism import MechanismSpec
 from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
 from .tables_physics import (
     TIME_RULES,
@@ -73,6 +74,7 @@ __all__ = [
     "TIME_RULES",
     "AccuracySpec",
     "AllosterySpec",
+    "MechanismSpec",
     "ContinuumSpec",
     "DynamicsSpec",
     "ExportSpec",

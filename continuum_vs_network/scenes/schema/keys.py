@@ -25,6 +25,7 @@ KINDS = (
     "continuum_learning",
     "beyond_paper",
     "allostery",
+    "continuum_mechanism",
 )
 
 #: For each kind: (tables it needs, tables it also accepts).
@@ -54,6 +55,7 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
     ),
     "beyond_paper": (frozenset({"network", "task", "learning"}), frozenset({"report"})),
     "allostery": (frozenset({"allostery"}), frozenset({"report"})),
+    "continuum_mechanism": (frozenset({"mechanism"}), frozenset({"export", "report"})),
 }
 
 #: Learning runs a scene can name. Paper task: the paper's experiments (see
@@ -75,9 +77,12 @@ RULES = (
     "aging",
     "aging_k",
     "gcl_both",
+    "gcl_notebook",
 )
 #: Rules only the paper task knows, and only Stern-scale tasks know.
-PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen")
+PAPER_RULES = ("gcl_floor", "gcl_frozen", "gpc_frozen", "gcl_notebook")
+#: The runs of the paper's own setting (``[learning] paper_setting``): the author's notebooks
+PAPER_SETTING_RULES = ("gcl", "gcl_notebook", "gpc", "gpc_frozen", "exact")
 STERN_RULES = ("gcl_all", "gpc_all", "aging", "aging_k", "gcl_both")
 #: The rules a ``beyond_paper`` scene compares (in the bulk, on the paper's and Stern's task;
 #: ``gcl_both`` learns rest lengths and stiffnesses together).

@@ -15,7 +15,9 @@ from .keys import (
     KIND_TABLES,
     KINDS,
     PAPER_RULES,
+    PAPER_SETTING_RULES,
     RENAMED,
+    RULES,
     STERN_RULES,
     _uses,
 )
@@ -23,6 +25,7 @@ from .sweep import SweepSpec, parse_sweep
 from .tables import _TABLES
 from .tables_allostery import AllosterySpec
 from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
+from .tables_mechanism import MechanismSpec
 from .tables_physics import (
     AccuracySpec,
     ContinuumSpec,
@@ -74,6 +77,7 @@ class Scene:
     accuracy: AccuracySpec | None = None
     physical_time: PhysicalTimeSpec | None = None
     allostery: AllosterySpec | None = None
+    mechanism: MechanismSpec | None = None
     export: ExportSpec | None = None
     report: ReportSpec = field(default_factory=ReportSpec)
     sweep: SweepSpec | None = None
@@ -275,7 +279,14 @@ def _check_kind(scene: Scene, file: str) -> None:
     if kind == "beyond_paper":
         _check_beyond_paper(scene, file, need_key)
         return
-    if kind in ("accuracy", "allostery"):
+    if kind == "allostery":
+        a = scene.allostery
+        if a is not None and a.alpha is not None and a.step is not None:
+            raise SceneError(
+                file, "allostery", "step", "a raw rate alpha has no step; set one of the two"
+            )
+        return
+    if kind in ("accuracy", "continuum_mechanism"):
         return
     if kind == "physical_time":
         _check_physical_time(scene, file, need_key)
@@ -311,6 +322,26 @@ def _check_kind(scene: Scene, file: str) -> None:
                     "'gpc_all' let every spring learn)",
                 )
         else:
+            allowed = PAPER_SETTING_RULES if scene.learning.paper_setting else RULES
+            bad = [
+                r
+                for r in scene.learning.rules
+                if r not in allowed or (r == "gcl_notebook" and not scene.learning.paper_setting)
+            ]
+            if bad and bad[0] not in STERN_RULES:
+                raise SceneError(
+                    file,
+                    "learning",
+                    "rules",
+                    f"{bad[0]!r} is not a run of "
+                    + (
+                        "the paper's own setting (paper_setting = true runs "
+                        + ", ".join(PAPER_SETTING_RULES)
+                        + ")"
+                        if scene.learning.paper_setting
+                        else "the package's setting ('gcl_notebook' needs paper_setting = true)"
+                    ),
+                )
             bad = [r for r in scene.learning.rules if r in STERN_RULES]
             if bad:
                 raise SceneError(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .tables_allostery import AllosterySpec
+from .tables_mechanism import MechanismSpec
 from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
 from .tables_physics import (
     AccuracySpec,
@@ -25,6 +26,7 @@ _TABLES: dict[str, type] = {
     "accuracy": AccuracySpec,
     "physical_time": PhysicalTimeSpec,
     "allostery": AllosterySpec,
+    "mechanism": MechanismSpec,
     "export": ExportSpec,
     "report": ReportSpec,
 }

@@ -19,6 +19,7 @@ from .keys import (
     _key,
     _non_negative,
     _positive,
+    _positive,
     _unique_nonempty,
 )
 
@@ -85,6 +86,35 @@ class AllosterySpec:
         None,
         "learning steps of the clamped-only rules gpc and aging (None: steps)",
         check=_at_least(1),
+    )
+    etas: tuple[float, ...] = _key(
+        "list[float]",
+        (),
+        "GCL nudge amplitudes, one GCL run per value (empty: the rule's default)",
+        check=_all(_each(_positive), _increasing),
+    )
+    noise: tuple[float, ...] = _key(
+        "list[float]",
+        (0.0,),
+        "relative read-out noise levels of the lengths a rule reads, one run per rule and level",
+        check=_all(_unique_nonempty, _each(_non_negative), _increasing),
+    )
+    step: float | None = _key(
+        "float",
+        None,
+        "step of every rule's default rate (adaptive or scaled; None: the rule's own step)",
+        check=_between(1e-6, 100.0),
+    )
+    alpha: float | None = _key(
+        "float",
+        None,
+        "the paper's raw learning rate for every rule (None: each rule's default rate)",
+        check=_positive,
+    )
+    optimum: bool = _key(
+        "bool",
+        True,
+        "compute every draw's bounded optimum (what the task allows; feasibility)",
     )
     ratio: float = _key(
         "float",

@@ -24,6 +24,12 @@ from .keys import (
 )
 
 
+#: the raw-rate keys: every kind but beyond_paper, which uses the package's default rates
+_NOT_BEYOND = _when(
+    lambda s: s.kind != "beyond_paper", "outside beyond_paper (it uses the default rates)"
+)
+
+
 @dataclass(frozen=True)
 class NetworkSpec:
     """``[network]``: which network to build.
@@ -57,7 +63,7 @@ class NetworkSpec:
         "list[int]",
         None,
         "n x n triangular lattices, one per entry (transmission, relaxation, solvers, "
-        "physical_time; beyond_paper: the first hosts Stern's task, all the capacity study)",
+        "physical_time; beyond_paper: the largest hosts the single-network studies, all the capacity study)",
         check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
         used=_kinds("transmission", "relaxation", "solvers", "beyond_paper", "physical_time"),
     )
@@ -186,7 +192,9 @@ class LearningSpec:
         "'current' (the paper's literal S = r / L - 1 with the learning L)",
         choices=("initial", "current"),
     )
-    alpha_gcl: float = _key("float", 1e-3, "GCL learning rate", check=_positive)
+    alpha_gcl: float = _key(
+        "float", 1e-3, "GCL learning rate", check=_positive, used=_NOT_BEYOND
+    )
     eta: float = _key("float", 0.1, "GCL nudge amplitude", check=_positive)
     etas: tuple[float, ...] = _key(
         "list[float]",
@@ -202,7 +210,9 @@ class LearningSpec:
             "by learning scenes with a GCL rule and beyond_paper scenes",
         ),
     )
-    alpha_gpc: float = _key("float", 1e-3, "GPC learning rate", check=_positive)
+    alpha_gpc: float = _key(
+        "float", 1e-3, "GPC learning rate", check=_positive, used=_NOT_BEYOND
+    )
     alpha_exact: float = _key(
         "float",
         1.0,
@@ -216,8 +226,9 @@ class LearningSpec:
         "directed-aging rate (aging, aging_k)",
         check=_positive,
         used=_when(
-            lambda s: any(r.startswith("aging") for r in s.learning.rules),
-            "with rules aging or aging_k",
+            lambda s: s.kind != "beyond_paper"
+            and any(r.startswith("aging") for r in s.learning.rules),
+            "with rules aging or aging_k (beyond_paper uses the default rates)",
         ),
     )
     temperatures: tuple[float, ...] = _key(
@@ -226,6 +237,15 @@ class LearningSpec:
         "temperatures k_B T of the thermal study (every state read as a harmonic Boltzmann "
         "draw), one GCL run per nudge of etas and one exact-gradient run per entry",
         check=_all(_unique_nonempty, _each(_non_negative), _increasing),
+        used=_kinds("beyond_paper"),
+    )
+    compare_tasks: tuple[str, ...] = _key(
+        "list[str]",
+        ("paper", "lattice"),
+        "beyond_paper: the tasks every rule is compared on ('paper': the paper's network "
+        "and task; 'lattice': Rocks et al.'s allosteric task on the first lattice)",
+        choices=("paper", "lattice"),
+        check=_unique_nonempty,
         used=_kinds("beyond_paper"),
     )
     examples: tuple[int, ...] = _key(
@@ -295,6 +315,21 @@ class LearningSpec:
     )
     checkpoint_every: int = _key(
         "int", 25, "steps between checkpoints", check=_at_least(1), used=_kinds("learning")
+    )
+    paper_setting: bool = _key(
+        "bool",
+        False,
+        "paper task: the runs of the author's notebooks, each rule in its own convention "
+        "(GCL of both signs against the learning L, GPC against fixed rods, sources frozen; "
+        "learning.paper_setting)",
+        used=_when(lambda s: s.task.kind == "paper", "by the paper task"),
+    )
+    steps_gpc: int = _key(
+        "int",
+        0,
+        "learning steps of the GPC runs (0: steps)",
+        check=_non_negative,
+        used=_when(lambda s: s.task.kind == "paper", "by the paper task"),
     )
 
 

@@ -269,6 +269,36 @@ class PhysicalTimeSpec:
         "one per size",
         check=_all(lambda v: None if v else "must list at least one entry", _each(_at_least(1))),
     )
+    dof: str = _key(
+        "str",
+        "rest_length",
+        "what learns: rest_length (Stern task, raw rate alpha, rho = alpha k tau) or "
+        "stiffness (Rocks' response task from [physical_time] response_ratio, source_strain "
+        "and distance; GCL's adaptive rate; rho = tau / T_qs)",
+        choices=("rest_length", "stiffness"),
+    )
+    response_ratio: float = _key(
+        "float",
+        0.3,
+        "dof = stiffness: target strain / source strain asked for (sign alternating with the "
+        "draw)",
+        check=_positive,
+        used=_when(lambda s: s.physical_time.dof == "stiffness", "with dof = 'stiffness'"),
+    )
+    source_strain: float = _key(
+        "float",
+        0.05,
+        "dof = stiffness: source strain",
+        check=_positive,
+        used=_when(lambda s: s.physical_time.dof == "stiffness", "with dof = 'stiffness'"),
+    )
+    distance: float = _key(
+        "float",
+        0.25,
+        "dof = stiffness: source-target distance in box sizes",
+        check=_open_unit,
+        used=_when(lambda s: s.physical_time.dof == "stiffness", "with dof = 'stiffness'"),
+    )
     eta: float = _key(
         "float",
         0.1,
@@ -323,6 +353,6 @@ class ReportSpec:
         "bool",
         False,
         "pyvista off-screen renders",
-        used=_kinds("learning", "transmission", "relaxation", "continuum_learning"),
+        used=_kinds("learning", "transmission", "relaxation", "continuum_learning", "continuum_mechanism"),
     )
     dpi: int = _key("int", 90, "resolution of the figures", check=_between(40, 300))

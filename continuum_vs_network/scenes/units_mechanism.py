@@ -1,0 +1,243 @@
+"""Units of a ``continuum_mechanism`` scene: a material that learns a mechanism.
+
+The body, the allosteric 1 -> 1 task and the force inverter are those of
+:mod:`continuum_vs_network.continuum.mechanism` (``[mechanism]`` sets them); the modulus
+field learns through the density filter of :mod:`continuum_vs_network.continuum.filtered`
+(radius ``filter_radius``), starting uniform (``s = 1``), within the stiffness range.
+
+* ``continuum_mechanism/learn/refine<r>/<rule>/<rate>``: the rule object (``gcl``:
+  ``CoupledLearning(dof="modulus")``, ``exact``: ``ExactGradient(dof="modulus")``) at the rate
+  (``adaptive``: the package's Adam rate, step ``adaptive_step``; ``scaled``: the raw rate
+  fixed at the first step, ``scaled_step``) for ``steps`` steps on the mesh ``h / 2^r``.
+  Arrays: ``error`` (steps + 1,) C/C0, ``seconds`` and ``solves`` (cumulative), ``field``
+  (n_elements,) the learned modulus, ``coarse`` the same averaged onto the ``r = 0`` mesh,
+  ``points``, ``triangles``, ``area``, ``frozen``. Meta: final C/C0, first step at
+  C/C0 <= 1e-3, the response ratio ``S_T / S_S`` reached, the rest example's error, the
+  source share and its verdict.
+* ``continuum_mechanism/optimum/refine<r>``: the exact optimum (:func:`~continuum_vs_network.
+  continuum.field_optimum.field_optimum`) of the same medium and task.
+* ``continuum_mechanism/simp``: SIMP (penalty 3, density filter of the same radius, MMA when
+  nlopt is installed, else OC) on the same task and the ``r = 0`` mesh, its modulus
+  ``e_min + x^3 (e_max - e_min)`` spanning the learning's stiffness range (``1e-2 .. 1e2``);
+  ``continuum_mechanism/simp_solid``: the textbook's SIMP, whose solid is the body's own
+  material (``1e-4 .. 1``)
+  (:func:`~continuum_vs_network.continuum.topology.simp_allosteric`).
+* ``continuum_mechanism/inverter``: SIMP on Sigmund's force inverter
+  (:func:`~continuum_vs_network.continuum.topology.simp_inverter`).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from .schema import Scene
+from .units import Unit, UnitContext
+
+__all__ = ["LEVEL", "plan_mechanism"]
+
+#: C/C0 level of "learned" (the allostery scene's, Rocks et al.)
+LEVEL = 1e-3
+
+
+def _spec(scene: Scene):
+    m = scene.mechanism
+    assert m is not None
+    return m
+
+
+def build(scene: Scene, refine: int):
+    """The learnable body, task and filtered medium of the mesh ``h / 2^refine``."""
+    from ..continuum.filtered import filtered_modulus
+    from ..continuum.learnable import learnable_body
+    from ..continuum.materials import Material
+    from ..continuum.mechanism import allosteric_task, mechanism_mesh
+
+    m = _spec(scene)
+    material = Material.from_young(1.0, 0.3, plane="stress")
+    body = learnable_body(mechanism_mesh(m.width, m.height, m.h, refine=refine), material)
+    task = allosteric_task(
+        body, source=m.source, target=m.target, gap=m.gap, radius=m.end_radius,
+        source_strain=m.source_strain, ratio=m.ratio,
+    )  # fmt: skip
+    return body, task, filtered_modulus(body, m.filter_radius, task=task)
+
+
+def plan_mechanism(scene: Scene) -> list[Unit]:
+    m = _spec(scene)
+    depends = {k: getattr(m, k) for k in m.__dataclass_fields__}
+    units = [Unit("continuum_mechanism/inverter", inverter_unit, {}, depends)]
+    units.append(Unit("continuum_mechanism/simp", simp_unit, {"solid": False}, depends))
+    units.append(Unit("continuum_mechanism/simp_solid", simp_unit, {"solid": True}, depends))
+    for r in range(m.refine + 1):
+        if r <= m.optimum_refine:
+            units.append(
+                Unit(f"continuum_mechanism/optimum/refine{r}", optimum_unit, {"refine": r}, depends)
+            )
+        for rule in m.rules:
+            for rate in m.rates:
+                p = {"refine": r, "rule": rule, "rate": rate}
+                units.append(
+                    Unit(
+                        f"continuum_mechanism/learn/refine{r}/{rule}/{rate}",
+                        learn_unit,
+                        p,
+                        depends,
+                        weight=m.steps,
+                    )
+                )
+    return units
+
+
+def _rule(scene: Scene, rule: str, rate: str):
+    from ..learning.rates import Adaptive, Scaled
+    from ..learning.rules import CoupledLearning, ExactGradient
+
+    m = _spec(scene)
+    r = Adaptive(step=m.adaptive_step) if rate == "adaptive" else Scaled(step=m.scaled_step)
+    cls = CoupledLearning if rule == "gcl" else ExactGradient
+    return cls(dof="modulus", rate=r)
+
+
+def _mesh_arrays(body, field, coarse_body) -> dict[str, Any]:
+    from ..continuum.learned_fields import coarse_average
+
+    return {
+        "field": np.asarray(field),
+        "coarse": coarse_average(field, body, coarse_body)
+        if coarse_body is not body
+        else np.asarray(field),
+        "points": body.body.mesh.p.T,
+        "triangles": body.body.mesh.t.T,
+        "area": body.area,
+    }
+
+
+def _response(medium, task) -> float:
+    return float(medium.free_state(task).target_strain[0] / task.source_strain[0])
+
+
+def learn_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """Train the filtered modulus field with one rule and rate (see the module)."""
+    from ..continuum.mechanism import rest_example
+    from ..learning.coupling import body_source_share, coupling_verdict, outcome
+    from ..learning.metrics import first_below
+    from ..learning.train import train
+
+    m = _spec(scene)
+    body, task, medium = build(scene, params["refine"])
+    coarse_body = body if params["refine"] == 0 else build(scene, 0)[0]
+    rule = _rule(scene, params["rule"], params["rate"])
+    h = train(medium, task, rule, m.steps, progress=False)
+    err = h.error_initial[0] / h.error_initial[0, 0]
+    trained = h.final[0]
+    share = body_source_share(medium, trained, task)
+    verdict = coupling_verdict(share)
+    rest = rest_example(task)
+    arrays = {
+        "error": err,
+        "seconds": np.asarray(h.seconds[0], dtype=float),
+        "solves": np.asarray(h.solves[0], dtype=float),
+        "frozen": ~trained.learning_mask(task, learn_sources=False, learn_targets=False),
+        **_mesh_arrays(body, trained.modulus, coarse_body),
+    }
+    meta = {
+        **params,
+        "ratio": float(err[-1]),
+        "first_below": first_below(err, LEVEL),
+        "response": _response(trained, task),
+        "response_initial": _response(medium, task),
+        "asked": float(m.ratio),
+        "rest_error": float(rest.error(trained.free_state(rest).target_strain)),
+        "source_share": float(share),
+        "coupling": verdict,
+        "outcome": outcome(float(err[-1]), verdict),
+        "n_elements": int(body.n_elements),
+        "seconds": float(arrays["seconds"][-1]),
+        "solves": float(arrays["solves"][-1]),
+        "contrast": float(trained.modulus.max() / trained.modulus.min()),
+    }
+    return arrays, meta
+
+
+def optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """The exact optimum of the filtered modulus field (L-BFGS-B, adjoint gradient)."""
+    from ..continuum.field_optimum import field_optimum
+
+    body, task, medium = build(scene, params["refine"])
+    coarse_body = body if params["refine"] == 0 else build(scene, 0)[0]
+    o = field_optimum(medium, task)
+    arrays = {
+        "error": o.errors,
+        "seconds": o.times,
+        **_mesh_arrays(body, o.medium.modulus, coarse_body),
+    }
+    meta = {
+        **params, "ratio": o.ratio, "evaluations": o.evaluations, "solves": o.evaluations,
+        "seconds": o.seconds, "converged": o.converged, "message": o.message,
+        "contrast": o.contrast, "response": _response(o.medium, task),
+        "n_elements": int(body.n_elements),
+    }  # fmt: skip
+    return arrays, meta
+
+
+def simp_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """SIMP on the allosteric task, on the coarsest mesh: over the learning's stiffness
+    range, or (``solid``) the textbook's ``1e-4 .. 1``."""
+    from ..continuum.topology import simp_allosteric
+    from ..learning.ranges import STIFFNESS_RANGE
+
+    m = _spec(scene)
+    body, task, _ = build(scene, 0)
+    e_min, e_max = (1e-4, 1.0) if params["solid"] else STIFFNESS_RANGE
+    r = simp_allosteric(
+        body, task, volfrac=m.volfrac, radius=m.filter_radius, iterations=m.simp_iterations,
+        e_min=e_min, e_max=e_max,
+    )
+    arrays = {
+        "error": r.objective,
+        "seconds": r.times,
+        "density": r.density,
+        **_mesh_arrays(body, r.modulus, body),
+    }
+    meta = {
+        "ratio": float(r.objective[-1]), "solves": r.solves, "seconds": r.seconds,
+        "iterations": r.iterations, "volume": r.volume, "method": r.method,
+        "e_min": e_min, "e_max": e_max,
+        "response": _response(body.with_modulus(r.modulus), task),
+        "n_elements": int(body.n_elements),
+    }  # fmt: skip
+    return arrays, meta
+
+
+def inverter_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """SIMP + OC on Sigmund's force inverter (half model 2 x 1, symmetry at the top)."""
+    from ..continuum.learnable import learnable_body
+    from ..continuum.materials import Material
+    from ..continuum.mechanism import inverter_layout, mechanism_mesh
+    from ..continuum.topology import simp_inverter
+
+    m = _spec(scene)
+    t0 = time.perf_counter()
+    body = learnable_body(
+        mechanism_mesh(2.0, 1.0, m.inverter_h), Material.from_young(1.0, 0.3, plane="stress")
+    )
+    layout = inverter_layout(body)
+    r, u_in = simp_inverter(
+        body, layout, radius=m.inverter_radius, iterations=m.inverter_iterations
+    )
+    arrays = {
+        "output": r.objective,
+        "seconds": r.times,
+        "density": r.density,
+        **_mesh_arrays(body, r.density, body),
+    }
+    meta = {
+        "u_out": float(r.objective[-1]), "u_out_initial": float(r.objective[0]), "u_in": u_in,
+        "advantage": float(-r.objective[-1] / u_in), "volume": r.volume, "solves": r.solves,
+        "seconds": time.perf_counter() - t0, "n_elements": int(body.n_elements),
+        "k_in": layout.k_in, "k_out": layout.k_out, "force": layout.force,
+    }  # fmt: skip
+    return arrays, meta
