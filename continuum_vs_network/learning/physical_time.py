@@ -12,7 +12,9 @@ step under the clamps, the rule's local update per spring or element) is in
 :mod:`.time_media`. The rule objects supply ``alpha``, ``eta``,
 ``dof``, the learning mask and floors, and the strain convention; ``alpha`` is a rate (per
 time unit), so one quasi-static step of the rule with rate ``alpha`` is one explicit-Euler
-step of length 1 of the ODE.
+step of length 1 of the ODE. A rule without ``alpha`` (GCL's default adaptive rate) learns
+at one adaptive step per ``step_time`` (:class:`~.time_media.AdaptiveClock`): with
+``dt = step_time`` the quasi-static run is :func:`~.train.train`'s, step for step.
 
 Forms (``form``)
 ----------------
@@ -223,6 +225,7 @@ def learn_in_time(
     n_outputs: int = 50,
     quasistatic: bool = False,
     tol: float = 1e-10,
+    step_time: float | None = None,
 ) -> TimeHistory:
     """Learn ``task`` with ``rule`` while the medium moves (module docstring).
 
@@ -253,6 +256,9 @@ def learn_in_time(
         Equilibrium instead of dynamics at every physical step.
     tol : float
         Relative force tolerance of every step (and equilibrium).
+    step_time : float, optional
+        A rule without ``alpha`` (an adaptive rate): physical time of one adaptive step
+        (> 0; required then, ignored with ``alpha``).
     """
     if isinstance(rule, ExactGradient):
         raise ValueError("the exact gradient stays quasi-static: use train(), not learn_in_time")
@@ -282,10 +288,10 @@ def learn_in_time(
                 "sources and targets must not share nodes"
             )
         media: NetworkTime | BodyTime = NetworkTime(
-            net, task, rule, viscosity, dt, quasistatic, tol
+            net, task, rule, viscosity, dt, quasistatic, tol, step_time
         )
     elif is_medium(net):
-        media = BodyTime(net, task, rule, viscosity, dt, quasistatic, tol)
+        media = BodyTime(net, task, rule, viscosity, dt, quasistatic, tol, step_time)
     else:
         raise ValueError(
             f"net must be a SpringNetwork or a learning medium, got {type(net).__name__}"

@@ -14,6 +14,14 @@ every medium; a medium adapter supplies
 * ``error(medium)``: Eq. 26 at the equilibrium free state; ``positions`` and
   ``learning_arrays`` for the record.
 
+A rule with a raw rate ``alpha`` (per time unit) steps ``alpha dt_learn`` times its line. A
+rule without one (``alpha=None``, an :class:`~.rates.Adaptive` rate: GCL's default) learns
+with :class:`AdaptiveClock`, the package's per-spring Adam rate in physical time: one
+adaptive step per ``step_time`` of physical time, a learning step of length ``dt_learn``
+taking ``dt_learn / step_time`` of a step (with ``dt_learn = step_time`` it is
+:func:`~.train.train`'s step exactly). A spring (an element's modulus) reads only its own
+history, as in :mod:`.rates`.
+
 :class:`NetworkTime` steps a :class:`~..network.model.SpringNetwork` with
 :class:`~..network.viscous.Stepper` (drag, dashpots, Maxwell arms); :class:`BodyTime` a
 learning medium (:class:`~..continuum.learnable.LearnableBody`) with the medium's
@@ -33,9 +41,71 @@ from ..network.dynamics import _boundary
 from ..network.model import SpringNetwork
 from ..network.viscous import Stepper, Viscosity
 from .medium import check_rule_on_medium
+from .ranges import clip_to_range
+from .rates import NOISE, Adaptive
 from .rules import ProspectiveConfiguration, Step
 
-__all__ = ["BodyTime", "NetworkTime", "held_free_state"]
+__all__ = ["AdaptiveClock", "BodyTime", "NetworkTime", "held_free_state"]
+
+
+class AdaptiveClock:
+    """The adaptive (Adam) rate of :class:`~.rates.Adaptive` in physical time.
+
+    Each learning step of length ``dt_learn`` is ``u = dt_learn / step_time`` adaptive
+    steps: the running averages decay by ``beta1**u`` and ``beta2**u``, the bias
+    corrections use the steps elapsed (a real number), and the change is ``step * u *
+    scale * m_hat / sqrt(v_hat)``. With ``u = 1`` every step is
+    :meth:`~.rates.Adaptive.delta`'s.
+
+    Parameters
+    ----------
+    rate : Adaptive
+    initial : (n,) float array
+        The learning dofs at the start (the physical range is relative to them).
+    scale : float
+        The dof's scale (the mean initial stiffness or modulus; a rest length's: the task's
+        largest strain times the mean initial rest length).
+    step_time : float
+        Physical time of one adaptive step (> 0).
+    """
+
+    def __init__(self, rate: Adaptive, initial: NDArray, scale: float, step_time: float) -> None:
+        self.rate, self.scale, self.step_time = rate, float(scale), float(step_time)
+        self.initial = np.array(initial, dtype=np.float64)
+        self.first = np.zeros_like(self.initial)
+        self.second = np.zeros_like(self.initial)
+        self.elapsed = 0.0
+
+    def delta(self, line: NDArray, dt_learn: float) -> NDArray:
+        """The change of the dofs over one learning step from the rule's line (alpha = 1)."""
+        r, u = self.rate, float(dt_learn) / self.step_time
+        b1, b2 = r.beta1**u, r.beta2**u
+        self.first = b1 * self.first + (1.0 - b1) * line
+        self.second = b2 * self.second + (1.0 - b2) * line * line
+        self.elapsed += u
+        m_hat = self.first / (1.0 - r.beta1**self.elapsed)
+        root = np.sqrt(self.second / (1.0 - r.beta2**self.elapsed))
+        floor = NOISE * np.max(root, initial=0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            direction = np.where(root > 0, m_hat / np.maximum(root + floor, 1e-300), 0.0)
+        return r.step * u * self.scale * direction
+
+
+def _clock(rule, initial: NDArray, scale: float, step_time: float | None):
+    """The rule's :class:`AdaptiveClock` (None for a raw rate ``alpha``)."""
+    rate = rule.adaptive
+    if rate is None:
+        return None
+    if not isinstance(rate, Adaptive):
+        raise ValueError(
+            f"{rule.name}: learning in time takes a raw alpha or an Adaptive rate, got "
+            f"{type(rate).__name__}; give alpha"
+        )
+    if step_time is None or not (np.isfinite(step_time) and step_time > 0):
+        raise ValueError(
+            f"step_time must be > 0 for a rule without alpha (an adaptive rate), got {step_time}"
+        )
+    return AdaptiveClock(rate, initial, scale, step_time)
 
 
 def _equilibrium_stepper(net: SpringNetwork, free: NDArray, tol: float) -> Stepper:
@@ -83,12 +153,23 @@ class _Copy:
 class NetworkTime:
     """A spring network in time (module docstring); ``viscosity``: a network Viscosity."""
 
-    def __init__(self, net, task, rule, viscosity, dt, quasistatic, tol) -> None:
+    def __init__(self, net, task, rule, viscosity, dt, quasistatic, tol, step_time=None) -> None:
         if not isinstance(viscosity, Viscosity):
             raise ValueError(f"viscosity must be a Viscosity, got {type(viscosity).__name__}")
         self.task, self.ref, self.vis = task, rule.strain_reference, viscosity
         self.dt, self.quasistatic, self.tol = dt, quasistatic, tol
         self._free_eq = None
+        self.clock = None
+        if rule.adaptive is not None:
+            from .rule_base import _strain_scale
+
+            if rule.dof not in ("stiffness", "rest_length"):
+                raise ValueError("an adaptive rate in time learns stiffness or rest_length")
+            values = net.stiffness if rule.dof == "stiffness" else net.rest_length
+            scale = float(np.mean(values))
+            if rule.dof == "rest_length":
+                scale *= _strain_scale(task)
+            self.clock = _clock(rule, values, scale, step_time)
 
     def _clamps(self, net, target_strain):
         task, ref = self.task, self.ref
@@ -122,8 +203,23 @@ class NetworkTime:
 
     def update(self, rule, net, free, clamped, dt_learn) -> SpringNetwork:
         """GPC: ``L += (1 - exp(-alpha k dt)) (r^C - L)`` (exact for lengths held over the
-        step) or ``k -= alpha dt (r^C - L)^2 / 2``; GCL: forward Euler of Eq. 13-15."""
+        step) or ``k -= alpha dt (r^C - L)^2 / 2``; GCL: forward Euler of Eq. 13-15. Under
+        an adaptive rate (:class:`AdaptiveClock`) the line (``alpha = 1``, masked) steps
+        through the clock and the physical range of the rule applies, as in training."""
         k, L = net.stiffness, net.rest_length
+        clock = self.clock
+        if clock is not None:
+            if isinstance(rule, ProspectiveConfiguration):
+                line = (
+                    (k * (clamped - L)) if rule.dof == "rest_length" else -0.5 * (clamped - L) ** 2
+                )
+            elif rule.dof == "rest_length":
+                line = (1.0 / rule.eta) * k * (clamped - free)
+            else:
+                line = (1.0 / (2 * rule.eta)) * ((free - L) ** 2 - (clamped - L) ** 2)
+            raw = clock.delta(rule._delta(net, self.task, line), dt_learn)
+            delta = rule._bounded(net, rule.dof, raw, clock.initial)
+            return Step(delta=delta, dof=rule.dof, free=None, clamped=None).apply(net)
         if isinstance(rule, ProspectiveConfiguration):
             if rule.dof == "rest_length":
                 raw = -np.expm1(-rule.alpha * k * dt_learn) * (clamped - L)
@@ -139,7 +235,10 @@ class NetworkTime:
 
     def rate_bound(self, rule, net) -> float:
         """``alpha k_max``: forward-Euler learning needs ``rate_bound * dt_learn <= 1``
-        (0 for GPC's exact rest-length update)."""
+        (0 for GPC's exact rest-length update and for an adaptive rate, whose step is
+        bounded by its ``step``)."""
+        if self.clock is not None:
+            return 0.0
         if isinstance(rule, ProspectiveConfiguration) and rule.dof == "rest_length":
             return 0.0
         return rule.alpha * float(np.max(net.stiffness))
@@ -174,7 +273,7 @@ class BodyTime:
     (or a network Viscosity, mapped by
     :func:`~continuum_vs_network.continuum.viscoelastic.lattice_damping`)."""
 
-    def __init__(self, medium, task, rule, viscosity, dt, quasistatic, tol) -> None:
+    def __init__(self, medium, task, rule, viscosity, dt, quasistatic, tol, step_time=None) -> None:
         if isinstance(viscosity, Viscosity):
             from ..continuum.viscoelastic import lattice_damping
 
@@ -188,6 +287,15 @@ class BodyTime:
         self.task = task
         self.stepper = medium.damped_stepper(task, viscosity, np.inf if quasistatic else dt)
         self.ref = "initial"
+        self.clock = None
+        if rule.adaptive is not None:
+            if medium.learning_dof(rule.dof) != "modulus":
+                raise ValueError(
+                    "an adaptive rate in time serves a continuum's modulus field only; give "
+                    "alpha for its eigenstrain"
+                )
+            values = medium.parameters("modulus")
+            self.clock = _clock(rule, values, float(np.mean(values)), step_time)
 
     def copy(self, medium, target_strain, start=None):
         if start is None:
@@ -208,23 +316,32 @@ class BodyTime:
         return self.stepper.target_strain(reading)
 
     def update(self, rule, medium, free, clamped, dt_learn):
-        """Forward Euler of the rule's local update per element (:mod:`.medium`)."""
+        """Forward Euler of the rule's local update per element (:mod:`.medium`); under an
+        adaptive rate the line (``alpha = 1``) steps through :class:`AdaptiveClock`, then
+        the floor and the rule's stiffness range, as in training."""
         dof = rule.dof
         state = SimpleNamespace(u=clamped)
+        clock = self.clock
+        alpha = 1.0 if clock is not None else rule.alpha * dt_learn
         if isinstance(rule, ProspectiveConfiguration):
-            raw = -rule.alpha * dt_learn * medium.local_gradient(state, dof)
+            raw = -alpha * medium.local_gradient(state, dof)
         else:
             minus = SimpleNamespace(u=free)
-            rate = rule.alpha / rule.eta * dt_learn
-            raw = -rate * medium.local_gradient(state, dof, minus=minus)
+            raw = -alpha / rule.eta * medium.local_gradient(state, dof, minus=minus)
         mask = rule.learning_mask(medium, self.task)
         raw = np.where(mask if raw.ndim == 1 else mask[:, None], raw, 0.0)
+        if clock is not None:
+            raw = clock.delta(raw, dt_learn)
         delta = medium.floor(dof, raw, rule.min_stiffness)
+        if clock is not None:
+            delta = clip_to_range(medium.modulus, delta, clock.initial, rule.stiffness_range)
         return Step(delta=delta, dof=dof, free=None, clamped=None).apply(medium)
 
     def rate_bound(self, rule, medium) -> float:
         """``alpha`` times the largest eigenvalue of ``s_e C_e`` (Mandel form: ``2 (lam +
         mu)`` or ``2 mu``): forward Euler needs ``rate_bound * dt_learn <= 1``."""
+        if self.clock is not None:
+            return 0.0
         lam, mu = np.asarray(medium.body.lam), np.asarray(medium.body.mu)
         c = np.maximum(2 * (lam + mu), 2 * mu) * np.ones(medium.n_elements)
         return rule.alpha * float(np.max(medium.modulus * c))

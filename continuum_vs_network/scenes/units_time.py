@@ -80,6 +80,8 @@ def plan_time(scene: Scene) -> list[Unit]:
     and medium, the largest sizes first (the longest units start first)."""
     from .units_time_coupling import coupling_rule
 
+    if scene.physical_time.dof == "stiffness" and "gpc" in scene.physical_time.rules:
+        _rule("gpc", None, scene.physical_time.eta, "stiffness")  # raises: GPC cannot learn k
     d = scene.to_dict()
     depends = {k: d[k] for k in ("seed", "network", "task", "physical_time") if k in d}
     sizes = [int(n) for n in scene.network.sizes]
@@ -166,10 +168,19 @@ def critical_bracket(ratios, past) -> tuple[float, float, int]:
     return float(r[i]), hi, int(np.count_nonzero(p[:i]))
 
 
-def _rule(name: str, alpha: float, eta: float):
+def _rule(name: str, alpha: float | None, eta: float, dof: str = "rest_length"):
+    """The rule object: raw rate ``alpha`` (rest lengths), or GCL's default adaptive rate
+    (``alpha`` None, stiffnesses)."""
     from ..learning.rules import CoupledLearning, ProspectiveConfiguration
 
     kw = {"strain_reference": "initial", "learn_sources": False, "learn_targets": False}
+    if dof == "stiffness":
+        if name == "gpc":
+            raise ValueError(
+                "[physical_time] rules: gpc does not learn stiffnesses (its line -(r^C - L)^2 "
+                "/ 2 is <= 0 for every spring); use gcl and gcl_phases with dof = 'stiffness'"
+            )
+        return CoupledLearning(None, eta, dof="stiffness", **kw)
     if name == "gpc":
         return ProspectiveConfiguration(alpha, **kw)
     return CoupledLearning(alpha, eta, **kw)
@@ -178,16 +189,25 @@ def _rule(name: str, alpha: float, eta: float):
 def _lattice_task(scene: Scene, n: int, draw: int = 0):
     """The lattice and task draw ``draw`` (generator ``(seed, n)`` for draw 0, ``(seed, n,
     draw)`` after)."""
+    from ..learning.allostery import allostery_task
     from ..learning.tasks import stern_task
     from .units_physics import lattice
 
-    t = scene.task
+    t, spec = scene.task, scene.physical_time
     net = lattice(scene, n)
     rng = np.random.default_rng([scene.seed, n] + ([draw] if draw else []))
     for _ in range(200):  # clamps are held end nodes: sources and targets share no node
-        task = stern_task(
-            net, t.n_sources, t.n_targets, rng, source_std=t.source_std, target_std=t.target_std
-        )
+        if spec.dof == "stiffness":
+            task = allostery_task(
+                net, rng, n_sources=t.n_sources, n_targets=t.n_targets,
+                ratio=spec.response_ratio * (-1.0 if draw % 2 else 1.0),
+                source_strain=spec.source_strain, distance=spec.distance,
+            )  # fmt: skip
+        else:
+            task = stern_task(
+                net, t.n_sources, t.n_targets, rng, source_std=t.source_std,
+                target_std=t.target_std,
+            )  # fmt: skip
         ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()
         if np.unique(ends).size == ends.size:
             return net, task
@@ -230,10 +250,15 @@ def task_unit(scene: Scene, params: dict, ctx: UnitContext):
     vis = _viscosity(scene)
     meta: dict[str, Any] = {"n": n, "draw": draw, "n_nodes": net.n_nodes, "kind": "task"}
     for medium in scene.physical_time.media:
+        reference: dict[str, Any] = {}
         if medium == "network":
             tau, tau_force = (
                 network_relaxation_time(net, task, vis, measure=m) for m in ("target", "force")
             )
+            if scene.physical_time.dof == "stiffness":
+                from .units_time_reference import reference_run
+
+                reference = reference_run(scene, net, task, medium, vis)
         else:
             from ..continuum.damped_states import body_relaxation_time
             from ..continuum.viscoelastic import lattice_damping
@@ -243,7 +268,11 @@ def task_unit(scene: Scene, params: dict, ctx: UnitContext):
             tau, tau_force = (
                 body_relaxation_time(body, mtask, damping, measure=m) for m in ("target", "force")
             )
-        meta[medium] = {"tau": float(tau), "tau_force": float(tau_force)}
+            if scene.physical_time.dof == "stiffness":
+                from .units_time_reference import reference_run
+
+                reference = reference_run(scene, body, mtask, medium, vis)
+        meta[medium] = {"tau": float(tau), "tau_force": float(tau_force), **reference}
     arrays = {
         "sources": task.sources,
         "source_strain": task.source_strain,
@@ -255,8 +284,9 @@ def task_unit(scene: Scene, params: dict, ctx: UnitContext):
 
 
 def _medium(scene: Scene, params: dict, ctx: UnitContext):
-    """``(learner, task, tau, tau_force, n_nodes)`` from the task unit of this size and
-    draw: the lattice, or its continuum."""
+    """``(learner, task, times, n_nodes)`` from the task unit of this size and draw: the
+    lattice, or its continuum, and the medium's stored times (``tau``, ``tau_force`` and,
+    learning stiffnesses, the reference's ``steps_qs`` and ``learned``)."""
     from ..learning.tasks import AllosteryTask
     from .units_physics import lattice
 
@@ -268,7 +298,7 @@ def _medium(scene: Scene, params: dict, ctx: UnitContext):
         pinned=a["pinned"],
     )  # fmt: skip
     learner, learn_task = (net, task) if params["medium"] == "network" else _body(net, task)
-    return learner, learn_task, times["tau"], times["tau_force"], net.n_nodes
+    return learner, learn_task, times, net.n_nodes
 
 
 def _past(row: dict) -> bool:
@@ -284,22 +314,40 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     spec = scene.physical_time
     n, name, medium = params["n"], params["rule"], params.get("medium", "network")
     vis = _viscosity(scene)
-    net, task, tau, tau_force, n_nodes = _medium(scene, params, ctx)
-    k = 1.0  # the lattice's spring stiffness: rho = alpha k tau in both media
+    net, task, times_meta, n_nodes = _medium(scene, params, ctx)
+    tau, tau_force = times_meta["tau"], times_meta["tau_force"]
+    adaptive = spec.dof == "stiffness"
+    if adaptive and not times_meta.get("learned", False):
+        from .units_time_reference import not_learned_meta
+
+        return {}, not_learned_meta(params, n_nodes, name, medium, times_meta)
+    # the learning time unit: 1 / (alpha k) (raw rate, k = 1: rho = alpha k tau = tau /
+    # unit) or the time of one adaptive step, whose largest relative change of k is
+    # ``step`` (rho = step tau / unit: tau over the time in which a stiffness may change
+    # by its own size); c: the quasi-static run's learning window unit (1 for the raw
+    # rate, steps_qs adaptive steps), so the runs last learning_times quasi-static times
+    from ..learning.rates import Adaptive
+
+    s_rate = Adaptive().step if adaptive else 1.0
+    c = float(times_meta["steps_qs"]) if adaptive else 1.0
+    k = 1.0
     qs_cache: dict[tuple, tuple] = {}
 
     def one(ratio: float) -> tuple[dict, dict]:
-        alpha = ratio / (k * tau)
-        rule = _rule(name, alpha, spec.eta)
-        dt = min(tau / spec.steps_per_tau, 1.0 / (spec.steps_per_rate * alpha * k))
+        unit = s_rate * tau / ratio
+        alpha = None if adaptive else 1.0 / (k * unit)
+        rule = _rule(name, alpha, spec.eta, spec.dof)
+        dt = min(tau / spec.steps_per_tau, unit / spec.steps_per_rate)
         opts: dict[str, Any] = {"form": "twin"} if name == "gcl" else {}
         if name == "gcl_phases":
-            phase = min(spec.phase * tau, 0.5 / (spec.steps_per_rate * alpha * k))
+            phase = min(spec.phase * tau, 0.5 * unit / spec.steps_per_rate)
             dt = min(dt, phase)
             opts = {"form": "phases", "phase": phase}
-        t_learn = spec.learning_times / (alpha * k)
+        if adaptive:
+            opts["step_time"] = unit
+        t_learn = spec.learning_times * c * unit
         duration = max(t_learn, spec.relaxation_times * tau)
-        longest = max(spec.learning_times, spec.relaxation_times * max(spec.ratios))
+        longest = max(c * spec.learning_times, spec.relaxation_times * max(spec.ratios) / s_rate)
         outputs = min(300, max(20, round(60 * duration / t_learn)))
         t0 = time.perf_counter()
         try:
@@ -312,12 +360,12 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         # the quasi-static run depends on alpha only through the time unit 1 / (alpha k):
         # one run per learning step in those units, over the longest window any ratio needs
         # (learning units), every step recorded, rescaled and cut to each run's window
-        key = (round(alpha * k * dt, 12), round(alpha * k * opts.get("phase", 0.0), 12))
+        key = (round(dt / unit, 12), round(opts.get("phase", 0.0) / unit, 12))
         if key not in qs_cache:
-            steps = math.ceil(longest / (alpha * k * dt) - 1e-9)
+            steps = math.ceil(longest * unit / dt - 1e-9)
             try:
                 qs = learn_in_time(
-                    net, task, rule, viscosity=vis, duration=longest / (alpha * k), dt=dt,
+                    net, task, rule, viscosity=vis, duration=longest * unit, dt=dt,
                     n_outputs=steps, quasistatic=True, **opts,
                 )  # fmt: skip
             except (LearningError, RuntimeError) as err:
@@ -326,22 +374,24 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
                     "step is too long; raise [physical_time] steps_per_rate"
                 ) from err
             qs_cache[key] = (
-                qs.times * alpha * k, qs.error / qs.error[0], qs.dt_learn * alpha * k,
+                qs.times / unit, qs.error / qs.error[0], qs.dt_learn / unit,
                 qs.seconds, float(qs.error[0]),
             )  # fmt: skip
         times_l, e_all, dt_learn_qs, secs_all, error0 = qs_cache[key]
-        window = times_l <= duration * alpha * k * (1 + 1e-9)
-        times_qs, e_qs = times_l[window] / (alpha * k), e_all[window]
-        first = times_l <= spec.learning_times * (1 + 1e-9)  # the quasi-static learning time
+        window = times_l <= duration / unit * (1 + 1e-9)
+        times_qs, e_qs = times_l[window] * unit, e_all[window]
+        first = times_l <= spec.learning_times * c * (1 + 1e-9)  # the quasi-static window
         e_first = e_all[first]
         seconds_qs = float(secs_all[window][-1])
         level = e_first[-1] + spec.fraction * (1.0 - e_first[-1])
         T_qs = crossing_time(times_qs[first[window]], e_first, level)
         row = {
             "ratio": ratio,
-            "alpha": alpha,
+            "alpha": alpha if alpha is not None else math.nan,
+            "step_time": unit if adaptive else math.nan,
+            "unit": unit,
             "dt": dt,
-            "dt_learn": dt_learn_qs / (alpha * k),
+            "dt_learn": dt_learn_qs * unit,
             "duration": duration,
             "T_qs": T_qs,
             "error_qs_end": float(e_first[-1]),
@@ -429,6 +479,10 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
         "medium": medium,
         "tau": tau,
         "tau_force": tau_force,
+        "dof": spec.dof,
+        "steps_qs": times_meta.get("steps_qs"),
+        "learned_qs": times_meta.get("learned", True),
+        "reference_coupling": times_meta.get("coupling"),
         "error0": rows[0]["error0"],
         "series_ratio": series_ratio if params["series"] else None,
         "runs": rows,

@@ -26,23 +26,32 @@ from .physical_time_text import (
     _qs_rebound_text,
     _steps_text,
     _tau_ratio_text,
+    stiffness_intro,
 )
-from .physical_time_units import _NAMES, _bracket, _by_rule, _tasks
+from .physical_time_units import _NAMES, _bracket, _by_rule, _not_learned, _tasks
 
 
 def section(doc: Document, result) -> None:
     """Tables, figures and findings of a physical_time scene."""
-    from ...scenes.units_time import FLOOR, OSCILLATION, SLOWDOWN
-
     scene = result.scene
     spec = scene.physical_time
     rules = _by_rule(result)
-    ratios = np.asarray(spec.ratios, float)
     vis = f"node drag c = {spec.drag:g}"
     if spec.dashpot:
         vis += f", spring dashpots gamma = {spec.dashpot:g}"
     if spec.arm_stiffness:
         vis += f", Maxwell arms k2 = {spec.arm_stiffness:g}, gamma2 = {spec.arm_dashpot:g}"
+    if spec.dof == "stiffness":
+        stiffness_intro(doc, scene, rules, _not_learned(result), vis)
+    else:
+        _rest_length_intro(doc, scene, spec, rules, result, vis)
+    _after_intro(doc, scene, spec, rules, result)
+
+
+def _rest_length_intro(doc: Document, scene, spec, rules, result, vis: str) -> None:
+    """The opening paragraph of a scene that learns rest lengths (Stern tasks)."""
+    from ...scenes.units_time import FLOOR, OSCILLATION, SLOWDOWN
+
     doc.add(
         "Learning runs concurrently with the overdamped dynamics of the lattice "
         f"({vis}; k = 1), as one system of ODEs "
@@ -103,6 +112,11 @@ def section(doc: Document, result) -> None:
             else ""
         )
     )
+
+
+def _after_intro(doc: Document, scene, spec, rules, result) -> None:
+    """Coupling, draws, tables, figures and findings (both dofs)."""
+    ratios = np.asarray(spec.ratios, float)
     doc.add(_coupling_summary(rules))
     tasks = _tasks(result)
     _draws_text(doc, tasks)

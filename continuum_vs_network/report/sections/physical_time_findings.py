@@ -23,6 +23,8 @@ SPEEDUP_YES, SPEEDUP_NO = 3.0, 1.5
 #: Largest |e - e_qs| (relative errors) at the smallest ratio for "converges to the
 #: quasi-static result".
 QS_AGREEMENT = 0.05
+#: "A ratio of order one" (Stern et al. 2022): a critical ratio between these.
+ORDER_ONE = (0.1, 10.0)
 
 
 def _speedups(units, *, below_critical: bool = False) -> list[float]:
@@ -104,12 +106,31 @@ def _median(values: list) -> float:
     return float(np.median(values)) if values else math.nan
 
 
+def basis(units) -> str:
+    """What a claim about learning over ``units`` rests on: "coupled" when every unit's
+    verdict (least source share over its runs) is coupled, "met trivially" when any is
+    decoupled, "" otherwise (partially coupled or not measured)."""
+    verdicts = [u.meta.get("coupling") for u in units]
+    if verdicts and all(v == "coupled" for v in verdicts):
+        return "coupled"
+    if "decoupled" in verdicts:
+        return "met trivially"
+    return ""
+
+
+def _counts(units) -> dict[str, float]:
+    """Coupled and decoupled run units (size x draw) a verdict counts."""
+    v = [u.meta.get("coupling") for u in units]
+    return {"coupled units": v.count("coupled"), "decoupled units": v.count("decoupled")}
+
+
 def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
     from ...scenes.units_time import OSCILLATION, SLOWDOWN
 
     findings = []
     for name, units in rules.items():
         why = coupling_reason(units)
+        rests = basis(units)
         here = f" (here: {why})" if why else ""
         sp = _speedups(units, below_critical=True)
         worst = min(sp) if sp and all(np.isfinite(sp)) else math.nan
@@ -143,8 +164,10 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                     "tau_force / tau is the bracket's low end in units of the fast (net-force) "
                     "relaxation time"
                 ),
-                measured={**measured, **_lo_force(units), **_shares(units)},
+                measured={**measured, **_lo_force(units), **_shares(units), **_counts(units)},
                 verdict=NOT_COMPARABLE if why else verdict,
+                source="paper",
+                basis=rests,
                 rule=(
                     f"contradicted when the speed-up is >= {SPEEDUP_YES:g} at every size and "
                     f"draw, reproduced when it is < {SPEEDUP_NO:g} at every size and draw, "
@@ -158,6 +181,8 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
         osc = ("oscillation", "both")
         ok = all(bracket_closed(u.meta) for u in units) and all(b in osc for b in by)
         ok = ok and np.isfinite(worst_below) and worst_below >= SPEEDUP_YES
+        closed = [u.meta["critical_ratio"] for u in units if bracket_closed(u.meta)]
+        ok = ok and all(ORDER_ONE[0] <= r <= ORDER_ONE[1] for r in closed)
         findings.append(
             Finding(
                 claim=(
@@ -185,14 +210,18 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                     "sizes x draws": len(units),
                     "smallest speed-up below rho*": worst_below,
                     **_shares(units),
+                    **_counts(units),
                 },
                 verdict=NOT_COMPARABLE if why else (REPRODUCED if ok else NOT_REPRODUCED),
+                source="field",
+                basis=rests,
                 rule=(
                     "reproduced when at every size and draw the bracket is closed on both "
                     "sides inside the tested range, its upper end met by oscillation (error "
                     f"rebound >= {OSCILLATION:g} above the quasi-static run's error; alone or "
                     "with the slowdown), and the speed-up up to its lower end is >= "
-                    f"{SPEEDUP_YES:g}; "
+                    f"{SPEEDUP_YES:g}, and every closed bracket's rho* is of order one "
+                    f"({ORDER_ONE[0]:g} to {ORDER_ONE[1]:g}); "
                     f"otherwise not reproduced{UNLESS_DECOUPLED}{here}"
                 ),
             )

@@ -18,11 +18,22 @@ _NAMES = {
 }
 
 
+def _not_learned(result) -> list:
+    """Run units of draws whose quasi-static reference did not learn (stiffness learning,
+    :mod:`...scenes.units_time_reference`): no ratio was run."""
+    return [
+        u
+        for u in result.select("physical_time/").values()
+        if u.meta.get("kind") == "run" and u.meta.get("learned_qs") is False
+    ]
+
+
 def _by_rule(result) -> dict[str, list]:
-    """Run units per rule (``"gcl"``, ``"gcl/continuum"``, ...), by size then draw."""
+    """Run units per rule (``"gcl"``, ``"gcl/continuum"``, ...), by size then draw; units
+    of draws not learned quasi-statically (:func:`_not_learned`) are left out."""
     out: dict[str, list] = {}
     for u in result.select("physical_time/").values():
-        if u.meta.get("kind") == "task":
+        if u.meta.get("kind") == "task" or u.meta.get("learned_qs") is False:
             continue
         medium = u.meta.get("medium", "network")
         key = u.meta["rule"] if medium == "network" else f"{u.meta['rule']}/{medium}"
