@@ -65,9 +65,8 @@ def test_builtin_set_covers_the_issue():
     assert set(scenes["paper_adagrad"].solver.methods) == {"paper", "newton"}
     full = scenes["paper_full"]
     assert (full.learning.trials, full.learning.steps) == (10, 300) and not full.report.default
-    stern = scenes["stern"]
-    assert stern.network.n_nodes >= 512
-    assert (stern.task.n_sources, stern.task.n_targets) == (10, 3)
+    stern = scenes["stern"].allostery
+    assert stern.n_nodes[0] >= 512 and stern.tasks == ("10to3",)
     assert max(scenes["stability"].network.stiffness_ratios) >= 1e12
     assert max(scenes["stability"].task.strains) >= 10
     assert set(scenes["solvers"].solver.methods) == {"newton", "fire", "lbfgs", "paper"}

@@ -301,12 +301,12 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict
 
 
 def _floor(r: np.ndarray, done: bool, fraction: float = 0.25) -> float:
-    """C/C0 averaged over the last ``fraction`` of the steps (the level a noisy run settles
-    at); NaN for a run that stopped early."""
+    """Median C/C0 over the last ``fraction`` of the steps (the level a noisy run settles
+    at, robust to a run still descending); NaN for a run that stopped early."""
     if not done:
         return float("nan")
     steps = r.size - 1
-    return float(np.mean(r[steps - max(1, round(fraction * steps)) + 1 :]))
+    return float(np.median(r[steps - max(1, round(fraction * steps)) + 1 :]))
 
 
 def optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict[str, Any]]:

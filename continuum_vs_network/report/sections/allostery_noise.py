@@ -1,8 +1,8 @@
 """Report section of an ``allostery`` scene with read-out noise levels: how the noise limits
 what each rule learns on a task it can learn.
 
-Computed from the scene's stored units (it runs nothing). A run's *floor* is its C/C0
-averaged over the last quarter of its steps. On every draw where the noise-free GCL run at a
+Computed from the scene's stored units (it runs nothing). A run's *floor* is the median of
+its C/C0 over the last quarter of its steps. On every draw where the noise-free GCL run at a
 nudge learned the task (coupled), the noisy runs at that nudge measure the noise floor: the
 exponent p of ``floor = c (sigma / eta)^p`` is fitted over the points the noise limits
 (floor above 10 x the noise-free final C/C0, :func:`~...learning.noise.floor_scaling`).
@@ -213,7 +213,7 @@ def _figure(doc: Document, g: Group, fams, sigmas, pts, fit, med) -> None:
             Panel(right, "median floor against the noise", "read-out noise sigma",
                   "floor of C/C0", xscale="log", yscale="log"),
         ],
-        "Left: floor of C/C0 (mean over the last quarter of the steps) of every noisy GCL run "
+        "Left: floor of C/C0 (median over the last quarter of the steps) of every noisy GCL run "
         "on a draw its noise-free run learned, against sigma / eta, coloured by the nudge, "
         "with the fitted power law. Right: median floor over the feasible draws against "
         "sigma, every rule and nudge.",

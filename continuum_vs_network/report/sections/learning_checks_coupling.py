@@ -140,6 +140,13 @@ def coupling(
                             else ""
                         )
                         + (f" [{notes[solver]}]" if solver in notes else ""),
+                        basis=(
+                            "coupled"
+                            if tally["learned"] > tally["trivial"]
+                            else "met trivially"
+                            if tally["trivial"]
+                            else ""
+                        ),
                     ),
                     shown=True,  # the outcome column of the coupling table
                 )
