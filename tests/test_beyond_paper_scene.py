@@ -22,15 +22,13 @@ sizes = [4, 6]
 
 [task]
 kind = "stern"
-n_sources = 2
+n_sources = 1
 n_targets = 1
 
 [learning]
 rules = ["aging", "gpc", "gcl"]
+compare_tasks = ["paper", "lattice"]
 steps = 8
-alpha_gcl = 0.5
-alpha_gpc = 0.5
-alpha_aging = 0.5
 examples = [1, 2]
 capacity_seeds = 2
 etas = [0.01, 1.0]
@@ -64,6 +62,7 @@ def test_capacity_is_the_largest_m_learned_by_at_least_half_the_draws():
         ("examples = [1, 2]", "examples = [2, 1]", "examples"),
         ("capacity_seeds = 2", "capacity_seeds = 0", "capacity_seeds"),
         ("n_targets = 1", 'n_targets = 1\nnode_outputs = ["relative", "both"]', "node_outputs"),
+        ('compare_tasks = ["paper", "lattice"]', 'compare_tasks = ["stern"]', "compare_tasks"),
         ("temperatures = [0.0, 1e-6]", "temperatures = [-1.0]", "temperatures"),
     ],
 )
@@ -73,43 +72,105 @@ def test_bad_or_unused_keys_name_the_key(tmp_path, old, new, key):
     assert err.value.key == key
 
 
-def test_aging_key_is_refused_without_an_aging_rule(tmp_path):
-    text = TINY.replace('rules = ["aging", "gpc", "gcl"]', 'rules = ["gcl"]')
-    with pytest.raises(SceneError, match="alpha_aging"):
-        load_scene(_write(tmp_path, text))
+@pytest.mark.parametrize("key", ["alpha_aging", "alpha_gcl", "alpha_gpc"])
+def test_raw_rate_keys_are_refused_the_scene_uses_default_rates(tmp_path, key):
+    with pytest.raises(SceneError, match=key):
+        load_scene(_write(tmp_path, TINY.replace("steps = 8", f"steps = 8\n{key} = 0.5")))
+
+
+def test_rules_are_the_default_objects_bounded_like_the_optimum(tmp_path):
+    from continuum_vs_network.learning.ranges import REST_LENGTH_RANGE
+    from continuum_vs_network.scenes.units_beyond import DOFS, rule
+
+    scene = load_scene(_write(tmp_path, TINY))
+    for name, dof in DOFS.items():
+        r = rule(name, scene)
+        assert r.alpha is None and r.rate is None  # the default scale-free rate
+        assert r.dof == dof
+        assert r.rest_length_range == (None if dof == "stiffness" else REST_LENGTH_RANGE)
+    assert rule("gcl", scene, eta=0.3).eta == 0.3
+
+
+def test_helpers_basis_reason_and_verdicts():
+    from continuum_vs_network.report.findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED
+    from continuum_vs_network.report.sections.beyond_paper_aging import rule_verdict
+    from continuum_vs_network.report.sections.beyond_paper_format import basis, reasoned
+    from continuum_vs_network.report.sections.beyond_paper_thermal import baseline_converged
+
+    coupled = {"outcome": "learned (coupled)", "coupling": "coupled"}
+    missed = {"outcome": "not met", "coupling": "decoupled"}
+    trivial = {"outcome": "met trivially (decoupled)", "coupling": "decoupled"}
+    assert basis([coupled, coupled]) == "coupled"
+    assert basis([coupled, missed]) == "" and basis([]) == ""
+    assert basis([coupled, trivial]) == "met trivially"
+    assert reasoned("r", REPRODUCED, "why") == "r"
+    assert reasoned("r.", NOT_COMPARABLE, "why") == "r. Not comparable here: why"
+    feasible = {"outcome": "feasible", "feasible": True, "worst_example": 1e-5, "dof": "stiffness"}
+    infeasible = {**feasible, "outcome": "infeasible", "feasible": False, "worst_example": 0.2}
+    assert rule_verdict(coupled, feasible) == (REPRODUCED, "")
+    assert rule_verdict(missed, feasible) == (NOT_REPRODUCED, "")
+    verdict, reason = rule_verdict(missed, infeasible)
+    assert verdict == NOT_COMPARABLE and reason.startswith("infeasible") and "0.2" in reason
+    assert rule_verdict(trivial, feasible)[0] == NOT_COMPARABLE
+    assert baseline_converged(1e-6, [1e-4, 1e-2])
+    assert not baseline_converged(2e-5, [1e-4, 1e-2])  # only 5x below the lowest floor
+    assert not baseline_converged(float("nan"), [1e-4])
 
 
 def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
     scene = load_scene(_write(tmp_path, TINY))
     result = run_scene(scene, tmp_path / "out", progress=False)
     units = result.units
-    assert {"beyond/compare/paper/aging", "beyond/compare/stern/gcl", "beyond/symmetric"} <= set(
-        units
-    )
+    assert {"beyond/compare/paper/aging", "beyond/compare/lattice/gcl_k",
+            "beyond/optimum/lattice/rest_length", "beyond/optimum/paper/stiffness",
+            "beyond/symmetric"} <= set(units)  # fmt: skip
     assert "beyond/capacity/size6/examples2/seed0" in units
     for outputs in ("absolute", "relative"):
         assert {f"beyond/node/{outputs}/{r}" for r in ("aging", "gcl", "gcl_k")} <= set(units)
     assert units["beyond/node/relative/gcl_k"].meta["learns"] == "stiffness"
-    # uniform k on the lattice and equal rates: aging and GPC take identical steps
-    a = np.asarray(units["beyond/compare/stern/aging"].arrays["error"])
-    g = np.asarray(units["beyond/compare/stern/gpc"].arrays["error"])
+    # every rule ran its default rate: no raw alpha in the recorded settings
+    for r in ("aging", "gpc", "gcl", "gcl_k"):
+        assert units[f"beyond/compare/lattice/{r}"].meta["rule"].get("alpha") is None
+    # uniform k on the lattice and both at their scaled rate: aging and GPC take identical steps
+    a = np.asarray(units["beyond/compare/lattice/aging"].arrays["error"])
+    g = np.asarray(units["beyond/compare/lattice/gpc"].arrays["error"])
     assert np.allclose(a, g, rtol=1e-10, atol=0)
+    # stiffness learning of a network at rest cannot prestress: coupled by construction
+    for n in (4, 6):
+        for m in (1, 2):
+            meta = units[f"beyond/capacity/size{n}/examples{m}/seed0"].meta
+            assert meta["coupling"] == "coupled", meta
+            assert meta["exact"]["max_iter"] == 8  # the optimum's budget is the rules' steps
     for u in units.values():
-        assert u.meta["coupling"] in ("coupled", "partially coupled", "decoupled", "not measured")
+        if "coupling" in u.meta:
+            assert u.meta["coupling"] in (
+                "coupled", "partially coupled", "decoupled", "not measured"
+            )  # fmt: skip
     from continuum_vs_network.report.writer import write_report
 
     write_report(result, tmp_path / "report")
     doc = json.loads((tmp_path / "report" / "report.json").read_text())
-    claims = {f["claim"]: f["verdict"] for f in doc["findings"]}
+    findings = {f["claim"]: f for f in doc["findings"]}
+    claims = {c: f["verdict"] for c, f in findings.items()}
     key = "GPC of rest lengths is directed aging of rest lengths with a k-weighted rate"
-    assert claims[f"{key} (Stern's task)"] == "reproduced"
+    assert claims[f"{key} (Rocks et al.'s task on the lattice)"] == "reproduced"
     assert claims[f"{key} (the paper's task)"] == "not comparable"
     assert any(c.startswith("a larger network holds more") for c in claims)
-    assert "gcl learns a task of relative node displacements" in claims
+    assert any(c.startswith("GCL learns as many examples") for c in claims)
+    assert "gcl learns a task of relative node displacements (with its rest example)" in claims
+    assert (
+        "GCL of stiffnesses learns Rocks et al.'s task on the lattice (with its rest example)"
+        in claims
+    )
+    for f in findings.values():
+        assert f["basis"] != "met trivially", f["claim"]
+        if f["verdict"] == "not comparable":
+            assert "Not comparable here: " in f["rule"], f["claim"]
     reg = units["beyond/regression"].meta
     assert reg["n_train"] == 4 and reg["n_test"] == 3
     assert np.isfinite(reg["test_initial"]) and reg["test_initial"] > 0
     assert any(c.startswith("a network trained on a few examples of a linear map") for c in claims)
     assert {"beyond/thermal/T1/gcl_eta0.01", "beyond/thermal/T0/exact"} <= set(units)
     assert units["beyond/thermal/T1/gcl_eta0.01"].meta["temperature"] == 1e-6
+    assert units["beyond/thermal/T1/gcl_eta0.01"].meta["rule"]["dof"] == "stiffness"
     assert "GCL's error floor grows with the temperature at every nudge" in claims

@@ -139,9 +139,18 @@ def diverging_colors(n: int = 256) -> NDArray[np.float64]:
     return np.stack([np.interp(t, s, anchors[:, c]) for c in range(3)], axis=1)
 
 
+def sequential_colors(n: int = 256) -> NDArray[np.float64]:
+    """White to dark red as an ``(n, 3)`` RGB array in [0, 1]: the upper half of
+    :func:`diverging_colors`, for a field that is never negative."""
+    if n < 2:
+        raise ValueError(f"n must be >= 2, got {n}")
+    return diverging_colors(2 * n)[n:]
+
+
 def _lookup_table(pv: Any, clim: tuple[float, float]) -> Any:
+    """A diverging map for a signed range, a sequential one when ``clim`` starts at >= 0."""
     rgba = np.ones((256, 4))
-    rgba[:, :3] = diverging_colors(256)
+    rgba[:, :3] = sequential_colors(256) if clim[0] >= 0 else diverging_colors(256)
     table = pv.LookupTable(values=(rgba * 255).round().astype(np.uint8))
     table.scalar_range = clim
     return table
@@ -328,14 +337,15 @@ def nice_length(span: float) -> float:
 
 
 def _scale_bar(pv: Any, plotter: Any, bounds: NDArray, length: float, font_scale: float) -> None:
-    """A black bar of ``length`` (length units) under the lower left of ``bounds``, labelled."""
+    """A black bar of ``length`` (length units) above the upper right of ``bounds``, labelled
+    above it: clear of the colour bar below the drawing and of the title at the upper left."""
     xmin, xmax, ymin, ymax = bounds
     extent = max(xmax - xmin, ymax - ymin, length)
-    y = ymin - 0.06 * extent
-    bar = pv.Line((xmin, y, 0.0), (xmin + length, y, 0.0))
+    y = ymax + 0.04 * extent
+    bar = pv.Line((xmax - length, y, 0.0), (xmax, y, 0.0))
     plotter.add_mesh(bar, color=_TEXT_COLOR, line_width=4.0, lighting=False)
     plotter.add_point_labels(
-        [(xmin + length + 0.03 * extent, y, 0.0)],
+        [(xmax - length, y + 0.03 * extent, 0.0)],
         [f"{length:g} (length units)"],
         font_size=round(11 * font_scale),
         text_color=_TEXT_COLOR,

@@ -153,7 +153,9 @@ def symmetric_unit(scene: Scene, params: dict, ctx: UnitContext):
     for which in (net, h.final[0]):
         per.append(
             [
-                t.error(which, relax(which, pinned=t.pinned, clamped=t.source_clamps(which)).positions)
+                t.error(
+                    which, relax(which, pinned=t.pinned, clamped=t.source_clamps(which)).positions
+                )
                 for t in pair.tasks
             ]
         )

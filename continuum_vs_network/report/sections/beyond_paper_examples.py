@@ -1,6 +1,7 @@
 """One network, more than one input/output pair, in the ``beyond_paper`` section
 (:mod:`.beyond_paper`): symmetric training (a task and its exchange at once) and a
-regression task (training and held-out error: generalisation).
+regression task (training and held-out error: generalisation), each beside the optimum of
+its training examples.
 """
 
 from __future__ import annotations
@@ -9,7 +10,22 @@ import numpy as np
 
 from ...learning.coupling import MET_AT
 from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import _g
+from .beyond_paper_format import _g, basis, reasoned
+
+
+def _infeasible(opt: dict) -> str:
+    """The reason a task is not comparable when its optimum shows it infeasible, else ""."""
+    from ...scenes.units_beyond import FEASIBLE
+
+    if opt.get("outcome") == "stopped":
+        return "the optimum could not be found"
+    if not opt.get("feasible"):
+        return (
+            f"infeasible, the optimum of the stiffnesses leaves its worst example at "
+            f"C_e/C_e0 = {_g(opt['worst_example'])} > {FEASIBLE:g} in "
+            f"{opt.get('iterations', '-')} iterations (counted apart)"
+        )
+    return ""
 
 
 def _symmetric(doc, units) -> None:
@@ -17,29 +33,49 @@ def _symmetric(doc, units) -> None:
     if u is None:
         return
     m = u.meta
+    opt = m["exact"]
     doc.heading("Symmetric training", 3)
     before, after = m["error_initial"], m["error_final"]
     total = float(sum(before))
     both = all(np.isfinite(a) and a <= MET_AT * total for a in after)
     doc.add(
-        "One source and one target spring trained in both directions at once with GCL (the "
-        "task and its exchange, the target clamped at the strain it should reach and the "
-        "source asked for its own strain, as two examples): errors forward / backward "
+        "Rocks et al.'s task (one source, one target) and its exchange trained at once by "
+        "GCL of the stiffnesses (the target clamped at the strain it should reach and the "
+        "source asked for its own strain, as a second example), "
+        f"{m['completed']} steps: errors forward / backward "
         f"{_g(before[0])} / {_g(before[1])} before, {_g(after[0])} / {_g(after[1])} after; "
-        f"coupling {_g(m['source_share'], 2)} ({m['coupling']}).",
+        f"coupling {_g(m['source_share'], 2)} ({m['coupling']}). The optimum of the pair "
+        f"leaves its worst direction at C_e/C_e0 = {_g(opt.get('worst_example'))} "
+        f"({opt.get('outcome')}).",
         "",
     )
+    reason = _infeasible(opt)
+    if reason:
+        verdict = NOT_COMPARABLE
+    elif both and m["outcome"].startswith("learned"):
+        verdict = REPRODUCED
+    else:
+        verdict = NOT_REPRODUCED
     doc.finding(
         Finding(
             claim="one network learns a task and its exchange (source and target swapped) at once",
-            metric="each direction's final error over the summed initial error",
+            metric="each direction's final error over the summed initial error; the optimum's "
+            "worst direction",
             measured={
                 "forward": after[0] / total,
                 "backward": after[1] / total,
                 "source share": m["source_share"],
+                "optimum worst C_e/C_e0": opt.get("worst_example", np.nan),
             },
-            verdict=REPRODUCED if both and m["outcome"].startswith("learned") else NOT_REPRODUCED,
-            rule=f"reproduced when both are <= {MET_AT:g} and the network is not decoupled",
+            verdict=verdict,
+            rule=reasoned(
+                f"reproduced when both are <= {MET_AT:g} and the network is not decoupled, "
+                "not reproduced when a feasible pair is not learned",
+                verdict,
+                reason,
+            ),
+            source="field",
+            basis=basis([m]),
         )
     )
 
@@ -54,6 +90,7 @@ def _regression(doc, units) -> None:
     if u is None:
         return
     m = u.meta
+    opt = m["exact"]
     doc.heading("A regression task: generalisation", 3)
     train_ratio = m["train_final"] / m["train_initial"] if m["train_initial"] > 0 else np.nan
     test_ratio = m["test_final"] / m["test_initial"] if m["test_initial"] > 0 else np.nan
@@ -64,12 +101,18 @@ def _regression(doc, units) -> None:
         f"error of {m['n_test']} held-out examples is measured before and after. Training "
         f"C/C0 {_g(train_ratio)}, held-out C/C0 {_g(test_ratio)}; coupling of the trained "
         f"network (smallest source share over the training examples) "
-        f"{_g(m['source_share'], 2)} ({m['coupling']}); {_g(m['seconds'], 2)} s.",
+        f"{_g(m['source_share'], 2)} ({m['coupling']}); {_g(m['seconds'], 2)} s. The optimum "
+        f"of the training set leaves its worst example at C_e/C_e0 = "
+        f"{_g(opt.get('worst_example'))} ({opt.get('outcome')}).",
         "",
     )
     finite = bool(np.isfinite(train_ratio) and np.isfinite(test_ratio))
-    if not finite or train_ratio > MET_AT:
+    reason = _infeasible(opt)
+    if reason:
+        verdict = NOT_COMPARABLE
+    elif not finite or train_ratio > MET_AT:
         verdict = NOT_COMPARABLE  # nothing learned, nothing to generalise
+        reason = f"training did not reach C/C0 <= {MET_AT:g}, so there is nothing to generalise"
     elif test_ratio < 1.0 and test_ratio <= GENERALISES_WITHIN * train_ratio:
         verdict = REPRODUCED
     else:
@@ -79,10 +122,19 @@ def _regression(doc, units) -> None:
             claim="a network trained on a few examples of a linear map predicts held-out "
             "examples better than before training (generalises)",
             metric="summed error of the training and of the held-out examples, final over initial",
-            measured={"train C/C0": float(train_ratio), "held-out C/C0": float(test_ratio)},
+            measured={
+                "train C/C0": float(train_ratio),
+                "held-out C/C0": float(test_ratio),
+                "optimum worst C_e/C_e0": opt.get("worst_example", np.nan),
+            },
             verdict=verdict,
-            rule=f"reproduced when held-out C/C0 < 1 and <= {GENERALISES_WITHIN:g} x the "
-            f"training C/C0; not comparable when training stopped or did not reach C/C0 <= "
-            f"{MET_AT:g}",
+            rule=reasoned(
+                f"reproduced when held-out C/C0 < 1 and <= {GENERALISES_WITHIN:g} x the "
+                "training C/C0",
+                verdict,
+                reason,
+            ),
+            source="paper",
+            basis=basis([m]),
         )
     )

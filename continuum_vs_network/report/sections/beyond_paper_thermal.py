@@ -13,11 +13,21 @@ import numpy as np
 from ...learning.metrics import PLATEAU, bound, tail_change
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import _g
+from .beyond_paper_format import _g, basis, reasoned
 from .learning_checks_noise import decoupled_caveat
 
 #: the least rise of a floor that counts as a rise (runs differ by ~1 % at equal settings)
 RISE = 1.1
+#: the noise-free baseline has converged when its final C/C0 is below every thermal floor
+#: of its run by this factor (the floors are then the noise's, not the budget's)
+CONVERGED_BELOW = 10.0
+
+
+def baseline_converged(final0: float, floors) -> bool:
+    """Whether a noise-free run's final C/C0 ``final0`` is at least :data:`CONVERGED_BELOW`
+    times below every finite floor of ``floors`` (the same run at T > 0)."""
+    finite = [f for f in floors if np.isfinite(f)]
+    return bool(np.isfinite(final0) and finite and final0 * CONVERGED_BELOW <= min(finite))
 
 
 def _at_least(kind: str) -> bool:  # the settled value is >= the floor read
@@ -89,6 +99,7 @@ def _thermal(doc, scene, units) -> None:
     temps = L.temperatures
     etas = L.etas or (L.eta,)
     runs = [f"gcl_eta{eta:g}" for eta in etas] + ["exact"]
+    n = scene.network.sizes[-1]
     doc.heading("Thermal noise: the error floor against temperature", 3)
     doc.add(
         "Learning at temperature T (k_B T in energy units): every state a rule reads (free, "
@@ -99,9 +110,11 @@ def _thermal(doc, scene, units) -> None:
         "equilibria and the error is measured at equilibrium. GCL divides the difference of "
         "two noisy states by eta, so its update noise grows like sqrt(T)/eta (the scaling of "
         "the floor is not fitted here); the exact gradient reads one "
-        "noisy free state. Floor: median C/C0 over the last quarter of the "
-        f"{L.steps} steps, Stern's task on the {scene.network.sizes[0]} x "
-        f"{scene.network.sizes[0]} lattice; every temperature is read over the same steps, "
+        "noisy free state. Both learn the stiffnesses (default rules, adaptive rate) of "
+        f"Rocks et al.'s task on the {n} x {n} lattice with its rest example, a task they "
+        "learn without noise (a network at rest learning stiffnesses has no prestress to "
+        "meet it with). Floor: median C/C0 over the last quarter of the "
+        f"{L.steps} steps; every temperature is read over the same steps, "
         "so where a run is still descending there (its error at the end below this "
         "median) the 'floor' is an upper bound and the comparison across T is at equal "
         "steps, not at convergence.",
@@ -192,12 +205,26 @@ def _thermal(doc, scene, units) -> None:
             [f"T{i}/{run}" for run in runs[:-1] for i in range(len(temps))], "every eta and T"
         )
         per_eta = {run: rises(floors[run], kinds[run]) for run in runs[:-1]}
-        if NOT_REPRODUCED in per_eta.values():
+        final0 = {run: float(metas[run][0]["ratio"]) for run in runs}
+        converged = {
+            run: baseline_converged(final0[run], floors[run][1:]) if temps[0] == 0 else True
+            for run in runs
+        }
+        reason = ""
+        if not all(converged[run] for run in runs[:-1]):
+            verdict = NOT_COMPARABLE
+            reason = (
+                "the noise-free baseline has not converged below the thermal floors ("
+                + ", ".join(labels[r] for r in runs[:-1] if not converged[r])
+                + ")"
+            )
+        elif NOT_REPRODUCED in per_eta.values():
             verdict = NOT_REPRODUCED
         elif all(v == REPRODUCED for v in per_eta.values()):
             verdict = REPRODUCED
         else:
             verdict = NOT_COMPARABLE
+            reason = "an unsettled run (still falling or rising) could undo a rise"
         doc.finding(
             Finding(
                 claim="GCL's error floor grows with the temperature at every nudge",
@@ -208,17 +235,37 @@ def _thermal(doc, scene, units) -> None:
                        for i, T in enumerate(temps)},
                     **{f"{run} T={T:g} change": changes[run][i] for run in runs[:-1]
                        for i, T in enumerate(temps)},
+                    **{f"{run} final C/C0 at T=0": final0[run] for run in runs[:-1]},
                     **counts,
                 },
                 verdict=verdict,
-                rule=f"reproduced when, at every eta, the floor rises by a factor >= {RISE:g} "
-                "at every step up in T (a smaller rise is within the runs' own spread) and no "
-                "unsettled run can undo a rise; not reproduced when some step's missing rise "
-                "is shown the same way; not comparable otherwise (a run stopped, or a "
-                f"transient decides it): {unsettled}"
-                + (". " + trivially.rstrip(".") if trivially else ""),
+                rule=reasoned(
+                    f"with the noise-free baseline converged (its final C/C0 at least "
+                    f"{CONVERGED_BELOW:g} x below every floor of its run at T > 0): reproduced "
+                    f"when, at every eta, the floor rises by a factor >= {RISE:g} "
+                    "at every step up in T (a smaller rise is within the runs' own spread) and "
+                    "no unsettled run can undo a rise; not reproduced when some step's missing "
+                    "rise is shown the same way; not comparable otherwise (a run stopped, or a "
+                    f"transient decides it): {unsettled}"
+                    + (". " + trivially.rstrip(".") if trivially else ""),
+                    verdict,
+                    reason or "a floor is not finite (a run stopped)",
+                ),
+                source="field",
+                basis=basis(m for run in runs[:-1] for m in metas[run]),
             )
         )  # fmt: skip
+        doc.add(
+            "Has the noise-free baseline converged? "
+            + "; ".join(
+                f"{labels[run]}: final C/C0 {_g(final0[run])} at T = 0, lowest floor at T > 0 "
+                f"{_g(min([f for f in floors[run][1:] if np.isfinite(f)], default=np.nan))}"
+                f" ({'converged' if converged[run] else 'not converged'})"
+                for run in runs
+            )
+            + f" (converged: at least {CONVERGED_BELOW:g} x below every floor of its run).",
+            "",
+        )
         doc.add(
             "Does the floor grow with T? "
             + "; ".join(f"{run}: {v}" for run, v in per_eta.items())
@@ -240,14 +287,16 @@ def _thermal(doc, scene, units) -> None:
     if len(etas) >= 2 and temps[-1] > 0:
         small, large = floors[runs[0]][-1], floors[runs[len(etas) - 1]][-1]
         ks, kl = kinds[runs[0]][-1], kinds[runs[len(etas) - 1]][-1]
+        reason = ""
         if not (np.isfinite(small) and np.isfinite(large)):
-            verdict = NOT_COMPARABLE
+            verdict, reason = NOT_COMPARABLE, "a floor is not finite (a run stopped)"
         elif small > large and _at_least(ks) and _at_most(kl):
             verdict = REPRODUCED
         elif small <= large and _at_most(ks) and _at_least(kl):
             verdict = CONTRADICTED
         else:
             verdict = NOT_COMPARABLE
+            reason = "an unsettled run (still falling or rising) could reverse the order"
         trivially, counts = caveat(
             [f"T{len(temps) - 1}/{runs[0]}", f"T{len(temps) - 1}/{runs[len(etas) - 1]}"],
             f"T = {temps[-1]:g}, eta = {etas[0]:g} and {etas[-1]:g}",
@@ -266,9 +315,15 @@ def _thermal(doc, scene, units) -> None:
                     **counts,
                 },
                 verdict=verdict,
-                rule="reproduced when the smallest nudge's floor exceeds the largest's, "
-                "contradicted when not, in both cases only when the unsettled runs cannot "
-                f"reverse the order; not comparable otherwise or when a run stopped: {unsettled}"
-                + (". " + trivially.rstrip(".") if trivially else ""),
+                rule=reasoned(
+                    "reproduced when the smallest nudge's floor exceeds the largest's, "
+                    "contradicted when not, in both cases only when the unsettled runs cannot "
+                    "reverse the order; not comparable otherwise or when a run stopped: "
+                    f"{unsettled}" + (". " + trivially.rstrip(".") if trivially else ""),
+                    verdict,
+                    reason,
+                ),
+                source="field",
+                basis=basis([metas[runs[0]][-1], metas[runs[len(etas) - 1]][-1]]),
             )
         )

@@ -23,7 +23,6 @@ from .keys import (
     _when,
 )
 
-
 #: the raw-rate keys: every kind but beyond_paper, which uses the package's default rates
 _NOT_BEYOND = _when(
     lambda s: s.kind != "beyond_paper", "outside beyond_paper (it uses the default rates)"
@@ -63,7 +62,8 @@ class NetworkSpec:
         "list[int]",
         None,
         "n x n triangular lattices, one per entry (transmission, relaxation, solvers, "
-        "physical_time; beyond_paper: the largest hosts the single-network studies, all the capacity study)",
+        "physical_time; beyond_paper: the largest hosts the single-network studies, all "
+        "the capacity study)",
         check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
         used=_kinds("transmission", "relaxation", "solvers", "beyond_paper", "physical_time"),
     )
