@@ -16,8 +16,11 @@ def test_builtin_scenes_load_and_plan():
     assert short.report.default and not full.report.default
     keys = [u.key for u in plan(short)]
     assert "continuum_mechanism/inverter" in keys and "continuum_mechanism/simp" in keys
-    for r in range(3):  # h, h/2 and h/4 in the default scene
-        assert f"continuum_mechanism/learn/refine{r}/gcl/adaptive" in keys
+    for r in range(3):  # h, h/2 and h/4 in the default scene, each with its optimum
+        assert f"continuum_mechanism/learn/refine{r}/gcl/scaled" in keys
+        assert f"continuum_mechanism/optimum/refine{r}" in keys
+    assert "continuum_mechanism/simp_solid" in keys
+    assert "continuum_mechanism/lattice/refine2" in keys
     assert len([u for u in plan(full) if "/optimum/" in u.key]) == 3
 
 
@@ -45,3 +48,19 @@ def test_tiny_scene_runs(tmp_path):
     assert res.units["continuum_mechanism/learn/refine1/gcl/adaptive"].arrays["coarse"].shape == (
         256,
     )
+
+
+def test_lattice_beside_the_continuum_learns_the_same_task():
+    import dataclasses
+
+    from continuum_vs_network.scenes.units_mechanism import lattice, lattice_unit
+
+    scene = load_scene("continuum_mechanism")
+    net, task, _ = lattice(scene, 0)
+    mid = net.positions[net.springs].mean(axis=1)
+    assert np.hypot(*(mid[task.sources[0]] - (0.4, 0.5))) <= 0.125
+    assert np.hypot(*(mid[task.targets[0]] - (1.6, 0.5))) <= 0.125
+    assert task.target_strain[0] == pytest.approx(-0.2 * task.source_strain[0])
+    m = dataclasses.replace(scene.mechanism, steps=60)
+    _, meta = lattice_unit(dataclasses.replace(scene, mechanism=m), {"refine": 0}, None)
+    assert meta["ratio"] <= 1e-3 and meta["coupling"] == "coupled"

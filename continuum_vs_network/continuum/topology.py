@@ -6,7 +6,11 @@ operators of :class:`~.learnable.LearnableBody` (the stiffness ``sum_e s_e K_e``
 
 * design ``x`` (n_elements,) in ``[0, 1]``, filtered ``xt = H x``
   (:func:`~.filtered.density_filter`),
-  modulus ``s = e_min + xt^p (1 - e_min)`` (:func:`simp_modulus`, ``p = 3``);
+  modulus ``s = e_min + xt^p (e_max - e_min)`` (:func:`simp_modulus`, ``p = 3``; the
+  textbook's ``e_max = 1``, the solid; on the allosteric task the task's own material keeps
+  ``s = 1``, so ``e_max = 100`` gives SIMP the learned field's range ``1e-2 .. 1e2``: with
+  ``e_max = 1`` neither OC nor MMA gets below C/C0 0.65 on the default mechanism scene, and
+  the unpenalised exact optimum capped at 1 stalls at 0.77, a limit of the design space);
 * volume ``sum_e A_e xt_e <= volfrac * sum_e A_e``;
 * optimality-criteria update for mechanisms (:func:`oc_update`): ``x <- x B^0.3`` with
   ``B = max(1e-10, -dc/dx) / (lambda dv/dx)``, move limit 0.1, ``lambda`` by bisection on

@@ -22,6 +22,15 @@ field learns through the density filter of :mod:`continuum_vs_network.continuum.
   ``continuum_mechanism/simp_solid``: the textbook's SIMP, whose solid is the body's own
   material (``1e-4 .. 1``)
   (:func:`~continuum_vs_network.continuum.topology.simp_allosteric`).
+* ``continuum_mechanism/lattice/refine<r>``: the network beside it: a triangular lattice
+  covering the same rectangle at lattice constant ``h / 2^r`` (about the mesh's vertex
+  count), source and target the springs nearest the material springs' centres, the same
+  strains, with its rest example (:func:`~continuum_vs_network.learning.anchored`), learning
+  its stiffnesses by ``CoupledLearning(dof="stiffness")`` at the adaptive rate (step
+  ``adaptive_step``) for ``steps`` steps: the scaled rate's fixed gain, set at the first
+  step, overshoots on a network once single springs soften (C/C0 oscillating between 1e-8
+  and 0.9 at step 0.5 on the h lattice). Arrays ``error``, ``seconds``, ``solves``,
+  ``positions``, ``springs``, ``k``; meta as the learning units'.
 * ``continuum_mechanism/inverter``: SIMP on Sigmund's force inverter
   (:func:`~continuum_vs_network.continuum.topology.simp_inverter`).
 """
@@ -76,6 +85,10 @@ def plan_mechanism(scene: Scene) -> list[Unit]:
             units.append(
                 Unit(f"continuum_mechanism/optimum/refine{r}", optimum_unit, {"refine": r}, depends)
             )
+        units.append(
+            Unit(f"continuum_mechanism/lattice/refine{r}", lattice_unit, {"refine": r}, depends,
+                 weight=m.steps)
+        )  # fmt: skip
         for rule in m.rules:
             for rate in m.rates:
                 p = {"refine": r, "rule": rule, "rate": rate}
@@ -193,8 +206,13 @@ def simp_unit(scene: Scene, params: dict, ctx: UnitContext):
     body, task, _ = build(scene, 0)
     e_min, e_max = (1e-4, 1.0) if params["solid"] else STIFFNESS_RANGE
     r = simp_allosteric(
-        body, task, volfrac=m.volfrac, radius=m.filter_radius, iterations=m.simp_iterations,
-        e_min=e_min, e_max=e_max,
+        body,
+        task,
+        volfrac=m.volfrac,
+        radius=m.filter_radius,
+        iterations=m.simp_iterations,
+        e_min=e_min,
+        e_max=e_max,
     )
     arrays = {
         "error": r.objective,
@@ -239,5 +257,63 @@ def inverter_unit(scene: Scene, params: dict, ctx: UnitContext):
         "advantage": float(-r.objective[-1] / u_in), "volume": r.volume, "solves": r.solves,
         "seconds": time.perf_counter() - t0, "n_elements": int(body.n_elements),
         "k_in": layout.k_in, "k_out": layout.k_out, "force": layout.force,
+    }  # fmt: skip
+    return arrays, meta
+
+
+def lattice(scene: Scene, refine: int):
+    """The triangular lattice of the module at ``h / 2^refine``, its task and task set."""
+    from ..learning import anchored
+    from ..learning.tasks import AllosteryTask
+    from ..network.builders import triangular_lattice
+
+    m = _spec(scene)
+    a = m.h / 2**refine
+    nx = round(m.width / a) + 1
+    ny = round(m.height / (a * np.sqrt(3) / 2)) + 1
+    net = triangular_lattice(nx, ny, spacing=a)
+    mid = net.positions[net.springs].mean(axis=1)
+
+    def nearest(c) -> int:
+        return int(np.argmin(np.hypot(*(mid - np.asarray(c, float)).T)))
+
+    task = AllosteryTask.create(
+        net, [nearest(m.source)], [m.source_strain], [nearest(m.target)],
+        [m.ratio * m.source_strain],
+    )  # fmt: skip
+    return net, task, anchored(task, net)
+
+
+def lattice_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """GCL of the lattice's stiffnesses on the same 1 -> 1 task (see the module)."""
+    from ..learning import measure_coupling, train
+    from ..learning.coupling import outcome
+    from ..learning.metrics import first_below
+    from ..learning.rates import Adaptive
+    from ..learning.rules import CoupledLearning
+
+    m = _spec(scene)
+    net, task, tasks = lattice(scene, params["refine"])
+    rule = CoupledLearning(dof="stiffness", rate=Adaptive(step=m.adaptive_step))
+    h = train(net, tasks, rule, m.steps, progress=False)
+    e = np.asarray(h.error_initial[0], dtype=float)
+    err = e / e[0]
+    final = h.final[0]
+    c = measure_coupling(net, final, task)
+    arrays = {
+        "error": err,
+        "seconds": np.asarray(h.seconds[0], dtype=float),
+        "solves": np.asarray(h.solves[0], dtype=float),
+        "positions": net.positions,
+        "springs": net.springs,
+        "k": final.stiffness,
+    }
+    meta = {
+        **params, "ratio": float(err[-1]), "first_below": first_below(err, LEVEL),
+        "source_share": float(c.share), "coupling": c.verdict,
+        "outcome": outcome(float(err[-1]), c.verdict), "n_nodes": int(net.n_nodes),
+        "n_springs": len(net.springs), "spacing": float(m.h / 2 ** params["refine"]),
+        "completed": int(h.completed[0]), "seconds": float(arrays["seconds"][-1]),
+        "solves": float(arrays["solves"][-1]),
     }  # fmt: skip
     return arrays, meta

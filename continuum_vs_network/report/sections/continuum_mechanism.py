@@ -23,8 +23,6 @@ __all__ = ["change", "refinement_changes", "section"]
 RULES = {"gcl": "GCL (CoupledLearning)", "exact": "exact gradient (ExactGradient)"}
 #: a local rule's C/C0 within this factor of the optimum's counts as learned (issue 47)
 WITHIN = 10.0
-#: geometric advantage -u_out/u_in of the literature's inverters: order 1 within a decade
-ADVANTAGE = (0.1, 10.0)
 
 
 def change(fine: np.ndarray, coarse: np.ndarray, area: np.ndarray) -> float:
@@ -67,15 +65,32 @@ def section(doc: Document, result) -> None:
         f"the package's Adam rate, step {m.adaptive_step:g} of the mean modulus; scaled: the "
         f"raw rate fixed at the first step so the largest change is {m.scaled_step:g} of it "
         "(gradient flow, a material with one susceptibility). **References.** The exact "
-        "optimum (L-BFGS-B on the adjoint gradient, the same filter and range) and SIMP "
-        f"(penalty 3, the same filter, OC, volume fraction {m.volfrac:g}, modulus contrast "
-        "1e4 as the range) on the coarsest mesh.",
+        "optimum (L-BFGS-B on the adjoint gradient in log modulus, the same filter and range; "
+        "in the modulus itself it crawls, C/C0 0.75 and 0.86 after 200 iterations on h/2 and "
+        "h/4, because dC/ds scales as 1/s across a 1e4 range) and SIMP (penalty 3, the same "
+        f"filter, volume fraction {m.volfrac:g}, MMA from nlopt when installed, else OC) on the "
+        "coarsest mesh, twice: its modulus 1e-2 + x^3 (1e2 - 1e-2) spans the learning's range, "
+        "and the textbook's 1e-4 + x^3 (1 - 1e-4) caps it at the task's own material.",
+        "",
+        "**Why the scaled rate.** The adaptive rate normalises each element's step by its own "
+        "signal's running size, so a signal 1e-6 of the largest moves an element as far as the "
+        "largest; far from the springs the sign of such a signal is set by the discretisation, "
+        "and the learned field changes by O(1) under refinement (the adaptive runs of "
+        "`continuum_mechanism_full`). Gradient flow moves each element in proportion to its "
+        "signal, which converges with h, so the field it learns has a limit. **The length "
+        f"scale** is the filter radius {m.filter_radius:g} (twice the springs' disc radius): "
+        "it bounds the smallest feature of the modulus field; a material whose stiffness is "
+        "set by a diffusing agent has it as the agent's spreading length, and without it the "
+        "field follows the discretisation of the clamps (issue 47's eigenstrain runs).",
     )
     opt = {
         r: units[f"continuum_mechanism/optimum/refine{r}"].meta
         for r in range(R + 1) if f"continuum_mechanism/optimum/refine{r}" in units
     }  # fmt: skip
-    simp = units["continuum_mechanism/simp"].meta
+    simps = [
+        (units[k].meta, k.endswith("solid"))
+        for k in ("continuum_mechanism/simp", "continuum_mechanism/simp_solid") if k in units
+    ]  # fmt: skip
     doc.heading("Side by side: local rule, exact gradient, exact optimum, SIMP", 3)
     rows = []
     for r in range(R + 1):
@@ -87,6 +102,15 @@ def section(doc: Document, result) -> None:
                     u["first_below"] if u["first_below"] is not None else "-", int(u["solves"]),
                     fmt(u["seconds"]), fmt(u["response"]), u["coupling"], u["outcome"],
                 ])  # fmt: skip
+        lk = f"continuum_mechanism/lattice/refine{r}"
+        if lk in units:
+            u = units[lk].meta
+            rows.append([
+                "network: triangular lattice, GCL of k, adaptive", f"a = {_h(r)}",
+                f"{u['n_springs']} springs", fmt(u["ratio"]),
+                u["first_below"] if u["first_below"] is not None else "-", int(u["solves"]),
+                fmt(u["seconds"]), "-", u["coupling"], u["outcome"],
+            ])  # fmt: skip
         o = opt.get(r)
         if o is None:
             continue
@@ -94,10 +118,14 @@ def section(doc: Document, result) -> None:
             "exact optimum (L-BFGS-B)", _h(r), o["n_elements"], fmt(o["ratio"]), "-",
             o["solves"], fmt(o["seconds"]), fmt(o["response"]), "-", "-",
         ])  # fmt: skip
-    rows.append([
-        "SIMP p = 3 + filter, OC", "h", simp["n_elements"], fmt(simp["ratio"]), "-",
-        simp["solves"], fmt(simp["seconds"]), fmt(simp["response"]), "-", "-",
-    ])  # fmt: skip
+    for simp, solid in simps:
+        rows.append([
+            f"SIMP p = 3 + filter, {simp.get('method', 'oc').upper()}, modulus "
+            f"{simp.get('e_min', 1e-4):g} .. {simp.get('e_max', 1.0):g}"
+            + (" (textbook)" if solid else ""),
+            "h", simp["n_elements"], fmt(simp["ratio"]), "-", simp["solves"],
+            fmt(simp["seconds"]), fmt(simp["response"]), "-", "-",
+        ])  # fmt: skip
     doc.table(
         ["method", "mesh", "elements", "final C/C0", f"first step C/C0 <= {LEVEL:g}", "solves",
          "seconds", f"S_T/S_S (asked {m.ratio:g})", "coupling", "outcome"],
@@ -111,10 +139,17 @@ def section(doc: Document, result) -> None:
         "",
         f"Solves: linear solves (GCL: free and nudged state per step; exact gradient: one free "
         f"state, its adjoint reuses the factorisation; optimum: one per evaluation; SIMP: one "
-        f"per iteration). The rest example's largest error over every run: {fmt(rest)} (a "
-        "modulus field without eigenstrain has u = 0 there).",
+        f"per evaluation). The rest example's largest error over every run: {fmt(rest)} (a "
+        "modulus field without eigenstrain has u = 0 there, so the continuum's runs train the "
+        "task alone). The network beside it: a triangular lattice over the same rectangle "
+        "at lattice constant a = h/2^r (about the mesh's vertex count), source and target the "
+        "springs nearest the material springs' centres at the same strains, trained with its "
+        "rest example (4 solves per step) by the same rule object on the stiffnesses, at the "
+        f"adaptive rate (step {m.adaptive_step:g}): the scaled rate's gain, fixed at the first "
+        "step, overshoots on the network (C/C0 swinging between 1e-8 and 0.9 at step 0.5).",
     )
     _findings_learning(doc, m, units, opt)
+    _findings_lattice(doc, m, units)
     _refinement(doc, m, units)
     _curves(doc, m, units)
     _inverter(doc, units["continuum_mechanism/inverter"].meta)
@@ -147,6 +182,28 @@ def _findings_learning(doc: Document, m, units, opt) -> None:
                 basis="coupled",
             )
         )
+
+
+def _findings_lattice(doc: Document, m, units) -> None:
+    metas = [
+        units[k].meta
+        for r in range(m.refine + 1)
+        if (k := f"continuum_mechanism/lattice/refine{r}") in units
+    ]
+    if not metas:
+        return
+    ok = [u["ratio"] <= LEVEL and u["coupling"] == "coupled" for u in metas]
+    doc.finding(
+        Finding(
+            claim="the triangular lattice learns the same 1 -> 1 task by GCL of its "
+            "stiffnesses with the coupled verdict at every lattice constant",
+            metric="final C/C0 per lattice constant and the coupling verdict",
+            measured={f"C/C0 a = {_h(u['refine'])}": u["ratio"] for u in metas},
+            verdict=REPRODUCED if all(ok) else NOT_REPRODUCED,
+            rule=f"reproduced when on every lattice C/C0 <= {LEVEL:g} and the verdict is coupled",
+            basis="coupled",
+        )
+    )
 
 
 def _refinement(doc: Document, m, units) -> None:
@@ -195,6 +252,11 @@ def _curves(doc: Document, m, units) -> None:
             label = f"{rule}, {rate}"
             by_step.append(Series(np.arange(a["error"].size), a["error"], label))
             by_time.append(Series(a["seconds"], a["error"], label))
+    lk = f"continuum_mechanism/lattice/refine{R}"
+    if lk in units:
+        a = units[lk].arrays
+        by_step.append(Series(np.arange(a["error"].size), a["error"], "lattice, GCL of k"))
+        by_time.append(Series(a["seconds"], a["error"], "lattice, GCL of k"))
     key = f"continuum_mechanism/optimum/refine{R}"
     if key in units:
         o = units[key].arrays
@@ -239,16 +301,25 @@ def _inverter(doc: Document, inv: dict) -> None:
         f"{fmt(inv['u_out'])} (uniform start: {fmt(inv['u_out_initial'])}), input u_in = "
         f"{fmt(inv['u_in'])}: geometric advantage -u_out/u_in = {fmt(ga)}.",
     )
-    good = inv["u_out"] < 0 < inv["u_in"] and ADVANTAGE[0] <= ga <= ADVANTAGE[1]
+    doc.add(
+        "",
+        "The magnitude -u_out/u_in depends on the springs and the volume; no independent "
+        "implementation checks it here yet, so only the sign is a verdict.",
+    )
+    good = inv["u_out"] < 0 < inv["u_in"] and inv["u_out_initial"] > 0
     doc.finding(
         Finding(
-            claim="topology optimisation reaches the force inverter of the literature: output "
-            "opposite to the input, of the input's order of magnitude (Sigmund 1997)",
-            metric="sign of u_out against u_in, and -u_out/u_in",
-            measured={"u_out": inv["u_out"], "u_in": inv["u_in"], "advantage": ga},
+            claim="topology optimisation turns the plate into a force inverter: the uniform "
+            "plate's output moves with the input, the optimised one's against it (Sigmund 1997)",
+            metric="sign of u_out against u_in, uniform start and optimised",
+            measured={
+                "u_out": inv["u_out"],
+                "u_out uniform": inv["u_out_initial"],
+                "u_in": inv["u_in"],
+                "advantage": ga,
+            },
             verdict=REPRODUCED if good else NOT_REPRODUCED,
-            rule=f"reproduced when u_out < 0 < u_in and {ADVANTAGE[0]:g} <= -u_out/u_in <= "
-            f"{ADVANTAGE[1]:g}",
+            rule="reproduced when u_out(uniform) > 0 and u_out < 0 < u_in at the end",
             source="field",
         )
     )
@@ -269,7 +340,8 @@ def _renders(doc: Document, m, units) -> None:
          f"log10 modulus learned by {rule} ({m.rates[0]}, {_h(R)})"),
         ("optimum", units[f"continuum_mechanism/optimum/refine{m.optimum_refine}"].arrays,
          f"log10 modulus, exact optimum ({_h(m.optimum_refine)})"),
-        ("simp", units["continuum_mechanism/simp"].arrays, "log10 modulus, SIMP (h)"),
+        ("simp", units["continuum_mechanism/simp"].arrays,
+         "log10 modulus, SIMP over the learning's range (h)"),
     ]  # fmt: skip
     for name, a, title in shown:
         pts = np.asarray(a["points"], float)
