@@ -9,7 +9,8 @@ relaxation time ``tau`` after the source step, the time for the target strains (
 learning reads) to come within 1 % of their total change of their new equilibrium
 (:func:`~continuum_vs_network.learning.physical_time.network_relaxation_time`, the body's
 :func:`~continuum_vs_network.continuum.damped_states.body_relaxation_time`; the older
-net-force time ``tau_force`` beside it). Computed once, read by every rule's unit.
+net-force time ``tau_force`` beside it), and the modes behind it
+(:mod:`.units_time_task`). Computed once, read by every rule's unit.
 
 Phase 1, one unit per size, draw, rule and medium
 (``physical_time/n<n>/d<d>/<rule>[/continuum]``): for every ratio ``rho = alpha k tau`` of
@@ -79,6 +80,7 @@ def plan_time(scene: Scene) -> list[Unit]:
     """Phase 0: one task unit per size and draw; phase 1: one unit per size, draw, rule
     and medium, the largest sizes first (the longest units start first)."""
     from .units_time_coupling import coupling_rule
+    from .units_time_task import task_unit
 
     if scene.physical_time.dof == "stiffness" and "gpc" in scene.physical_time.rules:
         _rule("gpc", None, scene.physical_time.eta, "stiffness")  # raises: GPC cannot learn k
@@ -239,48 +241,6 @@ def _body(net, task):
 
     body = learnable_body(network_mesh(net), lattice_lame(float(np.mean(net.stiffness))))
     return body, MaterialTask.from_network(net, task, body)
-
-
-def task_unit(scene: Scene, params: dict, ctx: UnitContext):
-    """The task of one size and draw, and each medium's ``tau`` and ``tau_force``."""
-    from ..learning.physical_time import network_relaxation_time
-
-    n, draw = params["n"], params["draw"]
-    net, task = _lattice_task(scene, n, draw)
-    vis = _viscosity(scene)
-    meta: dict[str, Any] = {"n": n, "draw": draw, "n_nodes": net.n_nodes, "kind": "task"}
-    for medium in scene.physical_time.media:
-        reference: dict[str, Any] = {}
-        if medium == "network":
-            tau, tau_force = (
-                network_relaxation_time(net, task, vis, measure=m) for m in ("target", "force")
-            )
-            if scene.physical_time.dof == "stiffness":
-                from .units_time_reference import reference_run
-
-                reference = reference_run(scene, net, task, medium, vis)
-        else:
-            from ..continuum.damped_states import body_relaxation_time
-            from ..continuum.viscoelastic import lattice_damping
-
-            body, mtask = _body(net, task)
-            damping = lattice_damping(vis)
-            tau, tau_force = (
-                body_relaxation_time(body, mtask, damping, measure=m) for m in ("target", "force")
-            )
-            if scene.physical_time.dof == "stiffness":
-                from .units_time_reference import reference_run
-
-                reference = reference_run(scene, body, mtask, medium, vis)
-        meta[medium] = {"tau": float(tau), "tau_force": float(tau_force), **reference}
-    arrays = {
-        "sources": task.sources,
-        "source_strain": task.source_strain,
-        "targets": task.targets,
-        "target_strain": task.target_strain,
-        "pinned": task.pinned,
-    }
-    return arrays, meta
 
 
 def _medium(scene: Scene, params: dict, ctx: UnitContext):

@@ -4,7 +4,8 @@ rate to relaxation rate, the critical ratio against size, and the verdicts.
 This module writes the section in order; its parts: :mod:`.physical_time_units` (reading the
 stored units), :mod:`.physical_time_text` (settings as the runs used them),
 :mod:`.physical_time_tables` (summary and fits), :mod:`.physical_time_figures`,
-:mod:`.physical_time_findings` (the verdict rules).
+:mod:`.physical_time_findings` (the verdict rules), :mod:`.physical_time_modes` (the linear
+modes behind the relaxation times, against the `relaxation` scene).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from .physical_time_findings import QS_AGREEMENT as QS_AGREEMENT
 from .physical_time_findings import SPEEDUP_NO as SPEEDUP_NO
 from .physical_time_findings import SPEEDUP_YES as SPEEDUP_YES
 from .physical_time_findings import _findings, decoupled_count
+from .physical_time_modes import modes_section
 from .physical_time_tables import _summary
 from .physical_time_text import (
     _draws_text,
@@ -192,6 +194,7 @@ def _after_intro(doc: Document, scene, spec, rules, result) -> None:
     _summary(doc, rules, tasks)
     figures(doc, rules, tasks, ratios, _NAMES)
     _findings(doc, rules, ratios)
+    modes_section(doc, tasks)
 
 
 def _coupling_summary(rules: dict[str, list]) -> str:
