@@ -62,6 +62,9 @@ SCALES = (0.0, 0.5, 1.0, 1.5, 2.0)
 TASKS = {"1to1": (1, 1), "10to3": (10, 3)}
 #: Rules clamped-only (no free state needed: ``clamped_steps``).
 CLAMPED = ("gpc", "aging")
+#: Rules a scene's raw rate ``alpha`` applies to (the clamped-only ones keep their scaled
+#: rate: their lines have one sign, a raw rate sized for GCL drives them to the range's floor).
+RAW = ("gcl", "exact")
 
 
 def _rule(
@@ -73,7 +76,8 @@ def _rule(
     alpha: float | None = None,
 ):
     """The package's default rule object ``name`` learning ``dof``: nothing tuned unless the
-    scene sets GCL's nudge ``eta``, the default rate's ``step`` or the raw rate ``alpha``."""
+    scene sets GCL's nudge ``eta``, the default rate's ``step`` or the raw rate ``alpha`` (GCL
+    and the exact gradient only, :data:`RAW`)."""
     from dataclasses import replace
 
     from ..learning import CoupledLearning, DirectedAging, ExactGradient, ProspectiveConfiguration
@@ -89,7 +93,7 @@ def _rule(
         kw["eta"] = eta
     if step is not None:
         kw["rate"] = replace(cls.default_rate, step=step)
-    if alpha is not None:
+    if alpha is not None and name in RAW:
         kw["alpha"] = alpha
     return cls(**kw)
 

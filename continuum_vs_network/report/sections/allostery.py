@@ -28,13 +28,18 @@ TASK_NAMES = {"1to1": "1 -> 1 (Rocks 2017)", "10to3": "10 -> 3 (Stern 2021)"}
 DOF_NAMES = {"stiffness": "k", "rest_length": "L", "both": "k and L"}
 
 
-def _rates(rules, step=None) -> str:
+def _rates(rules, step=None, alpha=None) -> str:
     parts = []
     for rule in rules:
-        rate = _rule(rule, "stiffness", step=step).adaptive
+        r = _rule(rule, "stiffness", step=None if alpha is not None else step, alpha=alpha)
+        rate = r.adaptive
         parts.append(
-            f"{RULE_NAMES[rule]} ({RULES[rule]}): {type(rate).__name__.lower()} rate, "
-            f"step {rate.step:g}"
+            f"{RULE_NAMES[rule]} ({RULES[rule]}): "
+            + (
+                f"the paper's raw rate alpha = {r.alpha:g}"
+                if rate is None
+                else f"{type(rate).__name__.lower()} rate, step {rate.step:g}"
+            )
         )
     return "; ".join(parts)
 
@@ -64,7 +69,7 @@ def _intro(doc: Document, scene, grps) -> None:
         f"draw trains the same network on the same task; {a.draws} draws.",
         "",
         f"**Rules and rates.** The package's default rule objects, nothing tuned: "
-        f"{_rates(a.rules, a.step)} (`learning/rates.py`: the adaptive rate is per spring and "
+        f"{_rates(a.rules, a.step, a.alpha)} (`learning/rates.py`: the adaptive rate is per spring and "
         "scale-free; the scaled rate is fixed after the first step). Learned stiffnesses "
         f"stay within [{STIFFNESS_RANGE[0]:g}, {STIFFNESS_RANGE[1]:g}] x k0 "
         "(`learning/ranges.py`, every rule and the optimum); the optimum keeps rest lengths "

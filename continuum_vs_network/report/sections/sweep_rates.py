@@ -10,7 +10,8 @@ optimum per point, so are the draws no cell learned.
   threshold at every rate. The best rate has the highest share (then the fewest steps); the
   grid brackets it when a smaller rate is slower or learns less and a larger one learns
   less (the instability).
-* **The nudge**: at every rate where each nudge learned at least ``STABLE`` of the draws,
+* **The nudge**: at every rate up to the smallest of the nudges' best rates (the stable
+  side) where each nudge learned at least ``STABLE`` of the draws,
   the median steps to the threshold over the learned rows of each nudge; the nudge does not
   matter when they differ by at most ``ETA_FACTOR``.
 """
@@ -113,17 +114,25 @@ def rate_findings(doc: Document, result, params: list[str]) -> None:
     if rate and len(alphas) >= 3:
         _rate_bracket(doc, alphas, etas, stats)
     if nudge and len(etas) >= 2:
-        _nudge(doc, alphas, etas, stats)
+        # the stable side: rates up to the smallest of the nudges' best rates
+        top = min(_best(alphas, [stats[a, e] for a in alphas]) for e in etas)
+        _nudge(doc, alphas[: top + 1], etas, stats)
+
+
+def _best(alphas, col) -> int:
+    """Index of the best rate of one nudge's column of (share, steps, rows)."""
+    best = 0
+    for i in range(1, len(col)):
+        if _better(col[i], col[best]):
+            best = i
+    return best
 
 
 def _rate_bracket(doc: Document, alphas, etas, stats) -> None:
     lines, bracketed = [], []
     for e in etas:
         col = [stats[a, e] for a in alphas]
-        best = 0
-        for i in range(1, len(col)):
-            if _better(col[i], col[best]):
-                best = i
+        best = _best(alphas, col)
         slow = any(
             c[0] < col[best][0] or np.nan_to_num(c[1], nan=np.inf) >= SLOWER * col[best][1]
             for c in col[:best]
@@ -175,9 +184,9 @@ def _nudge(doc: Document, alphas, etas, stats) -> None:
         v = REPRODUCED if spread <= ETA_FACTOR else NOT_REPRODUCED
     doc.add(
         f"Across eta = {', '.join(map(_label, etas))}, the median steps to the threshold "
-        f"change by at most a factor {fmt(spread)} over the {rows} rates where every nudge "
-        f"learned at least {STABLE:.0%} of the draws (the stable side; above the best rate "
-        "single runs are erratic)" + (f" (largest at alpha = {_label(at)})" if at is not None else "")
+        f"change by at most a factor {fmt(spread)} over the {rows} rates up to the nudges' "
+        f"best where every nudge learned at least {STABLE:.0%} of the draws (the stable side; "
+        "above the best rate single runs are erratic)" + (f" (largest at alpha = {_label(at)})" if at is not None else "")
         + f": **{v}** (rule: at most {ETA_FACTOR:g}x).",
         "",
     )

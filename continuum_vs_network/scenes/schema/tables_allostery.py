@@ -108,7 +108,8 @@ class AllosterySpec:
     alpha: float | None = _key(
         "float",
         None,
-        "the paper's raw learning rate for every rule (None: each rule's default rate)",
+        "the paper's raw learning rate of GCL and the exact gradient (None: their default "
+        "adaptive rate; GPC and aging keep their scaled rate)",
         check=_positive,
     )
     optimum: bool = _key(
