@@ -110,8 +110,10 @@ def _jammed(args) -> None:
     c = measure_coupling(net, trained, task)
     # the learned response: change of every spring's strain under the source, trained
     # against untrained (free states of the driven example)
-    strain = [np.linalg.norm(np.diff(x[net.springs], axis=1)[:, 0], axis=1) / net.rest_length
-              for x in states]
+    strain = [
+        np.linalg.norm(np.diff(x[net.springs], axis=1)[:, 0], axis=1) / net.rest_length
+        for x in states
+    ]
     change = np.abs(strain[1] - strain[0])
     order = np.argsort(dist)
     share = np.cumsum(change[order]) / change.sum()
@@ -140,7 +142,7 @@ def _lattice(args) -> None:
     from continuum_vs_network.learning.rates import Adaptive
     from continuum_vs_network.network.builders import triangular_lattice
 
-    side = int(round(args.lattice_nodes**0.5))
+    side = round(args.lattice_nodes**0.5)
     t0 = time.perf_counter()
     net = triangular_lattice(side, side)
     rng = np.random.default_rng(args.seed)
@@ -151,7 +153,7 @@ def _lattice(args) -> None:
         f"{time.perf_counter() - t0:.1f} s, peak {_peak_gb():.2f} GB"
     )
     rule = CoupledLearning(dof="stiffness", rate=Adaptive(step=args.step))
-    _, ratios, seconds, _ = _learn(net, tasks, rule, args.lattice_steps, 0.0)
+    _, _, seconds, _ = _learn(net, tasks, rule, args.lattice_steps, 0.0)
     per = np.diff(seconds)
     print(
         f"# lattice: first step (cold: orderings, factorisations) {seconds[0]:.1f} s, then "

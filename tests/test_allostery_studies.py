@@ -112,9 +112,7 @@ def test_the_noise_report_states_its_fit(noisy, tmp_path):
 
 def _stats(table):
     """{(alpha, eta): (share, steps, rows)} from {alpha: [(share, steps) per eta]}."""
-    return {
-        (a, e): (s, n, 4) for a, cells in table.items() for e, (s, n) in zip((0.1, 1.0), cells)
-    }
+    return {(a, e): (s, n, 4) for a, cells in table.items() for e, (s, n) in zip((0.1, 1.0), cells)}
 
 
 class _Doc:
@@ -130,7 +128,9 @@ class _Doc:
 
 def test_a_rate_grid_is_judged_bracketed_only_with_a_worse_rate_on_both_sides():
     bracketed = {1e4: [(0.25, 90), (0.25, 95)], 1e5: [(1, 40), (1, 42)], 1e6: [(0.5, 9), (0, None)]}
-    stats = _stats({a: [(s, np.nan if n is None else n) for s, n in c] for a, c in bracketed.items()})
+    stats = _stats(
+        {a: [(s, np.nan if n is None else n) for s, n in c] for a, c in bracketed.items()}
+    )
     doc = _Doc()
     _rate_bracket(doc, sorted(bracketed), (0.1, 1.0), stats)
     assert doc.findings[-1].verdict == "reproduced"

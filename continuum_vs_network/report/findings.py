@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 __all__ = [
+    "BASES",
     "CONTRADICTED",
     "NOT_COMPARABLE",
     "NOT_REPRODUCED",
     "REPRODUCED",
-    "BASES",
     "SOURCES",
     "VERDICTS",
     "Finding",

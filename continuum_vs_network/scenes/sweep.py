@@ -150,8 +150,14 @@ def training_only(scene: Scene) -> tuple[Scene, str]:
     gradient comparison are drawn per scene, the sweep's report reads only its table."""
     if scene.kind == "allostery":  # the feasibility map is drawn per scene
         a = scene.allostery
-        asked = [n for n, on in (("[export]", scene.export is not None),
-                                 ("[allostery] map_draws", a.map_draws > 0)) if on]
+        asked = [
+            n
+            for n, on in (
+                ("[export]", scene.export is not None),
+                ("[allostery] map_draws", a.map_draws > 0),
+            )
+            if on
+        ]
         scene = dataclasses.replace(
             scene,
             export=None,

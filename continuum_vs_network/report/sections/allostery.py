@@ -68,10 +68,15 @@ def _intro(doc: Document, scene, grps) -> None:
         "cannot meet it; sources and targets do not learn (bulk learning). Every rule of a "
         f"draw trains the same network on the same task; {a.draws} draws.",
         "",
-        f"**Rules and rates.** The package's default rule objects, nothing tuned: "
-        f"{_rates(a.rules, a.step, a.alpha)} (`learning/rates.py`: the adaptive rate is per spring and "
-        "scale-free; the scaled rate is fixed after the first step). Learned stiffnesses "
-        f"stay within [{STIFFNESS_RANGE[0]:g}, {STIFFNESS_RANGE[1]:g}] x k0 "
+        "**Rules and rates.** "
+        + (
+            "The package's default rule objects, nothing tuned: "
+            if a.alpha is None and a.step is None
+            else "The package's rule objects at the scene's rate: "
+        )
+        + f"{_rates(a.rules, a.step, a.alpha)} (`learning/rates.py`: the adaptive rate is per "
+        "spring and scale-free; the scaled rate is fixed after the first step). Learned "
+        f"stiffnesses stay within [{STIFFNESS_RANGE[0]:g}, {STIFFNESS_RANGE[1]:g}] x k0 "
         "(`learning/ranges.py`, every rule and the optimum); the optimum keeps rest lengths "
         f"within [{REST_LENGTH_RANGE[0]:g}, {REST_LENGTH_RANGE[1]:g}] x L0. Steps: "
         + ", ".join(f"{RULE_NAMES[r]} {steps_of(scene, r)}" for r in a.rules)

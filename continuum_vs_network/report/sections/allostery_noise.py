@@ -60,7 +60,7 @@ def _floor_points(g: Group, fams) -> tuple[dict, list[str]]:
     """
     pts = {"ratio": [], "floor": [], "clean": [], "eta": [], "draw": []}
     clean_verdicts = []
-    for fam, by_noise in fams.items():
+    for by_noise in fams.values():
         runs = [g.runs[n] for n in by_noise.values()]
         if runs[0].rule != "gcl" or 0.0 not in by_noise:
             continue
@@ -91,7 +91,9 @@ def _table(doc: Document, g: Group, fams, sigmas) -> dict:
         for sigma in sigmas:
             t = tally(g, by_noise[sigma])
             ok = [f for f in g.feasible]
-            floors = [u.meta["floor"] for u, f in zip(g.train[by_noise[sigma]], ok, strict=True) if f]
+            floors = [
+                u.meta["floor"] for u, f in zip(g.train[by_noise[sigma]], ok, strict=True) if f
+            ]
             med[fam, sigma] = _median(floors)
             cells.append(f"{fmt(med[fam, sigma], 2)} ({t.learned}/{t.feasible})")
         rows.append([fam, *cells])
@@ -142,8 +144,12 @@ def _fit(doc: Document, g: Group, pts, clean_verdicts) -> dict:
             claim="GCL's noise floor scales like (sigma / eta)^2 (coupled learning of k)",
             metric="median over draws of the exponent p of floor = c (sigma/eta)^p fitted over "
             "each draw's noise-limited GCL runs (noise-free run learned, coupled)",
-            measured={"p": p, "draws fitted": len(fits), "coupled pairs": coupled,
-                      "left out": left_out},
+            measured={
+                "p": p,
+                "draws fitted": len(fits),
+                "coupled pairs": coupled,
+                "left out": left_out,
+            },
             verdict=v,
             rule=f"reproduced if |p - 2| <= {EXPONENT_TOLERANCE:g}; not reproduced otherwise; "
             "not comparable when no draw has 3 points over a decade of sigma/eta",
@@ -208,14 +214,26 @@ def _figure(doc: Document, g: Group, fams, sigmas, pts, fit, med) -> None:
     for j, eta in enumerate(sorted(set(pts["eta"].tolist()))):
         m = pts["eta"] == eta
         left.append(
-            Series(pts["ratio"][m], pts["floor"][m], f"eta = {eta:g}", marker="o", style="",
-                   color=COLORS[j % 10])
+            Series(
+                pts["ratio"][m],
+                pts["floor"][m],
+                f"eta = {eta:g}",
+                marker="o",
+                style="",
+                color=COLORS[j % 10],
+            )
         )
     if np.isfinite(fit["p"]):
         grid = np.logspace(np.log10(pts["ratio"].min()), np.log10(pts["ratio"].max()), 50)
-        left.append(Series(grid, fit["c"] * grid ** fit["p"],
-                           f"median exponent: c (sigma/eta)^{fmt(fit['p'], 2)}",
-                           style="--", color="black"))
+        left.append(
+            Series(
+                grid,
+                fit["c"] * grid ** fit["p"],
+                f"median exponent: c (sigma/eta)^{fmt(fit['p'], 2)}",
+                style="--",
+                color="black",
+            )
+        )
     positive = [s for s in sigmas if s > 0]
     right = [
         Series(positive, [med[f, s] for s in positive], f, marker="o", color=COLORS[j % 10])
@@ -224,10 +242,22 @@ def _figure(doc: Document, g: Group, fams, sigmas, pts, fit, med) -> None:
     doc.figure(
         f"allostery_noise_n{g.n}",
         [
-            Panel(left, "GCL floor against sigma / eta (learned draws)", "sigma / eta",
-                  "floor of C/C0", xscale="log", yscale="log"),
-            Panel(right, "median floor against the noise", "read-out noise sigma",
-                  "floor of C/C0", xscale="log", yscale="log"),
+            Panel(
+                left,
+                "GCL floor against sigma / eta (learned draws)",
+                "sigma / eta",
+                "floor of C/C0",
+                xscale="log",
+                yscale="log",
+            ),
+            Panel(
+                right,
+                "median floor against the noise",
+                "read-out noise sigma",
+                "floor of C/C0",
+                xscale="log",
+                yscale="log",
+            ),
         ],
         "Left: floor of C/C0 (median over the last quarter of the steps) of every noisy GCL run "
         "on a draw its noise-free run learned, against sigma / eta, coloured by the nudge, "

@@ -186,7 +186,8 @@ def _nudge(doc: Document, alphas, etas, stats) -> None:
         f"Across eta = {', '.join(map(_label, etas))}, the median steps to the threshold "
         f"change by at most a factor {fmt(spread)} over the {rows} rates up to the nudges' "
         f"best where every nudge learned at least {STABLE:.0%} of the draws (the stable side; "
-        "above the best rate single runs are erratic)" + (f" (largest at alpha = {_label(at)})" if at is not None else "")
+        "above the best rate single runs are erratic)"
+        + (f" (largest at alpha = {_label(at)})" if at is not None else "")
         + f": **{v}** (rule: at most {ETA_FACTOR:g}x).",
         "",
     )

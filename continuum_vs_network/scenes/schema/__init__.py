@@ -46,8 +46,8 @@ from .scene import Scene, parse_scene
 from .sweep import SweepSpec, check_zip, parse_sweep, sweep_values
 from .tables import _TABLES as _TABLES
 from .tables_allostery import ALLOSTERY_RULES, AllosterySpec
-from .tables_mechanism import MechanismSpec
 from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
+from .tables_mechanism import MechanismSpec
 from .tables_physics import (
     TIME_RULES,
     AccuracySpec,
@@ -74,11 +74,11 @@ __all__ = [
     "TIME_RULES",
     "AccuracySpec",
     "AllosterySpec",
-    "MechanismSpec",
     "ContinuumSpec",
     "DynamicsSpec",
     "ExportSpec",
     "LearningSpec",
+    "MechanismSpec",
     "NetworkSpec",
     "PhysicalTimeSpec",
     "ReportSpec",

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from .tables_allostery import AllosterySpec
-from .tables_mechanism import MechanismSpec
 from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
+from .tables_mechanism import MechanismSpec
 from .tables_physics import (
     AccuracySpec,
     ContinuumSpec,

@@ -19,7 +19,6 @@ from .keys import (
     _key,
     _non_negative,
     _positive,
-    _positive,
     _unique_nonempty,
 )
 

@@ -353,6 +353,8 @@ class ReportSpec:
         "bool",
         False,
         "pyvista off-screen renders",
-        used=_kinds("learning", "transmission", "relaxation", "continuum_learning", "continuum_mechanism"),
+        used=_kinds(
+            "learning", "transmission", "relaxation", "continuum_learning", "continuum_mechanism"
+        ),
     )
     dpi: int = _key("int", 90, "resolution of the figures", check=_between(40, 300))
