@@ -193,7 +193,7 @@ def summary_text(values: NDArray, completed: NDArray | None = None) -> str:
 
 #: Short solver names for panel titles.
 SHORT_NAMES = {
-    "newton": "exact (Newton)",
+    "newton": "Newton equilibria",
     "paper": "paper's Adagrad",
     "fire": "FIRE",
     "lbfgs": "L-BFGS",

@@ -242,9 +242,12 @@ def _log_ticks(axis, limits: tuple[float, float]) -> None:
     lo, hi = sorted(limits)
     if lo > 0 and math.log10(hi / lo) < 2:
         axis.set_major_locator(LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
-        axis.set_major_formatter(
-            LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(3, 3))
-        )
+        if 1e-3 <= lo and hi <= 1e4:  # plain numbers (0.2, 0.5, 1, 2) read better here
+            axis.set_major_formatter(_ShortFormatter())
+        else:
+            axis.set_major_formatter(
+                LogFormatterSciNotation(labelOnlyBase=False, minor_thresholds=(3, 3))
+            )
     axis.set_minor_formatter(NullFormatter())
 
 
@@ -291,9 +294,11 @@ def heatmap(
     text: Sequence[Sequence[str]] | None = None,
     title: str = "",
     colorbar: str = "",
+    xlabel: str = "",
     dpi: int = 90,
 ) -> Path:
-    """A (rows x cols) colour table of ``values`` (NaN grey) with optional cell text."""
+    """A (rows x cols) colour table of ``values`` (NaN grey) with optional cell text and an
+    x-axis label (the quantity across)."""
     plt = _pyplot()
     v = np.asarray(values, dtype=float)
     if v.shape != (len(rows), len(cols)):
@@ -324,6 +329,8 @@ def heatmap(
         cb.set_label(colorbar, fontsize=8)
         cb.ax.tick_params(labelsize=7)
         ax.set_title(title, fontsize=10)
+        if xlabel:
+            ax.set_xlabel(xlabel, fontsize=9)
         fig.tight_layout()
         return _save(fig, path, dpi)
     finally:

@@ -229,7 +229,7 @@ def _group(doc: Document, scene, g) -> None:
         ],
     )
     _clamped_note(doc, g, tallies)
-    if g.task == "1to1" and g.dof == "stiffness":
+    if g.dof == "stiffness":
         for t in tallies:
             if t.rule in ("gcl", "exact"):
                 _finding(doc, g, t)

@@ -75,9 +75,7 @@ def groups(scene, units) -> list[Group]:
                 base = f"allostery/%s/n{n}/{task}/{dof}/draw"
                 opt = [units[f"{base % 'opt'}{i}"] for i in range(a.draws)] if a.optimum else []
                 rs = {r.name: r for r in runs(scene)}
-                train = {
-                    r: [units[f"{base % 'train'}{i}/{r}"] for i in range(a.draws)] for r in rs
-                }
+                train = {r: [units[f"{base % 'train'}{i}/{r}"] for i in range(a.draws)] for r in rs}
                 out.append(Group(n, task, dof, opt, train, rs))
     return out
 

@@ -166,8 +166,16 @@ def _thermal(doc, scene, units) -> None:
     ]  # fmt: skip
     doc.figure(
         "beyond_thermal",
-        [Panel(series, "thermal floor", "k_B T", "floor of C / C0", xscale="log",
-               yscale="log")],
+        [
+            Panel(
+                series,
+                "thermal floor",
+                "k_B T (energy: stiffness x length^2)",
+                "floor of C / C0",
+                xscale="log",
+                yscale="log",
+            )
+        ],
         "The 'floor' (median C/C0 over the last quarter of the steps) against temperature "
         "for GCL at every nudge and the exact gradient (T = 0 is off the log axis; its "
         "floors are in the table). Of these floors, T = 0 included: "

@@ -209,6 +209,7 @@ def _heatmaps(doc: Document, result, params: list[str]) -> None:
                 text=text,
                 title=f"{rule}: median final / initial error ({b} across){extra}",
                 colorbar="log10 median final / initial error",
+                xlabel=b,
                 dpi=doc.dpi,
             )
             pooled = [q for q in params if q not in (a, b, third)]
