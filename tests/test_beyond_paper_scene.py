@@ -174,3 +174,14 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
     assert units["beyond/thermal/T1/gcl_eta0.01"].meta["temperature"] == 1e-6
     assert units["beyond/thermal/T1/gcl_eta0.01"].meta["rule"]["dof"] == "stiffness"
     assert "GCL's error floor grows with the temperature at every nudge" in claims
+
+
+def test_the_compare_caption_names_exactly_the_curves_drawn_on_top_of_one_another():
+    from continuum_vs_network.report.figures import Panel, Series
+    from continuum_vs_network.report.sections.beyond_paper_aging import _hidden
+
+    x = np.arange(4.0)
+    same = Panel([Series(x, [1, 0.5, 0.2, 0.1], "gpc"), Series(x, [1, 0.5, 0.2, 0.1], "aging")])
+    apart = Panel([Series(x, [1, 0.5, 0.2, 0.1], "gcl"), Series(x, [1, 0.5, 0.2, 0.2], "exact")])
+    assert _hidden([same]) == "; on top of one another (drawn, hidden): aging lies under gpc"
+    assert _hidden([apart]) == ""

@@ -492,7 +492,10 @@ def _finish(
             and name_pin_load
             and (load := _pin_reaction(problem, x)) > max(relative, stop.tol)
         ):
-            reason += f"; the default pins carry {load:.1e} of their nodes' sum k L"
+            reason += (
+                f"; the default pins (which should only remove rigid motion) hold a net force "
+                f"of {load:.1e} x their nodes' sum k L: the network is loaded through them"
+            )
         raise EquilibriumError(
             f"{method}: {reason} (wanted every net force <= {stop.tol:.1e} of its node's "
             f"sum k L, got {relative:.3e}; relative clamp error {clamp_relative:.3e})",

@@ -148,9 +148,30 @@ def _compare(doc, scene, units) -> None:
         "beyond_compare",
         panels,
         "Task error (with the rest example) against steps of every default rule, one run "
-        "each, bulk learning" + (" (one panel per task)." if len(panels) > 1 else "."),
+        "each, bulk learning"
+        + (" (one panel per task)" if len(panels) > 1 else "")
+        + _hidden(panels)
+        + ".",
     )
     _aging_is_gpc(doc, scene, units)
+
+
+def _hidden(panels) -> str:
+    """Which curves lie on top of one another (within 1e-6 relative at every step), so the
+    caption can say that a line hidden under another is drawn."""
+    pairs = []
+    for panel in panels:
+        drawn = [(s.label, np.asarray(s.y, dtype=float)) for s in panel.series]
+        for i, (a, ya) in enumerate(drawn):
+            for b, yb in drawn[:i]:
+                both = np.isfinite(ya) & np.isfinite(yb)
+                if (
+                    ya.shape == yb.shape
+                    and both.any()
+                    and np.allclose(ya[both], yb[both], rtol=1e-6, atol=0.0)
+                ):
+                    pairs.append(f"{a} lies under {b}")
+    return f"; on top of one another (drawn, hidden): {', '.join(pairs)}" if pairs else ""
 
 
 def _aging_is_gpc(doc, scene, units) -> None:

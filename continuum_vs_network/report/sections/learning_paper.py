@@ -295,7 +295,8 @@ def explanations(doc: Document, result, h, solver: str, feas: dict) -> list[list
 
         text = (
             "**The paper's relaxation is not an equilibrium.** The paper's Adagrad (learning "
-            f"rate 0.1, rods of stiffness 1e10), run {ADAGRAD_ITERATIONS} iterations from each "
+            f"rate 0.1, rods of stiffness 1e10), run {ADAGRAD_ITERATIONS} iterations (the "
+            "notebooks' budget per equilibrium) from each "
             "untrained draw "
             f"with the source clamped, leaves a largest net force of {_range(res)} (force "
             "units; exact equilibria here: <= 1e-10 relative); scene paper_adagrad compares "
