@@ -14,6 +14,15 @@ field learns through the density filter of :mod:`continuum_vs_network.continuum.
   ``points``, ``triangles``, ``area``, ``frozen``. Meta: final C/C0, first step at
   C/C0 <= 1e-3, the response ratio ``S_T / S_S`` reached, the rest example's error, the
   source share and its verdict.
+* ``continuum_mechanism/dof/refine<r>/<dof>`` (``r <= dof_refine``, ``dof`` in ``dofs``):
+  GCL (raw rate ``dof_alpha``: the rule objects refuse a scale-free rate for a continuum's
+  eigenstrain) of the filtered eigenstrain, or of both fields
+  (:class:`~continuum_vs_network.continuum.filtered_fields.FilteredFields`, eigenstrain in
+  units of ``eigenstrain_unit``), on the task and its rest example; ``eigenstrain_norest``:
+  the eigenstrain on the task alone (the check that the rest example is what makes the
+  task non-trivial). Coupling: the source share of the trained body's free states with the
+  sources on and off. Arrays ``error``, ``seconds``, ``solves``, ``modulus``,
+  ``dilation``; meta as the learning units'.
 * ``continuum_mechanism/optimum/refine<r>``: the exact optimum (:func:`~continuum_vs_network.
   continuum.field_optimum.field_optimum`) of the same medium and task.
 * ``continuum_mechanism/simp``: SIMP (penalty 3, density filter of the same radius, MMA when
@@ -89,6 +98,13 @@ def plan_mechanism(scene: Scene) -> list[Unit]:
             Unit(f"continuum_mechanism/lattice/refine{r}", lattice_unit, {"refine": r}, depends,
                  weight=m.steps)
         )  # fmt: skip
+        if r <= m.dof_refine:
+            for dof, rest in [(d, True) for d in m.dofs] + [("eigenstrain", False)]:
+                name = dof + ("" if rest else "_norest")
+                units.append(
+                    Unit(f"continuum_mechanism/dof/refine{r}/{name}", dof_unit,
+                         {"refine": r, "dof": dof, "rest": rest}, depends, weight=m.steps)
+                )  # fmt: skip
         for rule in m.rules:
             for rate in m.rates:
                 p = {"refine": r, "rule": rule, "rate": rate}
@@ -172,6 +188,51 @@ def learn_unit(scene: Scene, params: dict, ctx: UnitContext):
         "solves": float(arrays["solves"][-1]),
         "contrast": float(trained.modulus.max() / trained.modulus.min()),
     }
+    return arrays, meta
+
+
+def dof_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """GCL of the filtered eigenstrain field, or of both fields, at the raw rate
+    ``dof_alpha`` (the rule objects refuse a scale-free rate for a continuum's
+    eigenstrain), on the task with its rest example (``rest``) or on the task alone."""
+    from ..continuum.filtered_fields import MaterialExamples, filtered_fields
+    from ..continuum.mechanism import rest_example
+    from ..learning.coupling import coupling_verdict, outcome, source_share
+    from ..learning.metrics import first_below
+    from ..learning.rules import CoupledLearning
+    from ..learning.train import train
+
+    m = _spec(scene)
+    body, task, filtered = build(scene, params["refine"])
+    medium = filtered_fields(filtered, m.eigenstrain_unit)
+    rest = rest_example(task)
+    examples = MaterialExamples((task, rest) if params["rest"] else (task,))
+    rule = CoupledLearning(m.dof_alpha, dof=params["dof"], min_stiffness=0.01)
+    h = train(medium, examples, rule, m.steps, progress=False)
+    err = h.error_initial[0] / h.error_initial[0, 0]
+    trained = h.final[0].body
+    share = source_share(
+        trained.free_state(task).target_strain, trained.free_state(rest).target_strain,
+        body.free_state(rest).target_strain, body.free_state(task).target_strain,
+    )  # fmt: skip
+    verdict = coupling_verdict(share)
+    e = trained.eigenstrain
+    arrays = {
+        "error": err,
+        "seconds": np.asarray(h.seconds[0], dtype=float),
+        "solves": np.asarray(h.solves[0], dtype=float),
+        "modulus": trained.modulus,
+        "dilation": 0.5 * (e[:, 0] + e[:, 1]),
+    }
+    meta = {
+        **params, "ratio": float(err[-1]), "first_below": first_below(err, LEVEL),
+        "response": _response(trained, task), "asked": float(m.ratio),
+        "rest_error": float(rest.error(trained.free_state(rest).target_strain)),
+        "source_share": float(share), "coupling": verdict,
+        "outcome": outcome(float(err[-1]), verdict), "n_elements": int(body.n_elements),
+        "seconds": float(arrays["seconds"][-1]), "solves": float(arrays["solves"][-1]),
+        "completed": int(h.completed[0]),
+    }  # fmt: skip
     return arrays, meta
 
 

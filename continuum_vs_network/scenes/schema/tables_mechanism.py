@@ -16,6 +16,8 @@ from .keys import _at_least, _between, _key, _non_negative, _positive, _unique_n
 MECHANISM_RULES = ("gcl", "exact")
 #: Rates: the package's adaptive rate (Adam), or the scaled raw rate (gradient flow).
 MECHANISM_RATES = ("adaptive", "scaled")
+#: Fields learned beside the modulus: the eigenstrain (rest state), and both together.
+MECHANISM_DOFS = ("eigenstrain", "both")
 
 
 @dataclass(frozen=True)
@@ -52,6 +54,20 @@ class MechanismSpec:
     rates: tuple[str, ...] = _key(
         "list[str]", MECHANISM_RATES, "rates: 'adaptive' (Adam), 'scaled' (gradient flow)",
         choices=MECHANISM_RATES, check=_unique_nonempty,
+    )  # fmt: skip
+    dofs: tuple[str, ...] = _key(
+        "list[str]", MECHANISM_DOFS, "fields learned by GCL beside the modulus (raw rate)",
+        choices=MECHANISM_DOFS, check=_unique_nonempty,
+    )  # fmt: skip
+    dof_refine: int = _key(
+        "int", 0, "finest refinement of the eigenstrain / both runs", check=_between(0, 4)
+    )
+    dof_alpha: float = _key(
+        "float", 1e7, "raw GCL rate of the eigenstrain / both runs", check=_positive
+    )
+    eigenstrain_unit: float = _key(
+        "float", 1.7e-4, "strain unit of the eigenstrain design (sets its susceptibility)",
+        check=_positive,
     )  # fmt: skip
     adaptive_step: float = _key("float", 0.2, "step of the adaptive rate", check=_positive)
     scaled_step: float = _key("float", 0.5, "first step of the scaled rate", check=_positive)
