@@ -11,12 +11,17 @@ for every rule of ``[learning] rules`` the *same* rule object trains
 * ``continuum_learning/relaxation`` (after the training units): the trained network and
   the trained continuum on the lattice triangles (first rule) at rest with the sources off;
   the sources are switched on at ``t = 0`` and both creep against node drag ``c = 1``
-  (its continuum equivalent, :func:`~continuum_vs_network.continuum.node_drag_to_continuum`):
-  the network by :func:`~continuum_vs_network.network.dynamics.simulate` (overdamped,
-  clamps as prescribed end-node displacements), the continuum by
-  :func:`~continuum_vs_network.continuum.learned_relaxation.source_step` (exact clamps);
-  target strains against time, the time to settle within 10 % of their values at the end
-  of the run, and the gap between those and the exact-clamp free state.
+  (its continuum equivalent, :func:`~continuum_vs_network.continuum.node_drag_to_continuum`).
+  Both are driven by a strain clamp: the continuum by
+  :func:`~continuum_vs_network.continuum.learned_relaxation.source_step` (the source
+  strains exact constraints), the network by
+  :func:`~continuum_vs_network.network.strain_clamp.simulate_strain_clamped` (overdamped
+  backward Euler, each source spring a rod of ``ROD_FACTOR`` times the mean stiffness at
+  the clamp length, its end nodes otherwise free). Beside them, the network run as
+  :func:`~continuum_vs_network.network.dynamics.simulate` holds clamps (both end nodes
+  prescribed: ``network_nodes_*``). Target strains against time, the time to settle
+  within 10 % of their values at the end of the run, the gap between those and the
+  exact-clamp free state, and the rods' largest strain error.
 * ``continuum_learning/paper/refine<r>``: the paper's one-source, one-target task
   (:func:`~continuum_vs_network.learning.tasks.paper_task` strains, about 5) on the same
   continuum patch with the first rule (linear elasticity: the continuum is scale-free; the
@@ -273,6 +278,7 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
     from ..continuum.viscoelastic import Damping
     from ..network.dynamics import simulate
     from ..network.equilibrium import relax
+    from ..network.strain_clamp import ROD_FACTOR, rod_strain_error, simulate_strain_clamped
 
     rule = params["rule"]
     net, task = _lattice_and_task(scene, "stern")
@@ -283,21 +289,24 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
     on = {int(s): float(L0[s] * (1 + S)) for s, S in zip(task.sources, task.source_strain)}
     x_off = relax(trained, pinned=task.pinned, clamped=off, tol=1e-12).positions
     x_on = relax(trained, pinned=task.pinned, clamped=on, tol=1e-12).positions
-    t0 = time.perf_counter()
-    traj = simulate(
-        trained,
-        dt=params["dt"],
-        t_end=params["t_end"],
-        pinned=task.pinned,
-        clamped=on,
-        x0=x_off,
-        damping=1.0,
-        inertia=False,
-    )
-    net_seconds = time.perf_counter() - t0
     i, j = trained.springs[task.targets].T
-    pos = traj.positions
-    net_strain = np.linalg.norm(pos[:, j] - pos[:, i], axis=2) / L0[task.targets] - 1.0
+
+    def run(strain_clamp: bool):
+        t0 = time.perf_counter()
+        kw = dict(dt=params["dt"], t_end=params["t_end"], pinned=task.pinned, x0=x_off)
+        if strain_clamp:
+            traj = simulate_strain_clamped(trained, clamped=on, damping=1.0, inertia=False, **kw)
+        else:
+            traj = simulate(trained, clamped=on, damping=1.0, inertia=False, **kw)
+        pos = traj.positions
+        strain = np.linalg.norm(pos[:, j] - pos[:, i], axis=2) / L0[task.targets] - 1.0
+        return traj, strain, time.perf_counter() - t0
+
+    traj, net_strain, net_seconds = run(True)
+    rod_error = max(
+        float(np.max(np.abs(rod_strain_error(trained, on, p)))) for p in traj.positions[1:]
+    )
+    nodes, nodes_strain, nodes_seconds = run(False)
     net_final = trained.lengths(x_on, task.targets) / L0[task.targets] - 1.0
 
     field = ctx.unit(f"continuum_learning/refine0/{rule}").arrays["field"]
@@ -317,6 +326,8 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
         "network_times": traj.times,
         "network_strain": net_strain,
         "network_final": net_final,
+        "network_nodes_times": nodes.times,
+        "network_nodes_strain": nodes_strain,
     }
     meta = {
         "rule": rule,
@@ -324,6 +335,11 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
         "network_settle": time_to_settle(traj.times, net_strain, net_strain[-1]),
         "continuum_gap": float(np.max(np.abs(step.target_strain[-1] - step.final))),
         "network_gap": float(np.max(np.abs(net_strain[-1] - net_final))),
+        "network_nodes_settle": time_to_settle(nodes.times, nodes_strain, nodes_strain[-1]),
+        "network_nodes_gap": float(np.max(np.abs(nodes_strain[-1] - net_final))),
+        "network_nodes_seconds": nodes_seconds,
+        "rod_factor": ROD_FACTOR,
+        "rod_strain_error": rod_error,
         "continuum_seconds": step.seconds,
         "network_seconds": net_seconds,
         "dt": params["dt"],
