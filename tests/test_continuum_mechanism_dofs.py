@@ -46,8 +46,9 @@ def test_both_step_has_modulus_and_eigenstrain_columns(scene):
     assert step.raw.shape == (med.n_elements, 4)
     frozen = ~med.learning_mask(task, learn_sources=False, learn_targets=False)
     assert np.all(step.raw[frozen] == 0)
-    assert np.isclose(ex.error(med.free_state(ex).target_strain), task.error(
-        fm.free_state(task).target_strain))
+    assert np.isclose(
+        ex.error(med.free_state(ex).target_strain), task.error(fm.free_state(task).target_strain)
+    )
 
 
 def test_scale_free_rate_refused_for_eigenstrain(scene):
@@ -55,3 +56,62 @@ def test_scale_free_rate_refused_for_eigenstrain(scene):
     med = filtered_fields(fm, 1e-3)
     with pytest.raises(ValueError, match="raw rate"):
         CoupledLearning(dof="eigenstrain").update(med, MaterialExamples((task,)))
+
+
+def _fields(scene, refine=0):
+    _, task, filtered = build(scene, refine)
+    medium = filtered_fields(filtered, scene.mechanism.eigenstrain_unit)
+    return medium, MaterialExamples((task, rest_example(task)))
+
+
+def test_optimum_gradient_per_column_matches_finite_differences(scene):
+    # the adjoint gradient field_optimum uses (task_gradient * area), every column of "both"
+    medium, ex = _fields(scene)
+    rng = np.random.default_rng(0)
+    n = medium.n_elements
+    p = np.column_stack([np.exp(rng.uniform(-1, 1, n)), rng.normal(0, 20, (n, 3))])
+    med = medium.with_parameters("both", p)
+    g = med.task_gradient(ex, med.free_state(ex), "both") * med.area[:, None]
+    mask = med.learning_mask(ex, learn_sources=False, learn_targets=False)
+    # elements near the target carry the largest signal; check a few there and elsewhere
+    big = np.argsort(-np.abs(g[mask, 1]))[:3]
+    elements = np.flatnonzero(mask)[np.r_[big, [0, n // 3]]]
+    for i in elements:
+        for col in range(4):
+            step = 1e-6 * max(1.0, abs(p[i, col]))
+            hi, lo = p.copy(), p.copy()
+            hi[i, col] += step
+            lo[i, col] -= step
+            c_hi = ex.error(medium.with_parameters("both", hi).free_state(ex).target_strain)
+            c_lo = ex.error(medium.with_parameters("both", lo).free_state(ex).target_strain)
+            fd = (c_hi - c_lo) / (2 * step)
+            assert fd == pytest.approx(g[i, col], rel=1e-4, abs=1e-9 * np.abs(g).max())
+
+
+def test_eigenstrain_optimum_is_the_prestress_compromise_and_both_meets_the_task(scene):
+    from continuum_vs_network.continuum.field_optimum import field_optimum
+
+    medium, ex = _fields(scene)
+    eig = field_optimum(medium, ex, dof="eigenstrain")
+    # C is quadratic in the eigenstrain, one target: min (d + z)^2 + z^2 = d^2 / 2
+    assert eig.ratio == pytest.approx(0.5, abs=1e-6)
+    both = field_optimum(medium, ex, dof="both")
+    assert both.ratio <= 1e-6
+    s = both.medium.modulus
+    assert s.min() >= 1e-2 - 1e-12 and s.max() <= 1e2 + 1e-9
+    bounded = field_optimum(medium, ex, dof="eigenstrain", eigenstrain_range=(-1.0, 1.0))
+    assert np.abs(bounded.medium.strain_design).max() <= 1.0 + 1e-12
+    with pytest.raises(ValueError, match="dof"):
+        field_optimum(medium, ex, dof="rest")
+
+
+def test_dof_optimum_unit_flags_eigenstrain_infeasible(scene):
+    from continuum_vs_network.report.sections.continuum_mechanism import dof_verdict
+    from continuum_vs_network.scenes.units_mechanism import dof_optimum_unit
+
+    _, eig = dof_optimum_unit(scene, {"refine": 0, "dof": "eigenstrain"}, None)
+    _, both = dof_optimum_unit(scene, {"refine": 0, "dof": "both"}, None)
+    assert not eig["feasible"] and both["feasible"]
+    assert both["rest_error"] < 1e-6 and both["solves"] == 2 * both["evaluations"]
+    assert dof_verdict({"outcome": "not learned"}, eig) == "infeasible (optimum C/C0 = 0.5)"
+    assert dof_verdict({"outcome": "learned (coupled)"}, both) == "learned (coupled)"

@@ -25,6 +25,14 @@ field learns through the density filter of :mod:`continuum_vs_network.continuum.
   ``dilation``; meta as the learning units'.
 * ``continuum_mechanism/optimum/refine<r>``: the exact optimum (:func:`~continuum_vs_network.
   continuum.field_optimum.field_optimum`) of the same medium and task.
+* ``continuum_mechanism/dof_optimum/refine<r>/<dof>`` (``r <= min(dof_refine,
+  dof_optimum_refine)``, ``dof`` in ``dofs``): the exact optimum of the eigenstrain field or
+  of both on the dof units' medium (the same filter, ``eigenstrain_unit``) and objective (the
+  task and its rest example, summed): L-BFGS-B on the adjoint gradient, log modulus within
+  the stiffness range, eigenstrain unbounded. ``feasible``: its C/C0 <= ``MET_AT`` (the
+  level the dof findings ask for); an infeasible dof's GCL verdict is
+  ``"infeasible (optimum C/C0 = x)"``. Arrays ``error``, ``seconds``; meta C/C0,
+  evaluations, solves (one free state per example per evaluation), seconds.
 * ``continuum_mechanism/simp``: SIMP (penalty 3, density filter of the same radius, MMA when
   nlopt is installed, else OC) on the same task and the ``r = 0`` mesh, its modulus
   ``e_min + x^3 (e_max - e_min)`` spanning the learning's stiffness range (``1e-2 .. 1e2``);
@@ -98,6 +106,12 @@ def plan_mechanism(scene: Scene) -> list[Unit]:
             Unit(f"continuum_mechanism/lattice/refine{r}", lattice_unit, {"refine": r}, depends,
                  weight=m.steps)
         )  # fmt: skip
+        if r <= min(m.dof_refine, m.dof_optimum_refine):
+            for dof in m.dofs:
+                units.append(
+                    Unit(f"continuum_mechanism/dof_optimum/refine{r}/{dof}", dof_optimum_unit,
+                         {"refine": r, "dof": dof}, depends)
+                )  # fmt: skip
         if r <= m.dof_refine:
             for dof, rest in [(d, True) for d in m.dofs] + [("eigenstrain", False)]:
                 name = dof + ("" if rest else "_norest")
@@ -252,6 +266,39 @@ def optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
         **params, "ratio": o.ratio, "evaluations": o.evaluations, "solves": o.evaluations,
         "seconds": o.seconds, "converged": o.converged, "message": o.message,
         "contrast": o.contrast, "response": _response(o.medium, task),
+        "n_elements": int(body.n_elements),
+    }  # fmt: skip
+    return arrays, meta
+
+
+def dof_optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
+    """The exact optimum of the filtered eigenstrain field, or of both fields, on the task and
+    its rest example (L-BFGS-B, adjoint gradient; see the module)."""
+    from ..continuum.field_optimum import field_optimum
+    from ..continuum.filtered_fields import MaterialExamples, filtered_fields
+    from ..continuum.mechanism import rest_example
+    from ..learning.coupling import MET_AT
+
+    m = _spec(scene)
+    body, task, filtered = build(scene, params["refine"])
+    medium = filtered_fields(filtered, m.eigenstrain_unit)
+    rest = rest_example(task)
+    examples = MaterialExamples((task, rest))
+    o = field_optimum(medium, examples, dof=params["dof"])
+    trained = o.medium.body
+    e = trained.eigenstrain
+    arrays = {
+        "error": o.errors,
+        "seconds": o.times,
+        "modulus": trained.modulus,
+        "dilation": 0.5 * (e[:, 0] + e[:, 1]),
+    }
+    meta = {
+        **params, "ratio": o.ratio, "feasible": bool(o.ratio <= MET_AT),
+        "evaluations": o.evaluations, "solves": o.evaluations * len(examples.tasks),
+        "seconds": o.seconds, "converged": o.converged, "message": o.message,
+        "contrast": o.contrast, "response": _response(trained, task),
+        "rest_error": float(rest.error(trained.free_state(rest).target_strain)),
         "n_elements": int(body.n_elements),
     }  # fmt: skip
     return arrays, meta

@@ -78,6 +78,13 @@ class MechanismSpec:
         "finest refinement with an exact optimum (0: the coarsest mesh only)",
         check=_between(0, 4),
     )
+    dof_optimum_refine: int = _key(
+        "int",
+        0,
+        "finest refinement with an exact optimum of the eigenstrain / both fields "
+        "(0: the coarsest mesh only; at most dof_refine)",
+        check=_between(0, 4),
+    )
     volfrac: float = _key(
         "float", 0.5, "SIMP volume fraction (allosteric task)", check=_between(0.01, 1.0)
     )
