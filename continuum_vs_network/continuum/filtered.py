@@ -124,8 +124,9 @@ class FilteredModulus:
         return dataclasses.replace(self, body=body, design=rho)
 
     def pull_back(self, g: NDArray) -> NDArray[np.float64]:
-        """A per-area signal of the modulus (n,) as the per-area signal of the design."""
-        a = self.body.area
+        """A per-area signal of the filtered field, (n,) or (n, k), as the per-area signal
+        of its design."""
+        a = self.body.area[:, None] if np.ndim(g) == 2 else self.body.area
         return (self.weights.T @ (a * g)) / a
 
     # -- the learning-medium protocol --------------------------------------------------

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .element_operators import tensor
+from .learnable import free_state_measurements
 
 __all__ = ["ExamplesState", "FilteredFields", "MaterialExamples", "filtered_fields"]
 
@@ -152,17 +153,13 @@ class FilteredFields:
         return dataclasses.replace(self, filtered=dataclasses.replace(f, body=body),
                                    strain_design=e)  # fmt: skip
 
-    def _pull(self, g: NDArray) -> NDArray[np.float64]:
-        a = self.area[:, None] if g.ndim == 2 else self.area
-        return (self.filtered.weights.T @ (a * g)) / a
-
     def _signal(self, dof: str, grad) -> NDArray[np.float64]:
         """``grad(field)`` (the body's per-area signal) pulled back to ``dof``'s designs."""
         d, parts = self.learning_dof(dof), {}
         if d in ("modulus", "both"):
-            parts["modulus"] = self._pull(grad("modulus"))
+            parts["modulus"] = self.filtered.pull_back(grad("modulus"))
         if d in ("eigenstrain", "both"):
-            parts["eigenstrain"] = self.scale * self._pull(grad("eigenstrain"))
+            parts["eigenstrain"] = self.scale * self.filtered.pull_back(grad("eigenstrain"))
         if d == "both":
             return np.column_stack([parts["modulus"], parts["eigenstrain"]])
         return parts[d]
@@ -251,21 +248,9 @@ class FilteredFields:
         return self.with_parameters(d, new)
 
     def measurements(self, task: Any, free: Any, dof: str, mask: NDArray) -> dict[str, Any]:
-        """What train records of a free state (every example's targets side by side)."""
-        length = task.target_length
-        g = self.local_gradient(free, dof)[mask]
-        err = task.error(free.target_strain)
-        return {
-            "target_rest_length": length,
-            "desired_length": length * (1.0 + task.target_strain),
-            "target_length": length * (1.0 + free.target_strain),
-            "target_strain": free.target_strain,
-            "error_current": err,
-            "error_initial": err,
-            "energy_free": free.energy,
-            "energy_gradient_free": float(np.sqrt(np.sum(g * g))),
-            "residual": free.residual,
-        }
+        """What train records of a free state (every example's targets side by side;
+        the gradient is this medium's, on the designs)."""
+        return free_state_measurements(self, task, free, dof, mask)
 
     def vertex_positions(self, u: ArrayLike) -> NDArray[np.float64]:
         return self.body.vertex_positions(u)

@@ -233,12 +233,9 @@ def directional_strain_probe(body: ElasticBody, points: ArrayLike, directions: A
     return Probe((combine @ S).tocsr(), (x.shape[0],), "directional")
 
 
-def chord_strain_probe(body: ElasticBody, ends_a: ArrayLike, ends_b: ArrayLike) -> Probe:
-    """Linearised strain of the segments ``a_i -> b_i``: ``n.(u(b) - u(a)) / |b - a|``.
-
-    This is what a spring from ``a`` to ``b`` reads (its strain ``r / L - 1`` to first
-    order in the displacement, with ``L = |b - a|``); shape (n,).
-    """
+def _segments(ends_a: ArrayLike, ends_b: ArrayLike):
+    """The segments ``a_i -> b_i``: ends (n, 2) each, lengths (n,) and unit directions
+    (n, 2); an error names the argument when the ends differ in shape or coincide."""
     a = _points("ends_a", ends_a)
     b = _points("ends_b", ends_b)
     if a.shape != b.shape:
@@ -247,7 +244,16 @@ def chord_strain_probe(body: ElasticBody, ends_a: ArrayLike, ends_b: ArrayLike) 
     length = np.linalg.norm(d, axis=1)
     if np.any(length == 0):
         raise ValueError("segments must have non-zero length")
-    nrm = d / length[:, None]
+    return a, b, length, d / length[:, None]
+
+
+def chord_strain_probe(body: ElasticBody, ends_a: ArrayLike, ends_b: ArrayLike) -> Probe:
+    """Linearised strain of the segments ``a_i -> b_i``: ``n.(u(b) - u(a)) / |b - a|``.
+
+    This is what a spring from ``a`` to ``b`` reads (its strain ``r / L - 1`` to first
+    order in the displacement, with ``L = |b - a|``); shape (n,).
+    """
+    a, b, length, nrm = _segments(ends_a, ends_b)
     n = a.shape[0]
     U = displacement_probe(body, np.vstack([a, b])).operator  # (4n, N)
     w = (nrm / length[:, None]).ravel()
@@ -327,15 +333,7 @@ def material_spring_probe(
     """
     if radius == 0:
         return chord_strain_probe(body, ends_a, ends_b)
-    a = _points("ends_a", ends_a)
-    b = _points("ends_b", ends_b)
-    if a.shape != b.shape:
-        raise ValueError(f"ends_a and ends_b must have the same shape, got {a.shape}, {b.shape}")
-    d = b - a
-    length = np.linalg.norm(d, axis=1)
-    if np.any(length == 0):
-        raise ValueError("segments must have non-zero length")
-    nrm = d / length[:, None]
+    a, b, length, nrm = _segments(ends_a, ends_b)
     rows = []
     for ai, bi, ni, li in zip(a, b, nrm, length):
         mean_a = _mean_displacement_rows(body, disc_elements(body, ai, radius))

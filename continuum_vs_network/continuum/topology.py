@@ -134,6 +134,58 @@ def mma_available() -> bool:
     return True
 
 
+@dataclass(frozen=True, eq=False)
+class _AllostericSimp:
+    """SIMP on the allosteric task: the filter, the frozen task material and ``C0`` (built
+    once by :func:`_allosteric_simp`); :meth:`evaluate` is one solve, shared by OC and MMA."""
+
+    body: Any
+    task: Any
+    frozen: NDArray[np.bool_]
+    H: sp.csr_matrix
+    area: NDArray[np.float64]
+    c0: float
+    e_min: float
+    e_max: float
+
+    def evaluate(self, x: NDArray, gradient: bool = True) -> tuple[float, NDArray | None]:
+        """``C / C0`` at the design ``x`` (n,) and, with ``gradient``, ``d(C / C0)/dx`` (n,)
+        (the adjoint reuses the free state's factorisation)."""
+        s, ds = simp_modulus(self.H @ x, e_min=self.e_min, e_max=self.e_max)
+        s, ds = np.where(self.frozen, 1.0, s), np.where(self.frozen, 0.0, ds)  # task material
+        m = self.body.with_modulus(s)
+        free = m.free_state(self.task)
+        c = self.task.error(free.target_strain) / self.c0
+        if not gradient:
+            return c, None
+        g = m.task_gradient(self.task, free, "modulus") * self.area * ds / self.c0
+        return c, self.H.T @ g
+
+    def result(self, x: NDArray, objective: list, times: list, t0: float, method: str):
+        xt = self.H @ x
+        return SimpResult(
+            density=xt,
+            modulus=np.where(
+                self.frozen, 1.0, simp_modulus(xt, e_min=self.e_min, e_max=self.e_max)[0]
+            ),
+            objective=np.array(objective),
+            volume=float(self.area @ xt / self.area.sum()), iterations=len(objective) - 1,
+            solves=len(objective), seconds=time.perf_counter() - t0, times=np.array(times),
+            method=method,
+        )  # fmt: skip
+
+
+def _allosteric_simp(
+    body: Any, task: Any, radius: float, e_min: float, e_max: float
+) -> _AllostericSimp:
+    from .filtered import density_filter
+
+    frozen = ~body.learning_mask(task, learn_sources=False, learn_targets=False)
+    H = density_filter(body.body.centroids, body.area, radius, frozen=frozen)
+    c0 = task.error(body.free_state(task).target_strain)
+    return _AllostericSimp(body, task, frozen, H, body.area, c0, e_min, e_max)
+
+
 def simp_allosteric(
     body: Any, task: Any, *, volfrac: float = 0.5, radius: float, iterations: int = 100,
     e_min: float = 1e-4, rtol: float = 1e-6, method: str = "auto", e_max: float = 1.0,
@@ -151,64 +203,36 @@ def simp_allosteric(
         raise ValueError(f"method must be 'auto', 'mma' or 'oc', got {method!r}")
     if method == "auto":
         method = "mma" if mma_available() else "oc"
-    if method == "mma":
-        return _simp_allosteric_mma(
-            body, task, volfrac=volfrac, radius=radius, iterations=iterations,
-            e_min=e_min, e_max=e_max, rtol=rtol,
-        )  # fmt: skip
-    from .filtered import density_filter
-
     _check(volfrac, iterations)
-    frozen = ~body.learning_mask(task, learn_sources=False, learn_targets=False)
-    H = density_filter(body.body.centroids, body.area, radius, frozen=frozen)
-    area = body.area
-    c0 = task.error(body.free_state(task).target_strain)
+    problem = _allosteric_simp(body, task, radius, e_min, e_max)
+    if method == "mma":
+        return _simp_allosteric_mma(problem, volfrac=volfrac, iterations=iterations, rtol=rtol)
+    frozen, H, area = problem.frozen, problem.H, problem.area
     x = np.where(frozen, 1.0, volfrac)
     volume = volfrac * area.sum()
     t0 = time.perf_counter()
     objective, times = [], []
     for it in range(iterations + 1):
-        xt = H @ x
-        s, ds = simp_modulus(xt, e_min=e_min, e_max=e_max)
-        s, ds = np.where(frozen, 1.0, s), np.where(frozen, 0.0, ds)  # the task's own material
-        m = body.with_modulus(s)
-        free = m.free_state(task)
-        c = task.error(free.target_strain) / c0
+        last = it == iterations
+        c, dc = problem.evaluate(x, gradient=not last)
         objective.append(c)
         times.append(time.perf_counter() - t0)
-        if it == iterations or c <= rtol:
+        if last or c <= rtol:
             break
-        dc = H.T @ (m.task_gradient(task, free, "modulus") * area * ds / c0)
-        dv = H.T @ area
-        x = oc_update(x, dc, dv, volume, H, area, active=~frozen)
-    xt = H @ x
-    return SimpResult(
-        density=xt,
-        modulus=np.where(frozen, 1.0, simp_modulus(xt, e_min=e_min, e_max=e_max)[0]),
-        objective=np.array(objective),
-        volume=float(area @ xt / area.sum()), iterations=len(objective) - 1,
-        solves=len(objective), seconds=time.perf_counter() - t0, times=np.array(times),
-        method="oc",
-    )  # fmt: skip
+        x = oc_update(x, dc, H.T @ area, volume, H, area, active=~frozen)
+    return problem.result(x, objective, times, t0, "oc")
 
 
 def _simp_allosteric_mma(
-    body: Any, task: Any, *, volfrac: float, radius: float, iterations: int, e_min: float,
-    e_max: float, rtol: float,
-) -> SimpResult:  # fmt: skip
+    problem: _AllostericSimp, *, volfrac: float, iterations: int, rtol: float
+) -> SimpResult:
     """:func:`simp_allosteric` by nlopt's MMA: ``iterations`` evaluations at most, the
     volume as an inequality constraint, bounds ``0 <= x <= 1`` on the active elements."""
     import nlopt
 
-    from .filtered import density_filter
-
-    _check(volfrac, iterations)
-    frozen = ~body.learning_mask(task, learn_sources=False, learn_targets=False)
+    frozen, H, area = problem.frozen, problem.H, problem.area
     active = np.flatnonzero(~frozen)
-    H = density_filter(body.body.centroids, body.area, radius, frozen=frozen)
-    area = body.area
     total = float(area.sum())
-    c0 = task.error(body.free_state(task).target_strain)
     base = np.where(frozen, 1.0, 0.0)
     dv = (H.T @ area)[active] / total
     t0 = time.perf_counter()
@@ -223,17 +247,13 @@ def _simp_allosteric_mma(
 
     def f(y: NDArray, grad: NDArray) -> float:
         x = full(y)
-        s, ds = simp_modulus(H @ x, e_min=e_min, e_max=e_max)
-        s, ds = np.where(frozen, 1.0, s), np.where(frozen, 0.0, ds)  # the task's own material
-        m = body.with_modulus(s)
-        free = m.free_state(task)
-        c = task.error(free.target_strain) / c0
+        c, dc = problem.evaluate(x, gradient=bool(grad.size))
         objective.append(c)
         times.append(time.perf_counter() - t0)
         if c < best[0] and float(area @ (H @ x)) <= volfrac * total * (1 + 1e-6):
             best[0], best[1] = c, x
         if grad.size:
-            grad[:] = (H.T @ (m.task_gradient(task, free, "modulus") * area * ds / c0))[active]
+            grad[:] = dc[active]
         return c
 
     def volume(y: NDArray, grad: NDArray) -> float:
@@ -253,15 +273,7 @@ def _simp_allosteric_mma(
         opt.optimize(np.full(active.size, float(volfrac)))
     except nlopt.RoundoffLimited:  # keep the best design found
         pass
-    xt = H @ best[1]
-    return SimpResult(
-        density=xt,
-        modulus=np.where(frozen, 1.0, simp_modulus(xt, e_min=e_min, e_max=e_max)[0]),
-        objective=np.array(objective),
-        volume=float(area @ xt / total), iterations=len(objective) - 1,
-        solves=len(objective), seconds=time.perf_counter() - t0, times=np.array(times),
-        method="mma",
-    )  # fmt: skip
+    return problem.result(best[1], objective, times, t0, "mma")
 
 
 def inverter_response(
