@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .. import _validate as check
+
 __all__ = [
     "InverterLayout",
     "allosteric_task",
@@ -42,10 +44,7 @@ __all__ = [
 
 
 def _positive(name: str, value: float) -> float:
-    v = float(value)
-    if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    return v
+    return check.real(name, value, low=0, low_open=True)
 
 
 def mechanism_mesh(width: float, height: float, h: float, *, refine: int = 0) -> Any:

@@ -143,9 +143,12 @@ def noise_table(
     return rows
 
 
-def noise_floor(values: NDArray, completed: NDArray, *, fraction: float = 0.25) -> NDArray:
-    """The level a task error settles at: per trial, the mean over the last ``fraction`` of
-    the steps, (trials,); NaN for a trial that stopped early (diverged).
+def noise_floor(
+    values: NDArray, completed: NDArray, *, fraction: float = 0.25, statistic=np.mean
+) -> NDArray:
+    """The level a task error settles at: per trial, ``statistic`` (the mean; the median is
+    robust to a run still descending) over the last ``fraction`` of the steps, (trials,);
+    NaN for a trial that stopped early (diverged).
 
     Parameters
     ----------
@@ -164,7 +167,7 @@ def noise_floor(values: NDArray, completed: NDArray, *, fraction: float = 0.25) 
     out = np.full(v.shape[0], np.nan)
     for i in range(v.shape[0]):
         if completed[i] >= steps:
-            out[i] = float(np.mean(v[i, first:]))
+            out[i] = float(statistic(v[i, first:]))
     return out
 
 

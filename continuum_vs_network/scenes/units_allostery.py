@@ -213,8 +213,13 @@ def plan_allostery(scene: Scene) -> list[Unit]:
                             Unit(
                                 f"allostery/train/{base}/{run.name}",
                                 train_unit,
-                                {**p, "rule": run.rule, "eta": run.eta, "noise": run.noise,
-                                 "steps": steps},
+                                {
+                                    **p,
+                                    "rule": run.rule,
+                                    "eta": run.eta,
+                                    "noise": run.noise,
+                                    "steps": steps,
+                                },
                                 {**depends, "step": a.step, "alpha": a.alpha},
                                 weight=steps * (1 + (run.noise > 0)),
                             )
@@ -307,10 +312,10 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict
 def _floor(r: np.ndarray, done: bool, fraction: float = 0.25) -> float:
     """Median C/C0 over the last ``fraction`` of the steps (the level a noisy run settles
     at, robust to a run still descending); NaN for a run that stopped early."""
-    if not done:
-        return float("nan")
-    steps = r.size - 1
-    return float(np.median(r[steps - max(1, round(fraction * steps)) + 1 :]))
+    from ..learning.noise import noise_floor
+
+    completed = np.array([r.size - 1 if done else 0])
+    return float(noise_floor(r[None, :], completed, fraction=fraction, statistic=np.median)[0])
 
 
 def optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict[str, Any]]:
