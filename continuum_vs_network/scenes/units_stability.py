@@ -120,9 +120,12 @@ def local_imbalance(
     """Largest relative net force on a free coordinate at ``x``.
 
     ``max_ic |F_ic| / f_i`` with ``F`` the spring forces on the free coordinates minus
-    their least-squares component along the clamped springs' length gradients (a clamp or
-    rod pushes along its spring) and ``f_i = sum_{j at i} k_j L_j`` (springs with ``k > 0``
-    in ``net``; a node with none takes ``mean(k) mean(L)``).
+    their component along the clamped springs' length gradients (a clamp or rod pushes
+    along its spring), the tensions fitted to minimise ``sum (F_ic / f_i)^2`` (the
+    definition of :func:`~continuum_vs_network.relax`'s ``relative_residual``; an
+    unweighted fit judges a soft node by a stiff neighbour's absolute force), and
+    ``f_i = sum_{j at i} k_j L_j`` (springs with ``k > 0`` in ``net``; a node with none
+    takes ``mean(k) mean(L)``).
 
     Parameters
     ----------
@@ -139,6 +142,12 @@ def local_imbalance(
     g = spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel()
     fi = np.flatnonzero(np.asarray(free).ravel())
     force = -g[fi]
+    w = net.stiffness * net.rest_length
+    scale = np.bincount(net.springs[:, 0], w, net.n_nodes) + np.bincount(
+        net.springs[:, 1], w, net.n_nodes
+    )
+    fallback = float(np.mean(net.stiffness) * np.mean(net.rest_length)) or 1.0
+    scale = np.repeat(np.where(scale > 0, scale, fallback), 2)[fi]
     if len(clamped):
         A = np.zeros((len(clamped), 2 * net.n_nodes))
         for row, j in enumerate(clamped):
@@ -147,15 +156,9 @@ def local_imbalance(
             u = d / max(float(np.hypot(*d)), 1e-300)
             A[row, 2 * a : 2 * a + 2] = -u
             A[row, 2 * b : 2 * b + 2] = u
-        Af = A[:, fi]
-        mu, *_ = np.linalg.lstsq(Af.T, force, rcond=None)
-        force = force - Af.T @ mu
-    w = net.stiffness * net.rest_length
-    scale = np.bincount(net.springs[:, 0], w, net.n_nodes) + np.bincount(
-        net.springs[:, 1], w, net.n_nodes
-    )
-    fallback = float(np.mean(net.stiffness) * np.mean(net.rest_length)) or 1.0
-    scale = np.repeat(np.where(scale > 0, scale, fallback), 2)[fi]
+        Af = A[:, fi] / scale  # the fit weighted by 1 / f_i, as relax defines it
+        mu, *_ = np.linalg.lstsq(Af.T, force / scale, rcond=None)
+        force = force - (Af.T @ mu) * scale
     return float(np.max(np.abs(force) / scale)) if fi.size else 0.0
 
 
