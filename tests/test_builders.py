@@ -12,6 +12,7 @@ from continuum_vs_network.network.builders import (
     strain_tunable,
     triangular_lattice,
 )
+from continuum_vs_network.network.constraints import pin_mask
 from continuum_vs_network.network.jammed import jammed_network
 from continuum_vs_network.network.rigidity import (
     is_rigid,
@@ -458,3 +459,42 @@ def test_jammed_network_reproducible_and_options(jammed):
 def test_bad_input_names_the_argument(call, name):
     with pytest.raises(ValueError, match=name):
         call()
+
+
+def test_certified_full_rank_agrees_with_the_svd_count():
+    """The ``auto`` count first tries to certify full rank by one Cholesky factorisation
+    (``R^T R`` shifted by the threshold times a margin): on rigid and diluted lattices under
+    default pins, and on thin strips whose smallest singular value lies outside (1.8e-6)
+    and inside (1.8e-7) the margin 100 x 1e-8, it gives the SVD's count; it certifies only
+    where the count is 0."""
+    from continuum_vs_network.network.rigidity import (
+        _full_rank,
+        _sparse_rigidity,
+        count_zero_modes,
+    )
+
+    certified = 0
+    for seed in range(30):
+        rng = np.random.default_rng(seed)
+        side = int(rng.integers(5, 12))
+        net = triangular_lattice(side, side, noise=0.05, rng=rng)
+        k = np.where(rng.random(net.n_springs) < rng.uniform(0.0, 0.35), 0.0, 1.0)
+        soft = net.with_stiffness(k)
+        pins = cvn.default_pins(soft)
+        free = ~pin_mask(soft, pins)
+        auto = count_zero_modes(soft, free, np.empty(0, np.int64), soft.positions)
+        dense = count_zero_modes(soft, free, np.empty(0, np.int64), soft.positions, method="dense")
+        assert auto == dense, seed
+        rows = np.flatnonzero(soft.stiffness > 0)
+        cols = np.flatnonzero(free.ravel())
+        ok = _full_rank(_sparse_rigidity(soft, soft.positions, rows, cols), 1e-8)
+        assert not ok or dense == 0, seed
+        certified += ok
+    assert 5 <= certified < 30  # both paths ran
+    for height, margin in ((0.03, True), (0.003, False)):  # sigma_min 1.8e-6, 1.8e-7
+        strip = _thin_strip(175, height)
+        free = ~pin_mask(strip, cvn.default_pins(strip))
+        rows, cols = np.arange(strip.n_springs), np.flatnonzero(free.ravel())
+        R = _sparse_rigidity(strip, strip.positions, rows, cols)
+        assert _full_rank(R, 1e-8) == margin
+        assert count_zero_modes(strip, free, np.empty(0, np.int64), strip.positions) == 0
