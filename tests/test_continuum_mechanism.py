@@ -155,7 +155,7 @@ def test_eigenstrain_still_refuses_the_adaptive_rate():
 
 
 def test_field_optimum_reaches_the_task():
-    from continuum_vs_network.continuum.field_optimum import field_optimum
+    from continuum_vs_network.learning.field_optimum import field_optimum
 
     _, task, fm = _setup()
     o = field_optimum(fm, task, max_iter=100)
@@ -165,7 +165,7 @@ def test_field_optimum_reaches_the_task():
 
 def test_field_optimum_in_log_modulus_reaches_the_task_on_a_finer_mesh():
     # in the modulus itself L-BFGS-B crawls on h/2 (dC/ds ~ 1/s over the 1e4 range)
-    from continuum_vs_network.continuum.field_optimum import field_optimum
+    from continuum_vs_network.learning.field_optimum import field_optimum
 
     _, task, fm = _setup(refine=1)
     o = field_optimum(fm, task, max_iter=150)

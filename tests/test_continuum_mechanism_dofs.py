@@ -9,7 +9,7 @@ from continuum_vs_network.continuum.filtered_fields import MaterialExamples, fil
 from continuum_vs_network.continuum.mechanism import rest_example
 from continuum_vs_network.learning.rules import CoupledLearning
 from continuum_vs_network.scenes.schema import load_scene
-from continuum_vs_network.scenes.units_mechanism import build, dof_unit
+from continuum_vs_network.scenes.units_mechanism import build, dof_unit, eigenstrain_unit
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +60,7 @@ def test_scale_free_rate_refused_for_eigenstrain(scene):
 
 def _fields(scene, refine=0):
     _, task, filtered = build(scene, refine)
-    medium = filtered_fields(filtered, scene.mechanism.eigenstrain_unit)
+    medium = filtered_fields(filtered, eigenstrain_unit(scene))
     return medium, MaterialExamples((task, rest_example(task)))
 
 
@@ -89,7 +89,7 @@ def test_optimum_gradient_per_column_matches_finite_differences(scene):
 
 
 def test_eigenstrain_optimum_is_the_prestress_compromise_and_both_meets_the_task(scene):
-    from continuum_vs_network.continuum.field_optimum import field_optimum
+    from continuum_vs_network.learning.field_optimum import field_optimum
 
     medium, ex = _fields(scene)
     eig = field_optimum(medium, ex, dof="eigenstrain")
@@ -115,3 +115,21 @@ def test_dof_optimum_unit_flags_eigenstrain_infeasible(scene):
     assert both["rest_error"] < 1e-6 and both["solves"] == 2 * both["evaluations"]
     assert dof_verdict({"outcome": "not learned"}, eig) == "infeasible (optimum C/C0 = 0.5)"
     assert dof_verdict({"outcome": "learned (coupled)"}, both) == "learned (coupled)"
+
+
+def test_balanced_eigenstrain_unit_moves_both_designs_equally(scene):
+    """The balanced unit (scene key 0) makes the first GCL step on both fields move the
+    eigenstrain design by the modulus design's norm: the eigenstrain signal scales with the
+    unit (eps0 = unit * H e, e = 0 at the start); a set unit is taken as it is."""
+    assert scene.mechanism.eigenstrain_unit == 0
+    unit = eigenstrain_unit(scene)
+    medium, ex = _fields(scene)
+    raw = CoupledLearning(1.0, dof="both").update(medium, ex).raw
+    assert np.linalg.norm(raw[:, 1:]) == pytest.approx(np.linalg.norm(raw[:, 0]), rel=1e-9)
+    other = filtered_fields(medium.filtered, 10 * unit)
+    raw10 = CoupledLearning(1.0, dof="both").update(other, ex).raw
+    assert np.linalg.norm(raw10[:, 1:]) == pytest.approx(10 * np.linalg.norm(raw[:, 0]), rel=1e-9)
+    fixed = dataclasses.replace(
+        scene, mechanism=dataclasses.replace(scene.mechanism, eigenstrain_unit=1e-3)
+    )
+    assert eigenstrain_unit(fixed) == 1e-3

@@ -78,7 +78,10 @@ def test_sls_relaxation_times_of_body_and_network_agree(lattice_task, body_task)
     """After the source step the continuum with the mapped arms settles its target strains
     on the lattice's time (within 10 %, as with drag alone), and a slow arm (tau2 = 40) or
     a fast stiff one (tau2 = 0.2) changes that time by the same factor in both media
-    (within 6 %): faster while the slow arm still stiffens, slower with the fast one."""
+    (within 6 %): faster while the slow arm still stiffens, slower with the fast one. The
+    lattice's sources are held by their end nodes here: with strain clamps (rods) its
+    slowest mode carries ~5 % of this target's change against the body's ~0.1 %, and its
+    target settles ~24x later (271 against 11), whatever the arms."""
     from continuum_vs_network.continuum.damped_states import body_relaxation_time
     from continuum_vs_network.continuum.viscoelastic import lattice_damping
 
@@ -90,7 +93,7 @@ def test_sls_relaxation_times_of_body_and_network_agree(lattice_task, body_task)
         ("fast", Viscosity(drag=1.0, arm_stiffness=1.0, arm_dashpot=0.2)),
     ):
         tb = body_relaxation_time(*body_task, lattice_damping(vis))
-        tn = network_relaxation_time(net, task, vis)
+        tn = network_relaxation_time(net, task, vis, clamp="nodes")
         assert 0.9 < tb / tn < 1.1, (name, tb, tn)
         times[name] = (tb, tn)
     for name in ("slow", "fast"):

@@ -3,6 +3,8 @@ the physical_time scene."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 from physical_time_scenes import tiny_physical_time
@@ -32,22 +34,26 @@ def small():
     return net, task
 
 
-def test_gpc_target_rest_length_relaxes_exponentially_onto_its_clamp(small):
+@pytest.mark.parametrize("clamp, rtol", [("nodes", 1e-12), ("strain", 1e-7)])
+def test_gpc_target_rest_length_relaxes_exponentially_onto_its_clamp(small, clamp, rtol):
     """A clamped spring keeps its length r, so L' = alpha k (r - L) gives
-    L(t) = r + (L0 - r) exp(-alpha k t) exactly, whatever the dynamics of the rest."""
+    L(t) = r + (L0 - r) exp(-alpha k t) exactly, whatever the dynamics of the rest: to
+    rounding with held end nodes, to the rod's strain error (~ 1e-8, ROD_FACTOR = 1e6 and
+    the solver's floored tolerance) with the default strain clamp."""
     net, task = small
     alpha, T = 0.3, 4.0
     rule = ProspectiveConfiguration(alpha, learn_targets=True)
     h = learn_in_time(
-        net, task, rule, viscosity=Viscosity(drag=1.0), duration=T, dt=0.1, learn_every=3
-    )
+        net, task, rule, viscosity=Viscosity(drag=1.0), duration=T, dt=0.1, learn_every=3,
+        clamp=clamp,
+    )  # fmt: skip
     j = int(task.targets[0])
     r = float(task.desired_lengths(net, "initial")[0])
     L0 = net.rest_length[j]
     expected = r + (L0 - r) * np.exp(-alpha * net.stiffness[j] * h.times)
     # the rest length is updated every dt_learn = 0.3: compare at those times
     on_grid = np.isclose(np.round(h.times / h.dt_learn) * h.dt_learn, h.times)
-    np.testing.assert_allclose(h.rest_length[on_grid, j], expected[on_grid], rtol=1e-12)
+    np.testing.assert_allclose(h.rest_length[on_grid, j], expected[on_grid], rtol=rtol)
     assert h.dt_learn == pytest.approx(0.3)
 
 
@@ -62,7 +68,10 @@ def test_gpc_target_rest_length_relaxes_exponentially_onto_its_clamp(small):
 def test_learning_in_time_tends_to_the_quasi_static_limit(small, rule, form):
     """Same learning steps, drag c -> 0 (relaxation time ~ c, physical step ~ c): the
     learned rest lengths approach the quasi-static run, the gap shrinking ~ the ratio of
-    learning rate to relaxation rate."""
+    learning rate to relaxation rate. With the default strain clamp (sources and nudged
+    targets held by their lengths, as the continuum's) the lattice relaxes ~ 3x slower
+    than with held end nodes (tau 143 against 50 at c = 1), so the approach needs one
+    drag more (c = 1/64) and shrinks less evenly (each gap at least 1.5x the next)."""
     net, task = small
     dt_learn, T = 0.25, 3.0
     qs = learn_in_time(
@@ -77,7 +86,7 @@ def test_learning_in_time_tends_to_the_quasi_static_limit(small, rule, form):
         n_outputs=5,
     )
     gaps = []
-    for c in (1.0, 0.25, 1 / 16):
+    for c in (1.0, 0.25, 1 / 16, 1 / 64):
         m = round(4 / c)  # physical steps per learning step: dt ~ c, dt_learn fixed
         run = learn_in_time(
             net,
@@ -93,7 +102,7 @@ def test_learning_in_time_tends_to_the_quasi_static_limit(small, rule, form):
         assert run.dt_learn == pytest.approx(dt_learn)
         change = np.max(np.abs(qs.rest_length[-1] - net.rest_length))
         gaps.append(np.max(np.abs(run.rest_length[-1] - qs.rest_length[-1])) / change)
-    assert gaps[0] > 1.8 * gaps[1] > 1.8**2 * gaps[2], gaps
+    assert all(a > 1.5 * b for a, b in itertools.pairwise(gaps)), gaps
     assert gaps[-1] < 0.05, gaps
 
 
@@ -139,18 +148,20 @@ def test_target_relaxation_time_is_when_the_targets_settle(small):
     """An independent finer run (400 steps per tau): at 0.9 tau the target strains are
     still more than 1 % of their change away from the clamped equilibrium, after 1.1 tau
     never again; the net force settles sooner (local modes dominate it)."""
+    from continuum_vs_network.network.strain_clamp import rod_clamped
+
     net, task = small
     vis = Viscosity(drag=1.0)
     tau = network_relaxation_time(net, task, vis)
     clamps = task.source_clamps(net, "initial")
     rest = task.target_rest(net, "initial")
-    run = simulate_viscous(
-        net, vis, dt=tau / 400, t_end=4 * tau, pinned=task.pinned, clamped=clamps
-    )
+    rods = rod_clamped(net, clamps)  # the default clamp: the sources as rods, no node held
+    tol = 100 * np.finfo(float).eps * 1e6 * net.force_scale / rods.force_scale
+    run = simulate_viscous(rods, vis, dt=tau / 400, t_end=4 * tau, pinned=task.pinned, tol=tol)
     s = np.array([net.lengths(x)[task.targets] / rest for x in run.positions])
-    end = simulate_viscous(
-        net, vis, dt=1e12, t_end=1e12, pinned=task.pinned, clamped=clamps
-    ).positions[-1]
+    end = simulate_viscous(rods, vis, dt=1e12, t_end=1e12, pinned=task.pinned, tol=tol).positions[
+        -1
+    ]
     s_end = net.lengths(end)[task.targets] / rest
     total = np.linalg.norm(s_end - net.lengths(net.positions)[task.targets] / rest)
     d = np.linalg.norm(s - s_end, axis=1) / total

@@ -152,7 +152,10 @@ def test_body_relaxation_time_matches_the_lattice_within_a_factor(body_task, tau
 
     t_net = network_relaxation_time(net, task, DRAG, measure="force")
     assert 0.5 < tau_force / t_net < 2.0, (tau_force, t_net)
-    t_net_target = network_relaxation_time(net, task, DRAG)
+    # the target criterion against held end nodes: with the default strain clamp the
+    # lattice's slowest mode (tau_mode 129, the body's 142) carries ~ 5 % of this target's
+    # change against the body's ~ 0.1 %, so the lattice's target settles ~ 25x later (271)
+    t_net_target = network_relaxation_time(net, task, DRAG, clamp="nodes")
     assert 0.5 < tau / t_net_target < 2.0, (tau, t_net_target)
     from continuum_vs_network.continuum.damped_states import body_relaxation_time
     from continuum_vs_network.continuum.viscoelastic import lattice_damping

@@ -216,7 +216,7 @@ def body_relaxation_time(
 
     ``measure="target"`` (default): the target strains stay within ``fraction`` (1 %) of
     their total change (from ``u0`` to the clamped equilibrium) of that equilibrium
-    (:func:`~continuum_vs_network.learning.physical_time.settling_time`).
+    (:func:`~continuum_vs_network.network.dynamics.settling_time`).
     ``measure="force"``: the net force on the free DOFs, the damping force ``C u'`` (at
     ``t = 0+`` from the clamped velocity ``[C G_s^T; G_s 0] [u'; mu] = [f - K u; 0]``, then
     ``C (u1 - u0) / dt`` of each step), stays below ``fraction`` of its largest component
@@ -224,7 +224,7 @@ def body_relaxation_time(
     """
     import dataclasses
 
-    from ..learning.physical_time import settling_time
+    from ..network.dynamics import settling_time
     from ..network.kkt import factor_kkt
     from .damping import damping_matrix
 

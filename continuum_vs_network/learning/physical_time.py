@@ -43,12 +43,16 @@ Euler: ``alpha c_max dt_learn <= 1``, ``c_max`` the largest eigenvalue of an ele
 elastic tensor, checked), ``quasistatic=True`` an exact equilibrium; quasi-static learning
 in time with ``dt = 1`` is :func:`~.train.train` step for step.
 
-In a network, clamps are prescribed displacements of the clamped springs' end nodes, as in
-:func:`~continuum_vs_network.network.dynamics.simulate` (set symmetrically along the
-spring's current direction, then held); task pins are held. ``quasistatic=True`` replaces
-every physical step by the equilibrium with the same held nodes (a backward-Euler step of
-length ``1e12 / k``): the limit of a
-vanishing ratio of learning rate to relaxation rate, computed directly.
+In a network, by default (``clamp="strain"``) a clamp holds only the clamped spring's
+length, as the continuum's: the spring becomes a stiff rod at the clamp length
+(:func:`~continuum_vs_network.network.strain_clamp.rod_clamped`, stiffness ``1e6`` times
+the mean; backward Euler damps its fast mode in one step), no node held, so both media are
+driven the same way. ``clamp="nodes"``: clamps are prescribed displacements of the clamped
+springs' end nodes, as in :func:`~continuum_vs_network.network.dynamics.simulate` (set
+symmetrically along the spring's current direction, then held). Task pins are held.
+``quasistatic=True`` replaces every physical step by the equilibrium with the same clamps
+(a backward-Euler step of length ``1e12 / k``): the limit of a vanishing ratio of learning
+rate to relaxation rate, computed directly.
 
 Time steps (chosen separately)
 ------------------------------
@@ -67,15 +71,17 @@ state; ``target_length`` records the moving network's target lengths.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+import scipy.sparse as sp
+from numpy.typing import NDArray
 
-from ..network.dynamics import relaxation_time
+from ..network.dynamics import relaxation_time, settling_time
 from ..network.model import SpringNetwork
 from ..network.viscous import Viscosity, simulate_viscous
 from .medium import is_medium
@@ -88,7 +94,6 @@ __all__ = [
     "TimeHistory",
     "learn_in_time",
     "network_relaxation_time",
-    "settling_time",
 ]
 
 Form = Literal["continuous", "twin", "phases"]
@@ -137,28 +142,6 @@ class TimeHistory:
     factorisations: int = 0
 
 
-def settling_time(
-    times: ArrayLike, values: ArrayLike, start: ArrayLike, end: ArrayLike, fraction: float
-) -> float:
-    """Time after which ``values`` (T, m) stay within ``fraction`` of their total change
-    ``|end - start|`` (Euclidean norms over the m components) of ``end``; the crossing is
-    interpolated linearly between the last frame outside and the next. ``inf`` when the
-    last frame is still outside, 0 when nothing changes."""
-    v = np.asarray(values, float).reshape(len(times), -1)
-    total = float(np.linalg.norm(np.asarray(end, float) - np.asarray(start, float)))
-    if total == 0:
-        return 0.0
-    d = np.linalg.norm(v - np.asarray(end, float), axis=1)
-    level = fraction * total
-    outside = np.flatnonzero(d > level)
-    if outside.size == 0:
-        return float(times[0])
-    j = int(outside[-1])
-    if j + 1 >= d.size:
-        return math.inf
-    return float(times[j] + (times[j + 1] - times[j]) * (d[j] - level) / (d[j] - d[j + 1]))
-
-
 def network_relaxation_time(
     net: SpringNetwork,
     task: AllosteryTask,
@@ -167,6 +150,7 @@ def network_relaxation_time(
     reference: str = "initial",
     fraction: float = 1e-2,
     measure: Literal["target", "force"] = "target",
+    clamp: Literal["strain", "nodes"] = "strain",
 ) -> float:
     """Relaxation time of ``net`` after the task's source step (time units).
 
@@ -176,13 +160,22 @@ def network_relaxation_time(
 
     ``measure="target"`` (default): the time after which the target strains (what
     learning reads) stay within ``fraction`` (1 %) of their total change of their new
-    equilibrium (:func:`settling_time`; the change from the state before the step, the
-    equilibrium an exact solve with the same clamps). ``measure="force"``:
+    equilibrium (:func:`~..network.dynamics.settling_time`; the change from the state
+    before the step, the equilibrium an exact solve with the same clamps). ``measure="force"``:
     :func:`~continuum_vs_network.network.dynamics.relaxation_time`, the largest net force
     stays below ``fraction`` of its start (which local modes dominate).
+
+    ``clamp="strain"`` (default): the sources are held as the continuum holds them, by
+    their lengths only (:func:`~continuum_vs_network.network.strain_clamp.rod_clamped`
+    rods, no node held; :func:`_strain_relaxation_time`); ``clamp="nodes"``: by their end
+    nodes (prescribed positions, as :func:`~continuum_vs_network.network.dynamics.simulate`
+    holds a clamp).
     """
     if measure not in ("target", "force"):
         raise ValueError(f"measure must be 'target' or 'force', got {measure!r}")
+    _check_clamp(clamp)
+    if clamp == "strain":
+        return _strain_relaxation_time(net, task, viscosity, reference, fraction, measure)
     clamps = task.source_clamps(net, reference)
     k_mean = float(np.mean(net.stiffness))
     rest = task.target_rest(net, reference)
@@ -211,6 +204,98 @@ def network_relaxation_time(
     raise RuntimeError("the network does not relax after the source step (is it rigid?)")
 
 
+def _check_clamp(clamp: str) -> None:
+    if clamp not in ("strain", "nodes"):
+        raise ValueError(f"clamp must be 'strain' or 'nodes', got {clamp!r}")
+
+
+def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) -> float:
+    """:func:`network_relaxation_time` with the sources held as rods (strain clamps).
+
+    As the continuum's (:func:`~continuum_vs_network.continuum.damped_states.body_relaxation_time`):
+    the run starts after the jump onto the clamps (the rods' fast mode, damped by three
+    backward-Euler steps of ``1e-3 (c + gamma) / k``, the slow modes barely moved); the
+    target strains' start is the state before the jump, their end the clamped equilibrium.
+    ``"force"``: the damping force ``C (x1 - x0) / dt`` of each step (``C`` at the initial
+    positions, free coordinates) against the clamped velocity's at the start, ``[C G^T; G
+    0] [v; mu] = [f; 0]`` (``f`` the original springs' and arms' force, ``G`` the rods'
+    chord-strain rows).
+    """
+    from ..network.dynamics import _boundary
+    from ..network.energy import spring_gradient
+    from ..network.kkt import factor_kkt
+    from ..network.strain_clamp import ROD_FACTOR, rod_clamped
+    from ..network.viscous import Stepper, dashpot_matrix
+
+    clamps = task.source_clamps(net, reference)
+    rods = rod_clamped(net, clamps)
+    tol = max(1e-10, 100.0 * np.finfo(float).eps * ROD_FACTOR) * net.force_scale
+    tol /= rods.force_scale
+    k_mean = float(np.mean(net.stiffness))
+    rest = task.target_rest(net, reference)
+    x0 = net.positions
+    free = _boundary(net, task.pinned, None, None, x0)[1]
+    arm0 = net.lengths(x0) if viscosity.has_arm else None
+    eta = viscosity.drag + viscosity.dashpot
+    jumper = Stepper(rods, viscosity, free, 1e-3 * eta / k_mean, tol=tol)
+    xj, arm_j = x0, arm0
+    for _ in range(3):
+        xj, _, arm_j = jumper.step(rods, xj, arm=arm_j)
+    start = net.lengths(x0, task.targets) / rest
+    end = None
+    fdofs = free.ravel()
+    C = (
+        dashpot_matrix(x0, net, viscosity.dashpot) + viscosity.drag * sp.identity(2 * net.n_nodes)
+    ).tocsr()[fdofs][:, fdofs]
+    if measure == "target":
+        big = 1e12 / k_mean
+        eq = simulate_viscous(rods, viscosity, dt=big, t_end=big, pinned=task.pinned, tol=tol)
+        end = net.lengths(eq.positions[-1], task.targets) / rest
+        f0 = None
+    else:
+        force = -spring_gradient(xj, net.springs, net.stiffness, net.rest_length)
+        if arm0 is not None:
+            k2 = np.full(net.n_springs, viscosity.arm_stiffness)
+            force = force - spring_gradient(xj, net.springs, k2, arm_j)
+        G = _chord_rows_at(net, xj, list(clamps))[:, fdofs]
+        v0, _ = factor_kkt(C.tocsc(), G).solve(force.ravel()[fdofs])
+        f0 = float(np.max(np.abs(C @ v0))) if v0.size else 0.0
+        if f0 == 0:
+            return 0.0
+    t_end = 4.0 * eta / k_mean * max(net.n_nodes, 4) ** 0.5
+    for _ in range(30):
+        traj = simulate_viscous(
+            rods, viscosity, dt=t_end / 200, t_end=t_end, pinned=task.pinned, x0=xj,
+            arm0=arm_j, tol=tol,
+        )  # fmt: skip
+        if measure == "force":
+            pos = np.asarray(traj.positions).reshape(len(traj.times), -1)[:, fdofs]
+            d = np.array([np.max(np.abs(C @ (b - a))) for a, b in itertools.pairwise(pos)])
+            d /= t_end / 200
+            tau = settling_time(traj.times[1:], d[:, None], np.array([f0]), np.zeros(1), fraction)
+        else:
+            strains = np.stack([net.lengths(x, task.targets) / rest for x in traj.positions])
+            tau = settling_time(traj.times, strains, start, end, fraction)
+        if 3.0 * tau <= t_end:
+            return tau
+        t_end *= 2.0
+    raise RuntimeError("the network does not relax after the source step (is it rigid?)")
+
+
+def _chord_rows_at(net, x, springs) -> sp.csr_matrix:
+    """Chord-strain rows ``n.(u_b - u_a) / r`` of ``springs`` at positions ``x``."""
+    rows, cols, vals = [], [], []
+    for r, s in enumerate(springs):
+        a, b = net.springs[int(s)]
+        d = x[b] - x[a]
+        L2 = float(d @ d)
+        for node, sign in ((a, -1.0), (b, 1.0)):
+            rows += [r, r]
+            cols += [2 * node, 2 * node + 1]
+            vals += list(sign * d / L2)
+    return sp.csr_matrix((vals, (rows, cols)), shape=(len(springs), 2 * net.n_nodes))
+
+
 def learn_in_time(
     net: SpringNetwork,
     task: AllosteryTask,
@@ -226,6 +311,7 @@ def learn_in_time(
     quasistatic: bool = False,
     tol: float = 1e-10,
     step_time: float | None = None,
+    clamp: Literal["strain", "nodes"] = "strain",
 ) -> TimeHistory:
     """Learn ``task`` with ``rule`` while the medium moves (module docstring).
 
@@ -259,6 +345,10 @@ def learn_in_time(
     step_time : float, optional
         A rule without ``alpha`` (an adaptive rate): physical time of one adaptive step
         (> 0; required then, ignored with ``alpha``).
+    clamp : {"strain", "nodes"}
+        A network's clamps (sources, nudged targets): by the clamped springs' lengths only
+        (default; stiff rods, as the continuum's exact strain constraints) or by their end
+        nodes (module docstring). Ignored for a body.
     """
     if isinstance(rule, ExactGradient):
         raise ValueError("the exact gradient stays quasi-static: use train(), not learn_in_time")
@@ -279,16 +369,17 @@ def learn_in_time(
     if int(n_outputs) != n_outputs or n_outputs < 1:
         raise ValueError(f"n_outputs must be an integer >= 1, got {n_outputs}")
     dt, duration = float(dt), float(duration)
+    _check_clamp(clamp)
     if isinstance(net, SpringNetwork):
         task.check(net)
         ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()
-        if np.unique(ends).size != ends.size:
+        if clamp == "nodes" and np.unique(ends).size != ends.size:
             raise ValueError(
-                "learning in physical time holds every clamp by its two end nodes: the task's "
+                "clamp='nodes' holds every clamp by its two end nodes: the task's "
                 "sources and targets must not share nodes"
             )
         media: NetworkTime | BodyTime = NetworkTime(
-            net, task, rule, viscosity, dt, quasistatic, tol, step_time
+            net, task, rule, viscosity, dt, quasistatic, tol, step_time, clamp
         )
     elif is_medium(net):
         media = BodyTime(net, task, rule, viscosity, dt, quasistatic, tol, step_time)

@@ -23,7 +23,12 @@ taking ``dt_learn / step_time`` of a step (with ``dt_learn = step_time`` it is
 history, as in :mod:`.rates`.
 
 :class:`NetworkTime` steps a :class:`~..network.model.SpringNetwork` with
-:class:`~..network.viscous.Stepper` (drag, dashpots, Maxwell arms); :class:`BodyTime` a
+:class:`~..network.viscous.Stepper` (drag, dashpots, Maxwell arms), its clamps held by
+default as the continuum holds them, by the clamped springs' lengths only (``clamp=
+"strain"``: each clamped spring a :func:`~..network.strain_clamp.rod_clamped` rod at the
+clamp length, no node held; the lengths read are the clamp lengths up to the rod's strain
+error ``~ 1 / ROD_FACTOR`` of the clamp's change), or by the clamped springs' end nodes
+(``clamp="nodes"``: prescribed positions set symmetrically along the spring); :class:`BodyTime` a
 learning medium (:class:`~..continuum.learnable.LearnableBody`) with the medium's
 :meth:`damped_stepper` (drag, Kelvin-Voigt, Maxwell arms; clamps exact). Every moving copy
 carries its own arms' internal variables (a network's arm lengths, a body's internal
@@ -39,6 +44,7 @@ from numpy.typing import NDArray
 
 from ..network.dynamics import _boundary
 from ..network.model import SpringNetwork
+from ..network.strain_clamp import ROD_FACTOR, rod_clamped
 from ..network.viscous import Stepper, Viscosity
 from .medium import check_rule_on_medium
 from .ranges import clip_to_range
@@ -108,6 +114,13 @@ def _clock(rule, initial: NDArray, scale: float, step_time: float | None):
     return AdaptiveClock(rate, initial, scale, step_time)
 
 
+def _rod_tol(net: SpringNetwork, rods: SpringNetwork, tol: float) -> float:
+    """The tolerance relative to ``rods``' force scale of ``tol`` relative to ``net``'s,
+    not below ``100 eps ROD_FACTOR`` (:func:`~..network.strain_clamp.simulate_strain_clamped`)."""
+    tol = max(float(tol), 100.0 * np.finfo(float).eps * ROD_FACTOR)
+    return tol * net.force_scale / rods.force_scale
+
+
 def _equilibrium_stepper(net: SpringNetwork, free: NDArray, tol: float) -> Stepper:
     """A backward-Euler step of length ``1e12 / k_mean`` with unit drag: its proximal term
     ``1e-12 k_mean |x - x0|^2 / 2`` is negligible, so one step is the equilibrium with the
@@ -116,21 +129,38 @@ def _equilibrium_stepper(net: SpringNetwork, free: NDArray, tol: float) -> Stepp
 
 
 def held_free_state(
-    net: SpringNetwork, task, *, reference: str = "initial", tol: float = 1e-10
+    net: SpringNetwork,
+    task,
+    *,
+    reference: str = "initial",
+    tol: float = 1e-10,
+    clamp: str = "strain",
 ) -> NDArray:
     """Free state (n_nodes, 2) of ``net`` as learning in time holds it: the task's sources
-    at their clamp lengths (``reference`` convention) by their end nodes, set symmetrically
-    along each spring from ``net.positions`` and held, its pins held, the rest at
-    equilibrium (the state :meth:`NetworkTime.error` reads).
+    at their clamp lengths (``reference`` convention), its pins held, the rest at
+    equilibrium (the state :meth:`NetworkTime.error` reads). ``clamp="strain"``: the
+    sources as rods, no node held; ``"nodes"``: by their end nodes, set symmetrically
+    along each spring from ``net.positions`` and held.
 
     Raises
     ------
     RuntimeError
         The equilibrium step does not converge.
     """
+    _check_clamp(clamp)
     clamps = task.source_clamps(net, reference)
+    if clamp == "strain":
+        rods = rod_clamped(net, clamps)
+        free = _boundary(net, task.pinned, None, None, net.positions)[1]
+        stepper = _equilibrium_stepper(net, free, _rod_tol(net, rods, tol))
+        return stepper.step(rods, net.positions)[0]
     x, free = _boundary(net, task.pinned, None, clamps, net.positions)
     return _equilibrium_stepper(net, free, tol).step(net, x)[0]
+
+
+def _check_clamp(clamp: str) -> None:
+    if clamp not in ("strain", "nodes"):
+        raise ValueError(f"clamp must be 'strain' or 'nodes', got {clamp!r}")
 
 
 class _Copy:
@@ -153,9 +183,13 @@ class _Copy:
 class NetworkTime:
     """A spring network in time (module docstring); ``viscosity``: a network Viscosity."""
 
-    def __init__(self, net, task, rule, viscosity, dt, quasistatic, tol, step_time=None) -> None:
+    def __init__(
+        self, net, task, rule, viscosity, dt, quasistatic, tol, step_time=None, clamp="strain"
+    ) -> None:
         if not isinstance(viscosity, Viscosity):
             raise ValueError(f"viscosity must be a Viscosity, got {type(viscosity).__name__}")
+        _check_clamp(clamp)
+        self.clamp = clamp
         self.task, self.ref, self.vis = task, rule.strain_reference, viscosity
         self.dt, self.quasistatic, self.tol = dt, quasistatic, tol
         self._free_eq = None
@@ -179,9 +213,19 @@ class NetworkTime:
             clamps.update(zip(task.targets.tolist(), lengths.tolist()))
         return clamps
 
+    def _stepped(self, net, copy: _Copy, clamps):
+        """The network a step takes: ``net`` (end nodes held) or its rods (strain clamps;
+        the copy's stepper tolerance set against ``net``'s force scale)."""
+        if self.clamp == "nodes":
+            return net
+        rods = rod_clamped(net, clamps)
+        copy.stepper.tol = _rod_tol(net, rods, self.tol)
+        return rods
+
     def copy(self, net, target_strain, start=None) -> _Copy:
         x0 = net.positions if start is None else start.x
-        x, free = _boundary(net, self.task.pinned, None, self._clamps(net, target_strain), x0)
+        clamps = self._clamps(net, target_strain) if self.clamp == "nodes" else None
+        x, free = _boundary(net, self.task.pinned, None, clamps, x0)
         if self.quasistatic:  # equilibria: arms relaxed carry no force
             return _Copy(x, free, None, _equilibrium_stepper(net, free, self.tol))
         arm = net.lengths(x) if self.vis.has_arm else None
@@ -192,8 +236,12 @@ class NetworkTime:
         copy.x, copy.arm, copy.previous = other.x, other.arm, other.previous
 
     def advance(self, net, copy: _Copy, target_strain) -> None:
-        held = _boundary(net, self.task.pinned, None, self._clamps(net, target_strain), copy.x)[0]
-        copy.arm = copy.step(net, held, copy.arm)
+        clamps = self._clamps(net, target_strain)
+        if self.clamp == "nodes":
+            held = _boundary(net, self.task.pinned, None, clamps, copy.x)[0]
+            copy.arm = copy.step(net, held, copy.arm)
+        else:
+            copy.arm = copy.step(self._stepped(net, copy, clamps), None, copy.arm)
 
     def read(self, net, copy: _Copy) -> NDArray:
         return net.lengths(copy.x)
@@ -249,6 +297,9 @@ class NetworkTime:
             self._free_eq = self.copy(net, None)
             self._free_eq.stepper = _equilibrium_stepper(net, self._free_eq.free, self.tol)
         eq = self._free_eq
+        if self.clamp == "strain":
+            eq.step(self._stepped(net, eq, self._clamps(net, None)), None)
+            return task.error(net, eq.x, ref)
         held = None  # "initial": the clamps stay where they were set
         if ref == "current":
             held = _boundary(net, task.pinned, None, self._clamps(net, None), eq.x)[0]

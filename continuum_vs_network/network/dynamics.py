@@ -75,7 +75,7 @@ from .energy import (
 from .model import SpringNetwork
 from .proximal import ProximalSolver
 
-__all__ = ["Trajectory", "relaxation_time", "simulate", "stability_limit"]
+__all__ = ["Trajectory", "relaxation_time", "settling_time", "simulate", "stability_limit"]
 
 Scheme = Literal["implicit", "newmark", "explicit"]
 _SCHEMES = ("implicit", "newmark", "explicit")
@@ -450,6 +450,28 @@ def _implicit_target(
 
 
 # -- relaxation time --------------------------------------------------------------------------
+def settling_time(
+    times: ArrayLike, values: ArrayLike, start: ArrayLike, end: ArrayLike, fraction: float
+) -> float:
+    """Time after which ``values`` (T, m) stay within ``fraction`` of their total change
+    ``|end - start|`` (Euclidean norms over the m components) of ``end``; the crossing is
+    interpolated linearly between the last frame outside and the next. ``inf`` when the
+    last frame is still outside, 0 when nothing changes."""
+    v = np.asarray(values, float).reshape(len(times), -1)
+    total = float(np.linalg.norm(np.asarray(end, float) - np.asarray(start, float)))
+    if total == 0:
+        return 0.0
+    d = np.linalg.norm(v - np.asarray(end, float), axis=1)
+    level = fraction * total
+    outside = np.flatnonzero(d > level)
+    if outside.size == 0:
+        return float(times[0])
+    j = int(outside[-1])
+    if j + 1 >= d.size:
+        return math.inf
+    return float(times[j] + (times[j + 1] - times[j]) * (d[j] - level) / (d[j] - d[j + 1]))
+
+
 def relaxation_time(
     traj: Trajectory, fraction: float = 1e-2, *, measure: str = "residual"
 ) -> float:

@@ -18,19 +18,19 @@ field learns through the density filter of :mod:`continuum_vs_network.continuum.
   GCL (raw rate ``dof_alpha``: the rule objects refuse a scale-free rate for a continuum's
   eigenstrain) of the filtered eigenstrain, or of both fields
   (:class:`~continuum_vs_network.continuum.filtered_fields.FilteredFields`, eigenstrain in
-  units of ``eigenstrain_unit``), on the task and its rest example; ``eigenstrain_norest``:
-  the eigenstrain on the task alone (the check that the rest example is what makes the
-  task non-trivial). Coupling: the source share of the trained body's free states with the
-  sources on and off. Arrays ``error``, ``seconds``, ``solves``, ``modulus``,
-  ``dilation``; meta as the learning units'.
+  units of :func:`eigenstrain_unit`), on the task and its rest example;
+  ``eigenstrain_norest``: the eigenstrain on the task alone (the check that the rest
+  example is what makes the task non-trivial). Coupling: the source share of the trained
+  body's free states with the sources on and off. Arrays ``error``, ``seconds``,
+  ``solves``, ``modulus``, ``dilation``; meta as the learning units'.
 * ``continuum_mechanism/optimum/refine<r>``: the exact optimum (:func:`~continuum_vs_network.
-  continuum.field_optimum.field_optimum`) of the same medium and task.
+  learning.field_optimum.field_optimum`) of the same medium and task.
 * ``continuum_mechanism/dof_optimum/refine<r>/<dof>`` (``r <= min(dof_refine,
   dof_optimum_refine)``, ``dof`` in ``dofs``): the exact optimum of the eigenstrain field or
-  of both on the dof units' medium (the same filter, ``eigenstrain_unit``) and objective (the
-  task and its rest example, summed): L-BFGS-B on the adjoint gradient, log modulus within
-  the stiffness range, eigenstrain unbounded. ``feasible``: its C/C0 <= ``MET_AT`` (the
-  level the dof findings ask for); an infeasible dof's GCL verdict is
+  of both on the dof units' medium (the same filter and :func:`eigenstrain_unit`) and
+  objective (the task and its rest example, summed): L-BFGS-B on the adjoint gradient, log
+  modulus within the stiffness range, eigenstrain unbounded. ``feasible``: its C/C0 <=
+  ``MET_AT`` (the level the dof findings ask for); an infeasible dof's GCL verdict is
   ``"infeasible (optimum C/C0 = x)"``. Arrays ``error``, ``seconds``; meta C/C0,
   evaluations, solves (one free state per example per evaluation), seconds.
 * ``continuum_mechanism/simp``: SIMP (penalty 3, density filter of the same radius, MMA when
@@ -89,6 +89,29 @@ def build(scene: Scene, refine: int):
         source_strain=m.source_strain, ratio=m.ratio,
     )  # fmt: skip
     return body, task, filtered_modulus(body, m.filter_radius, task=task)
+
+
+def eigenstrain_unit(scene: Scene) -> float:
+    """The eigenstrain design's strain unit: ``[mechanism] eigenstrain_unit`` when > 0, else
+    balanced: on the coarsest mesh, with the task and its rest example, the first step of
+    GCL on both fields moves the eigenstrain design ``e`` by the same norm as the modulus
+    design ``rho`` (``|d rho| = |d e|``; at unit 1 the signal on ``e`` is
+    ``|g_e| / |g_rho|`` times the modulus', and at unit ``u`` it is ``u`` times that).
+    One raw rate then moves both designs by comparable fractions."""
+    from ..continuum.filtered_fields import MaterialExamples, filtered_fields
+    from ..continuum.mechanism import rest_example
+    from ..learning.rules import CoupledLearning
+
+    m = _spec(scene)
+    if m.eigenstrain_unit > 0:
+        return float(m.eigenstrain_unit)
+    _, task, filtered = build(scene, 0)
+    examples = MaterialExamples((task, rest_example(task)))
+    raw = CoupledLearning(1.0, dof="both").update(filtered_fields(filtered, 1.0), examples).raw
+    g_rho, g_e = np.linalg.norm(raw[:, 0]), np.linalg.norm(raw[:, 1:])
+    if not (g_rho > 0 and g_e > 0):
+        raise RuntimeError("the task gives no learning signal on the modulus or eigenstrain")
+    return float(g_rho / g_e)
 
 
 def plan_mechanism(scene: Scene) -> list[Unit]:
@@ -218,7 +241,8 @@ def dof_unit(scene: Scene, params: dict, ctx: UnitContext):
 
     m = _spec(scene)
     body, task, filtered = build(scene, params["refine"])
-    medium = filtered_fields(filtered, m.eigenstrain_unit)
+    unit = eigenstrain_unit(scene)
+    medium = filtered_fields(filtered, unit)
     rest = rest_example(task)
     examples = MaterialExamples((task, rest) if params["rest"] else (task,))
     rule = CoupledLearning(m.dof_alpha, dof=params["dof"], min_stiffness=0.01)
@@ -245,14 +269,14 @@ def dof_unit(scene: Scene, params: dict, ctx: UnitContext):
         "source_share": float(share), "coupling": verdict,
         "outcome": outcome(float(err[-1]), verdict), "n_elements": int(body.n_elements),
         "seconds": float(arrays["seconds"][-1]), "solves": float(arrays["solves"][-1]),
-        "completed": int(h.completed[0]),
+        "completed": int(h.completed[0]), "eigenstrain_unit": unit,
     }  # fmt: skip
     return arrays, meta
 
 
 def optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
     """The exact optimum of the filtered modulus field (L-BFGS-B, adjoint gradient)."""
-    from ..continuum.field_optimum import field_optimum
+    from ..learning.field_optimum import field_optimum
 
     body, task, medium = build(scene, params["refine"])
     coarse_body = body if params["refine"] == 0 else build(scene, 0)[0]
@@ -274,14 +298,14 @@ def optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
 def dof_optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
     """The exact optimum of the filtered eigenstrain field, or of both fields, on the task and
     its rest example (L-BFGS-B, adjoint gradient; see the module)."""
-    from ..continuum.field_optimum import field_optimum
     from ..continuum.filtered_fields import MaterialExamples, filtered_fields
     from ..continuum.mechanism import rest_example
     from ..learning.coupling import MET_AT
+    from ..learning.field_optimum import field_optimum
 
-    m = _spec(scene)
     body, task, filtered = build(scene, params["refine"])
-    medium = filtered_fields(filtered, m.eigenstrain_unit)
+    unit = eigenstrain_unit(scene)
+    medium = filtered_fields(filtered, unit)
     rest = rest_example(task)
     examples = MaterialExamples((task, rest))
     o = field_optimum(medium, examples, dof=params["dof"])
@@ -299,7 +323,7 @@ def dof_optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
         "seconds": o.seconds, "converged": o.converged, "message": o.message,
         "contrast": o.contrast, "response": _response(trained, task),
         "rest_error": float(rest.error(trained.free_state(rest).target_strain)),
-        "n_elements": int(body.n_elements),
+        "n_elements": int(body.n_elements), "eigenstrain_unit": unit,
     }  # fmt: skip
     return arrays, meta
 

@@ -198,7 +198,7 @@ def _lattice_task(scene: Scene, n: int, draw: int = 0):
     t, spec = scene.task, scene.physical_time
     net = lattice(scene, n)
     rng = np.random.default_rng([scene.seed, n] + ([draw] if draw else []))
-    for _ in range(200):  # clamps are held end nodes: sources and targets share no node
+    for _ in range(200):  # sources and targets share no node (a clamp="nodes" run holds both)
         if spec.dof == "stiffness":
             task = allostery_task(
                 net, rng, n_sources=t.n_sources, n_targets=t.n_targets,

@@ -10,7 +10,7 @@ eigenstrain and modulus fields) is measured by the rule of every other learning 
 the initial state with the sources on (the task) and off (zero strain), each at the free
 state the run itself reads:
 
-* a network: sources held by their end nodes
+* a network: sources held by their lengths as stiff rods, no node held
   (:func:`~..learning.time_media.held_free_state`, the state of the run's recorded error).
   :func:`~..learning.coupling.measure_coupling` is not used: its solver holds the clamps as
   length constraints, another boundary condition (on a 5 x 5 lattice its initial error is

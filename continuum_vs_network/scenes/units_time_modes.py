@@ -23,12 +23,12 @@ t)``, ``a_i = phi_i^T C d0``, and the read-out ``g d(t) = sum_i c_i exp(-lambda_
   ``tau``).
 
 :func:`network_modes` (the lattice: free Hessian, drag ``c I`` plus the dashpots, the
-source spring's end nodes held as the dynamics holds them; and the slowest-mode time with
-the source as a chord-strain constraint like the body's, and with the body's edges,
-:func:`edge_weights`), :func:`body_modes` (the body: ``K_ff``, ``C_ff`` with the task's
-fixed DOFs, the source material spring a constraint) and :func:`global_step_share` (the
-relaxation scene's drive on the same lattice, the read-out every free coordinate) return
-plain dicts for the task unit's meta.
+source spring a chord-strain constraint as the run holds it (a rod) and as the body holds
+its material spring; beside it the slowest-mode time with the source's end nodes held, and
+with the body's edges, :func:`edge_weights`), :func:`body_modes` (the body: ``K_ff``,
+``C_ff`` with the task's fixed DOFs, the source material spring a constraint) and
+:func:`global_step_share` (the relaxation scene's drive on the same lattice, the read-out
+every free coordinate) return plain dicts for the task unit's meta.
 """
 
 from __future__ import annotations
@@ -130,7 +130,7 @@ def modal_response(
     """
     from scipy.linalg import eigh
 
-    from ..learning.physical_time import settling_time
+    from ..network.dynamics import settling_time
 
     total = float(np.linalg.norm(np.atleast_1d(change)))
     norm = float(d0 @ (C @ d0))
@@ -228,19 +228,30 @@ def edge_weights(net) -> tuple[NDArray, NDArray]:
     return count[s[:, 0] * n + s[:, 1]] / 2.0, node / (math.sqrt(3.0) / 2.0)
 
 
-def network_modes(net, task, viscosity, *, fraction: float = 1e-2) -> dict[str, float]:
+def network_modes(
+    net, task, viscosity, *, fraction: float = 1e-2, clamp: str = "strain"
+) -> dict[str, float]:
     """The lattice's modes after the source step (module docstring).
 
-    Linear about the initial positions (unstressed): the source springs' end nodes are
-    held and stepped half each way along the spring to the clamp length (as
-    :func:`~continuum_vs_network.network.viscous.simulate_viscous` holds a clamp), the
-    pins held; the free nodes jump by ``-C_ff^-1 C_fh u_h`` (none with drag only) and
-    relax to ``-K_ff^-1 K_fh u_h``; the targets' strains are read. :func:`modal_response`'s
-    keys, and the slowest-mode times with the source springs as chord-strain constraints
-    instead of held end nodes (the body's form of the clamp): ``tau_mode_constraint``, and
-    ``tau_mode_edges`` with the edge springs halved and the drag by node area as well
-    (:func:`edge_weights`: the body's matrices, lumped)."""
+    Linear about the initial positions (unstressed). ``clamp="strain"`` (default, as
+    :func:`~continuum_vs_network.learning.physical_time.network_relaxation_time` runs it):
+    the source springs are chord-strain constraints ``G u = S`` (the body's form of the
+    clamp; the run's rods), the pins held; the ``C``-weighted jump onto the constraint
+    relaxes to the constrained equilibrium, as :func:`body_modes`. ``clamp="nodes"``: the
+    source springs' end nodes are held and stepped half each way along the spring to the
+    clamp length (as :func:`~continuum_vs_network.network.viscous.simulate_viscous` holds a
+    clamp), the pins held; the free nodes jump by ``-C_ff^-1 C_fh u_h`` (none with drag
+    only) and relax to ``-K_ff^-1 K_fh u_h``. The targets' strains are read.
+    :func:`modal_response`'s keys (for ``clamp``), the slowest-mode times with the source
+    springs as chord-strain constraints (``tau_mode_constraint``) and with held end nodes
+    (``tau_mode_nodes``), and ``tau_mode_edges``: the constraint with the edge springs
+    halved and the drag by node area as well (:func:`edge_weights`: the body's matrices,
+    lumped)."""
+    if clamp not in ("strain", "nodes"):
+        raise ValueError(f"clamp must be 'strain' or 'nodes', got {clamp!r}")
     from scipy.sparse.linalg import splu
+
+    from ..network.kkt import factor_kkt
 
     n_dofs = 2 * net.n_nodes
     held = task.pinned.copy()
@@ -259,11 +270,24 @@ def network_modes(net, task, viscosity, *, fraction: float = 1e-2) -> dict[str, 
     u_eq = -splu(Kff.tocsc()).solve(H[free][:, ~free] @ uh)
     jump = -splu(Cff.tocsc()).solve(C[free][:, ~free] @ uh) if viscosity.dashpot > 0 else 0.0
     g = _chord_rows(net, task.targets, n_dofs).tocsc()[:, free]
-    out = modal_response(Kff, Cff, jump - u_eq, g, g @ u_eq, fraction=fraction)
+    nodes = modal_response(Kff, Cff, jump - u_eq, g, g @ u_eq, fraction=fraction)
     pins = ~task.pinned.ravel()
     Gs = _chord_rows(net, task.sources, n_dofs).tocsc()[:, pins]
     Kp, Cp, _, _ = _network_matrices(net, viscosity, pins)
-    out["tau_mode_constraint"] = 1.0 / slowest_mode(Kp, Cp, Gs)[0]
+    if clamp == "strain":
+        clamps = task.source_clamps(net)
+        r = net.lengths(x, np.array(list(clamps), dtype=int))
+        S = np.array(list(clamps.values())) / r - 1.0
+        zero = np.zeros(Kp.shape[0])
+        jump_s, _ = factor_kkt(Cp.tocsc(), Gs).solve(zero, S)
+        end_s, _ = factor_kkt(Kp.tocsc(), Gs).solve(zero, S)
+        gp = _chord_rows(net, task.targets, n_dofs).tocsc()[:, pins]
+        out = modal_response(Kp, Cp, jump_s - end_s, gp, gp @ end_s, Gs, fraction=fraction)
+        out["tau_mode_constraint"] = out["tau_mode"]
+    else:
+        out = nodes
+        out["tau_mode_constraint"] = 1.0 / slowest_mode(Kp, Cp, Gs)[0]
+    out["tau_mode_nodes"] = nodes["tau_mode"]
     factor, area = edge_weights(net)
     Ke, Ce, _, _ = _network_matrices(
         net, viscosity, pins, stiffness=net.stiffness * factor, drag=viscosity.drag * area

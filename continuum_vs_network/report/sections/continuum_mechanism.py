@@ -181,7 +181,7 @@ def section(doc: Document, result) -> None:
         f"for eigenstrain and both; SIMP: one per evaluation). The exact optima of eigenstrain "
         f"and both search the same filtered medium on the same summed error of the task and "
         f"its rest example, the modulus column in log within the stiffness range, the "
-        f"eigenstrain columns (units of {m.eigenstrain_unit:g}) unbounded; they stop at C/C0 <= "
+        f"eigenstrain columns unbounded; they stop at C/C0 <= "
         f"1e-6. A GCL dof run whose optimum misses C/C0 <= {MET_AT:g} (its finding's level) is "
         f'*infeasible*: its verdict is "infeasible (optimum C/C0 = x)" whatever the rule did '
         f"(the allostery scene's rule). The rest example's largest error over every run: "
@@ -231,6 +231,18 @@ def _findings_learning(doc: Document, m, units, opt) -> None:
         )
 
 
+def _unit_text(m, units, keys) -> str:
+    """The eigenstrain unit the dof runs used, and where it comes from."""
+    unit = units[next(iter(keys.values()))].meta["eigenstrain_unit"]
+    if m.eigenstrain_unit > 0:
+        return f"{unit:.3g} (set in the scene file)"
+    return (
+        f"{unit:.3g}, its susceptibility relative to the modulus, computed by a rule: on the "
+        "coarsest mesh the first GCL step on both fields moves the eigenstrain design by the "
+        "same norm as the modulus design"
+    )
+
+
 def _findings_dofs(doc: Document, m, units) -> None:
     """Eigenstrain and both beside the modulus: text and a finding per dof."""
     keys = {
@@ -244,8 +256,8 @@ def _findings_dofs(doc: Document, m, units) -> None:
         "",
         "**Eigenstrain and both beside the modulus** (GCL on the same filtered medium, "
         f"meshes h .. {_h(m.dof_refine)}). The eigenstrain design passes through the same "
-        f"filter and is measured in units of {m.eigenstrain_unit:g} (its susceptibility "
-        "relative to the modulus). These runs use the raw rate (alpha "
+        f"filter and is measured in units of {_unit_text(m, units, keys)}. These runs use "
+        "the raw rate (alpha "
         f"{m.dof_alpha:g}, about the scaled rate's first-step gain for the modulus): the "
         "rule objects refuse a scale-free rate (adaptive or scaled) for a continuum's "
         "eigenstrain, since their scale is the mean initial modulus. They train the task "

@@ -22,6 +22,9 @@ from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 MODE_AGREEMENT = 0.10
 #: ... and the modal prediction of tau "reproduces" the measured tau within this.
 MODAL_AGREEMENT = 0.10
+#: ... in every draw whose modes do not cancel at the target by more than this (sum of
+#: weights): beyond it the 1 % band is under 1e-4 of the deviation, near the resolution.
+CANCELLING = 100.0
 #: tau / tau_mode "varies over draws" when its largest over its smallest at one size and
 #: medium exceeds this.
 DRAW_SPREAD = 2.0
@@ -69,7 +72,7 @@ def _mode_table(doc: Document, tasks, both: bool) -> None:
             [
                 u.meta["n_nodes"],
                 u.meta["draw"],
-                fmt(net.get("tau_mode", math.nan)),
+                fmt(net.get("tau_mode_nodes", math.nan)),
                 fmt(net.get("tau_mode_constraint", math.nan)),
                 fmt(net.get("tau_mode_edges", math.nan)),
                 fmt(body.get("tau_mode", math.nan)),
@@ -82,7 +85,7 @@ def _mode_table(doc: Document, tasks, both: bool) -> None:
             "N",
             "draw",
             "network (end nodes held)",
-            "network (strain clamp)",
+            "network (strain clamp, as run)",
             "network (strain clamp, body's edges)",
             "continuum",
             "continuum / matched network",
@@ -164,9 +167,10 @@ def modes_section(doc: Document, tasks) -> None:
         "about as n^2. Here the drive is a local source step and tau reads one target "
         "strain. The task units compute the same linear modes for this scene's media and "
         "clamps (`scenes/units_time_modes.py`; linear about the unstressed lattice, all "
-        "modes by a dense eigensolve): tau_mode with the clamps as run (the network holds "
-        "the source's end nodes, the continuum only the material spring's strain), the "
-        "network's with the source as a strain constraint, and with the body's edges as "
+        "modes by a dense eigensolve): tau_mode with the clamps as run (both media hold "
+        "only the source's strain: the network's source a chord-strain constraint, the "
+        "continuum's material spring), the network's with the source's end nodes held "
+        "instead (the other way to clamp a spring), and with the body's edges as "
         "well (the P1 body on the lattice's triangles is exactly the network with each "
         "edge spring at half stiffness and the drag per node area, lumped; its stiffness "
         "matrix equals that Hessian). Last column: the relaxation scene's drive on the "
@@ -251,7 +255,7 @@ def _findings(tasks, media, both: bool) -> list[Finding]:
         ]
         clamp = [
             u.meta["network"]["modes"]["tau_mode_constraint"]
-            / u.meta["network"]["modes"]["tau_mode"]
+            / u.meta["network"]["modes"]["tau_mode_nodes"]
             for u in tasks
         ]
         dev = max(abs(x - 1.0) for x in matched)
@@ -264,8 +268,9 @@ def _findings(tasks, media, both: bool) -> list[Finding]:
                 metric=(
                     "continuum tau_mode / network tau_mode with the source as a strain "
                     "constraint, the edge springs halved and the drag per node area, over "
-                    "sizes and draws; beside it the ratio as run (held end nodes) and the "
-                    "clamp's factor alone"
+                    "sizes and draws; beside it the ratio as run (both strain-clamped, the "
+                    "edges differing) and the factor by which the strain clamp slows the "
+                    "network's slowest mode against held end nodes"
                 ),
                 measured={
                     "largest |matched ratio - 1|": dev,
@@ -281,20 +286,34 @@ def _findings(tasks, media, both: bool) -> list[Finding]:
                 ),
             )
         )
-    errs = [
-        abs(u.meta[m]["modes"]["tau_modal"] / u.meta[m]["tau"] - 1.0)
-        for m in media
-        for u in tasks
-        if math.isfinite(u.meta[m]["modes"]["tau_modal"])
-    ]
+
+    def gaps(resolved: bool) -> list[float]:
+        return [
+            abs(u.meta[m]["modes"]["tau_modal"] / u.meta[m]["tau"] - 1.0)
+            for m in media
+            for u in tasks
+            if math.isfinite(u.meta[m]["modes"]["tau_modal"])
+            and (u.meta[m]["modes"]["cancellation"] <= CANCELLING) == resolved
+        ]
+
+    errs, apart = gaps(True), gaps(False)
     out.append(
         Finding(
             claim=(
                 "package: the measured tau is the settling of the linear modes after the "
                 "source step (the modal sum predicts it)"
             ),
-            metric="|tau_modal / tau - 1|, largest over media, sizes and draws",
-            measured={"largest |tau_modal / tau - 1|": max(errs) if errs else math.nan},
+            metric=(
+                "|tau_modal / tau - 1|, largest over media, sizes and draws; a draw whose "
+                f"modes cancel at the target (sum of weights > {CANCELLING:g}: the target's "
+                f"total change is under 1/{CANCELLING:g} of the modes' terms, so its 1 % band "
+                "lies near the clamp's and the solver's resolution) is shown apart"
+            ),
+            measured={
+                "largest |tau_modal / tau - 1|": max(errs) if errs else math.nan,
+                f"draws apart (sum of weights > {CANCELLING:g})": len(apart),
+                "largest |tau_modal / tau - 1| apart": max(apart) if apart else math.nan,
+            },
             verdict=(
                 NOT_COMPARABLE
                 if not errs

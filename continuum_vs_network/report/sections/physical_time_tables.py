@@ -67,7 +67,7 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
         "bracket is closed on both sides; source share: the coupling of the final learned "
         "state by the rule of `learning/coupling.py` (coupled from "
         f"{COUPLED_AT:g}, decoupled below {DECOUPLED_BELOW:g}; at the free state the run "
-        "reads, a network's sources held by their end nodes), per draw the smallest over "
+        "reads, a network's sources held by their lengths as rods), per draw the smallest over "
         "the ratios run:"
     )
     doc.table(["quantity"] + [f"N = {n}" for n in sizes], rows)

@@ -128,9 +128,10 @@ def stiffness_intro(doc: Document, scene, rules: dict, not_learned: list, vis: s
         f"Task: Rocks' response task ({scene.task.n_sources} source, {scene.task.n_targets} "
         f"target; source strain {spec.source_strain:g}, target asked for "
         f"+-{spec.response_ratio:g} of it, sign alternating with the draw, about "
-        f"{spec.distance:g} box sizes from the source), sources and targets frozen, clamps "
-        "held by their end nodes (the continuum: its material springs' strains held "
-        "exactly)."
+        f"{spec.distance:g} box sizes from the source), sources and targets frozen, both "
+        "media driven the same way: a clamp holds only the clamped spring's length (the "
+        "network: the spring as a stiff rod at the clamp length, no node held; the "
+        "continuum: its material spring's strain, exactly)."
     )
     doc.add(
         "Rule: GCL as twin copies (a free and a nudged copy evolving together, the update "

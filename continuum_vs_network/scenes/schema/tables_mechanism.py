@@ -66,8 +66,10 @@ class MechanismSpec:
         "float", 1e7, "raw GCL rate of the eigenstrain / both runs", check=_positive
     )
     eigenstrain_unit: float = _key(
-        "float", 1.7e-4, "strain unit of the eigenstrain design (sets its susceptibility)",
-        check=_positive,
+        "float", 0.0,
+        "strain unit of the eigenstrain design (sets its susceptibility); 0: balanced, the "
+        "first GCL step moves both designs by the same norm on the coarsest mesh",
+        check=_non_negative,
     )  # fmt: skip
     adaptive_step: float = _key("float", 0.2, "step of the adaptive rate", check=_positive)
     scaled_step: float = _key("float", 0.5, "first step of the scaled rate", check=_positive)

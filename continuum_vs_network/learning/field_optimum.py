@@ -15,7 +15,7 @@ and L-BFGS-B crawls (C/C0 0.75 after 200 iterations on h/2 and 0.86 on h/4 of th
 scene, against 1e-25 in log variables within about 100 to 300 evaluations). It is the continuum's
 :func:`~continuum_vs_network.learning.optimum.exact_optimum`, and its result has the same
 shape (:class:`FieldOptimum`). Each evaluation is one factorisation, one free state and one
-adjoint (no further solve, :mod:`.learning_states`).
+adjoint (no further solve, :mod:`~continuum_vs_network.continuum.learning_states`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..learning.ranges import STIFFNESS_RANGE, check_range
+from .ranges import STIFFNESS_RANGE, check_range
 
 __all__ = ["FieldOptimum", "field_optimum"]
 
