@@ -55,18 +55,14 @@ the dense trust region bends every step): a long strip curling far from its star
 lattice far from the origin, follows rotations that a straight step overshoots
 (``docs/solver-notes.md#newton-geodesic``).
 
-Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones
-:func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
-unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose
-``U`` diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
-``W > 0``; up to about 1e4 nodes, where its band is narrow, LAPACK's banded Cholesky in a
-narrow-band order (:func:`~.ordering.band_order`, faster there; it too completes only for
-``W > 0``). Where ``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`, the banded
-Cholesky, and from :data:`~.spd.ROUGH_MIN` rows SuperLU, factorise ``W`` rounded to float32
-when that solves to 1e-2 (``rough``: faster, and SuperLU's takes half the memory;
-``docs/solver-notes.md#spd-rough``). Newton's step
-from such a factor is projected CG on the matrix factorised, preconditioned by it, to the
-forcing tolerance (:func:`_fresh_step`); the clamp predictor's step is taken as it is.
+Factorisations are :func:`~.kkt.factor_spd`'s (:mod:`.spd`): each completes only for
+``W > 0``, which is how positive definiteness is checked (dense Cholesky up to
+``DENSE_MAX`` free coordinates; above, PARDISO, LAPACK's banded Cholesky in a narrow-band
+order, or SuperLU with diagonal pivots, whose ``U`` diagonal carries the inertia). A
+``rough`` factor is ``W`` rounded to float32 where that solves to
+:data:`~.spd.ROUGH_RESIDUAL`; Newton's step from such a factor is projected CG on the
+matrix factorised, preconditioned by it, to the forcing tolerance (:func:`_fresh_step`);
+the clamp predictor's step is taken as it is.
 """
 
 from __future__ import annotations
