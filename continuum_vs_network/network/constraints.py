@@ -115,9 +115,7 @@ DENSE_JACOBIAN = 100_000  # entries: a length Jacobian this small is kept dense 
 def dense_jacobian_pays(m: int, n: int) -> bool:
     """True when an (m, n) length Jacobian is cheaper dense: ``n <= DENSE_MAX`` or at most
     ``DENSE_JACOBIAN`` entries. Below that scipy.sparse's construction and products cost
-    more than the dense arithmetic (0.4 ms a call at 1e3 nodes with one clamp, 5x the
-    dense products; a coupled-learning step at 1e3 nodes with 13 clamps went from 7.1 to
-    4.8 ms, ``benchmarks/bench_learning.py``)."""
+    more than the dense arithmetic (``docs/solver-notes.md#constraints``)."""
     return n <= DENSE_MAX or m * n <= DENSE_JACOBIAN
 
 

@@ -217,9 +217,8 @@ class HessianPattern:
 
         SuperLU's directions of negative curvature depend on the order, and the shift
         newton estimates from them steers its iterations: they are read in this order
-        whatever factorisation is used. Made with every pattern, the order took 4 / 16 ms
-        of the first relax of a 1e3- / 4e3-node lattice, which mostly reads no such
-        direction.
+        whatever factorisation is used. Made on first use, not with every pattern: most
+        solves read no such direction (``docs/solver-notes.md#energy``).
         """
         if self.band_positions is None:
             return None
@@ -231,8 +230,8 @@ class HessianPattern:
 
     def _data(self, blocks: NDArray) -> NDArray:
         """The stored entries (nnz,) from per-spring blocks (n_springs, 2, 2): one product
-        with a (nnz, 4 n_springs) matrix of +-1 built on first use (2.5-4.5x faster than
-        scattering the signed blocks with ``np.bincount`` at 1e3-1e4 nodes); above
+        with a (nnz, 4 n_springs) matrix of +-1 built on first use (faster than
+        scattering the signed blocks with ``np.bincount``); above
         ``SCATTER_MAX_SPRINGS`` springs, where that matrix's memory would count, the
         scatter."""
         s = self.springs.shape[0]

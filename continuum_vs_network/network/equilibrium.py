@@ -206,8 +206,8 @@ def relax(
         starting lengths, each relaxed in turn. At large strains the energy has several
         local minima and the one found depends on this path.
     max_iter, max_seconds : budgets; exceeding either raises :class:`EquilibriumError`
-        (Newton's default of 2000 iterations is a safety net, not a working limit: on the
-        500-network family of ``benchmarks/bench_family.py`` no converging case needs it).
+        (Newton's default of 2000 iterations is a safety net, not a working limit:
+        ``docs/solver-notes.md#equilibrium``).
         ``max_iter`` bounds each solve (a ramp stage, an escape, a solve with pins chosen
         anew), so the reported iterations, their sum, can exceed it; ``max_seconds`` bounds
         the whole call.
@@ -302,8 +302,8 @@ def relax(
     # deformation two of them can line up and act as a strut: choose them anew at the
     # deformed positions and relax again from there. Pins with a lever carry what the free
     # coordinates' residual forces add up to (their net force and torque): on a network
-    # of thousands of nodes, each within tol, that can exceed tol (a 2401-node patch at
-    # tol 1e-3 returned with 0.37 at a pin). From the second re-pinning on (from the first
+    # of thousands of nodes, each within tol, that can exceed tol (see
+    # docs/solver-notes.md#equilibrium). From the second re-pinning on (from the first
     # where the pins chosen anew are the same), each solve therefore goes as far below the
     # residual reached as the reaction was above tol.
     target = stop.tol  # the tolerance of the last solve
@@ -323,8 +323,7 @@ def relax(
         free = ~default_pins(net.with_positions(outcome.x), problem.clamp_springs)
         if rounds or np.array_equal(free, problem.free):
             # below the residual the state has, not only the tolerance it met: a target
-            # above it takes no step (a patch at tol 1e-2, free residual 8.7e-4, its pins
-            # chosen again the same: targets 1e-2, 4.8e-3, 2.3e-3 left the pins at 1.0e-2)
+            # above it takes no step, and the pins' load would stay
             reached = known[2].imbalance
             target = min(target, reached) * max(0.5 * stop.tol / reaction, _PIN_TIGHTEST)
         problem = problem.with_free(free)

@@ -32,9 +32,9 @@ def _fire_dt_max(obj: Objective, x: NDArray) -> float:
     clamps adding ``rho`` to their spring). At ``2 / sqrt(bound)`` itself a stiff, localised
     mode (a clamp penalty, a rod), for which the bound is nearly tight, sits at the edge of
     stability: its undamped period-2 oscillation dominates the power ``F.V`` and FIRE resets
-    every ~10 steps (a 32x32 lattice with one clamp did not converge in 20000 iterations).
-    With the factor 1.4 (about sqrt 2) it converges in ~4000; 1.0 costs ~25% more, 1.7 ~5%
-    less. Rods of stiffness 1e10 enter the bound and make FIRE's steps tiny.
+    every ~10 steps. The factor 1.4 (about sqrt 2) keeps it stable at little cost in speed
+    (``docs/solver-notes.md#fire``). Rods of stiffness 1e10 enter the bound and make FIRE's
+    steps tiny.
     """
     return _DT_FACTOR / np.sqrt(max(obj.hessian_bound(x), 1e-300))
 

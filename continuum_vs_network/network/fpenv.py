@@ -2,9 +2,8 @@
 
 A float32 factorisation of a spring network's Hessian can produce entries below float32's
 smallest normal number (1.2e-38; float64's, 2.2e-308, is not reached). x86 processors
-compute with such subnormal numbers up to ~100x slower: on a 1e5-node lattice at clamp
-strain 2, 7 of 27 float32 SuperLU factorisations took 4.15 s instead of 0.91 s, which made
-the float32 Newton slower than the float64 one (59.6 s against 46.4 s; 32.6 s flushed).
+compute with such subnormal numbers up to ~100x slower, enough to make the float32 Newton
+slower than the float64 one (``docs/solver-notes.md#fpenv``).
 MKL and PARDISO flush them in their own code; SuperLU does not, so :func:`flushing_subnormals`
 sets the SSE control register's flush-to-zero and denormals-are-zero bits (MXCSR bits 15
 and 6) around the call and restores the caller's register afterwards. The register is per
@@ -35,7 +34,7 @@ _FLUSH = 0x8040  # flush-to-zero (bit 15) and denormals-are-zero (bit 6)
 
 @functools.cache
 def _libm():
-    """The C math library, or None off x86-64 glibc (looked up on first use: 3 ms)."""
+    """The C math library, or None off x86-64 glibc (looked up on first use, then kept)."""
     if platform.system() != "Linux" or platform.machine() not in ("x86_64", "AMD64"):
         return None
     if platform.libc_ver()[0] != "glibc":

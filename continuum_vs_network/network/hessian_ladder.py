@@ -74,24 +74,20 @@ def factor_positive_model(
     passed in (at least 1e-6; after a failed exact factorisation at least
     :func:`_shift_estimate`) and grows (100-fold from ``DAMP_MIN``, 10-fold from an estimate
     or from a shift carried over from the last iterations) until the
-    factorisation is positive definite. Clipping each spring's negative tangential curvature
-    instead crept for hundreds of iterations on the paper's network under strain
-    continuation. Where a direction of negative curvature is known, the rungs below the
+    factorisation is positive definite (the shift, not clipping each spring's negative
+    tangential curvature, which creeps: ``docs/solver-notes.md#ladder-tangential-clipping``).
+    Where a direction of negative curvature is known, the rungs below the
     negative of the lowest Ritz value from it (:func:`ritz_lowest`, 10 Lanczos steps),
     which cannot be positive definite, are skipped: the same shifts and iterates, fewer
     failed factorisations. The bound is made at once for a direction conjugate gradients
-    met, else after the first failed rung (at once there too, 3-row strips of 265 columns
-    took 3 % longer: their first rungs succeed). Failed factorisations: lattices of 32-64
-    per side pulled apart by two pinned nodes at strains 1.5-15, 40 -> 7 (of 109 -> 76);
-    ``bench_family.py --medium`` (30 networks) 1468 -> 1360, ``--large`` (10) 441 -> 394;
-    at N = 4096, strain 10, the first ladder took 37.5 ms, now 15.
+    met, else after the first failed rung (where the first rungs usually succeed, a bound
+    made at once costs more than it saves; ``docs/solver-notes.md#ladder-ritz``).
 
     ``indefinite``: ``(s, d)`` when conjugate gradients met negative curvature along
     ``d`` (n,) on ``W + s D`` (``A d = 0``); ``s`` replaces ``shift``. No factorisation
     bound to fail is made: the ladder starts one rung above ``s``, or at the estimate from ``d``; at
     ``s = 0`` the exact Hessian is not factorised, nor with a larger ``rho``
-    (``rho A^T A`` adds nothing along ``d``). At 1e5 nodes, strain 2 (bench_relax) that
-    skipped 3.8 s of 9.4 s in the first indefinite iteration.
+    (``rho A^T A`` adds nothing along ``d``; ``docs/solver-notes.md#ladder-indefinite``).
 
     Returns a :class:`PositiveModel`; its ``negative`` (the direction of most negative
     curvature in the shift's metric) only without clamps (``lam`` empty: with clamps ``W``
@@ -126,8 +122,8 @@ def factor_positive_model(
     # not freeze soft springs (stiffness ratios up to 1e12 are supported). Without a known
     # direction of negative curvature the shift grows by 100s from DAMP_MIN; with one, from
     # the estimate of _shift_estimate by 10s; from a shift carried over (a decayed one) by
-    # 10s too: by 100s it climbed back over the shift needed and crawled (42 lattices of
-    # 576-1024 nodes at strains -0.5..8: 560 -> 487 iterations, the same equilibria)
+    # 10s too: by 100s it climbs back over the shift needed and crawls
+    # (docs/solver-notes.md#ladder-growth)
     scale = marquardt_scale(W)
     shift = max(shift, DAMP_MIN)
     growth = 10.0 if shift > DAMP_MIN else 100.0
@@ -171,9 +167,9 @@ def shifted(W: sp.csr_matrix | NDArray, shift: float, scale: NDArray) -> sp.csr_
     """``W + shift diag(scale)`` as a new matrix of ``W``'s kind (``W`` is kept).
 
     CSR: a copy whose stored diagonal entries are raised, the same numbers as the sparse
-    sum ``W + sp.diags(shift * scale)`` without building and merging a second matrix (0.4
-    -> 0.05 ms at 2e3 rows, where the sparse Newton makes 10-20 such models a solve); the
-    sum where a diagonal entry is not stored.
+    sum ``W + sp.diags(shift * scale)`` without building and merging a second matrix (the
+    sparse Newton makes many such models a solve); the sum where a diagonal entry is not
+    stored.
     """
     if isinstance(W, np.ndarray):
         model = W.copy()
@@ -220,13 +216,10 @@ def _shift_estimate(W: sp.spmatrix, directions: NDArray, scale: NDArray) -> tupl
     ``v``'s negative curvature in the shift's metric; and that direction (n,).
 
     A heuristic start, not a bound: too small, the ladder grows it; too large, it damps the
-    step more than needed. It replaced ``-v^T W v / (scale_j v_j^2)`` (``j`` the largest
-    entry of ``v``), which for a direction spread over many nodes asked for a shift 100x
-    too large: on a prestressed 17 x 17 lattice (``bench_family.py --medium --seed 1``,
-    network 41) the shift jumped 5e-6 -> 5e-4 after each decay, and Newton crept at a
-    saddle past 2000 iterations. Against the ladder from ``DAMP_MIN`` by 100s, the old
-    estimate had cut factorisations on the random-rest lattices of ``bench_relax.py`` (N = 1e3 at
-    strains 1-8, seeds 0-2) from 144 to 122.
+    step more than needed. The Rayleigh quotient in the shift's metric, not
+    ``-v^T W v / (scale_j v_j^2)`` at ``v``'s largest entry ``j``, which asks for far too
+    large a shift when ``v`` is spread over many nodes
+    (``docs/solver-notes.md#ladder-shift-estimate``).
     """
     curv = np.einsum("ij,ij->j", directions, W @ directions)
     quad = np.einsum("ij,ij->j", directions, scale[:, None] * directions)

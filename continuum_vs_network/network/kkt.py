@@ -49,8 +49,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-# the factorisations were defined here before they moved to .spd: all their names stay
-# importable from here (``x as x``: re-exported, unused here)
+# the factorisations live in .spd; their names are re-exported so that imports from here
+# keep working (``x as x``: re-exported, unused here)
 from .spd import _SOLVER as _SOLVER
 from .spd import (
     BAND_MAX_WORK,
@@ -163,7 +163,7 @@ def schur_solve(
     ``z`` (n,) or (n, p), ``c`` (m,) or (m, p).
     """
     r = A @ z - c
-    if isinstance(S, tuple):  # LAPACK getrs directly: lu_solve's wrapper costs ~20 us a call
+    if isinstance(S, tuple):  # LAPACK getrs directly, without lu_solve's per-call overhead
         y, info = sla.lapack.dgetrs(S[0], S[1], r)
         if info:
             raise ValueError(f"getrs: illegal argument {-info}")
@@ -188,7 +188,8 @@ def range_space_solve(
 ) -> tuple[KKT, tuple[NDArray, NDArray] | None]:
     """:func:`range_space` and, when ``b`` (n,) is given, the solution ``(x, y)`` of its
     system with right-hand side ``(b, c)`` (``c`` (m,), default 0), from one solve with
-    ``factor`` of ``m + 1`` columns (SuperLU takes 2 columns in ~1.3x the time of one).
+    ``factor`` of ``m + 1`` columns (cheaper than separate solves; see
+    ``docs/solver-notes.md#kkt``).
     """
     n = factor.n
     if A is None or A.shape[0] == 0:

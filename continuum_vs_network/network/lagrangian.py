@@ -44,7 +44,7 @@ def pattern_for(
     2); ``pattern.ordered`` says so, and a band-ordered pattern keeps ``positions`` for
     its nested-dissection rows (:meth:`~.energy.HessianPattern.nested_rows`). Not with
     PARDISO (:func:`~.kkt.sparse_solver`), which orders by METIS itself (the nested
-    dissection took 3.5 s at 1e5 nodes, 10 s at 3e5). Networks
+    dissection would cost seconds at 1e5 nodes for nothing). Networks
     made with ``with_*`` share their read-only springs array, so a learning loop builds the
     pattern once.
     """
@@ -94,7 +94,7 @@ def lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) ->
     elif lam.size:
         axial[clamps] += rho
         tangential[clamps] += lam / r[clamps]
-    # t I + (a - t) u u^T entry by entry (1.6x faster than forming u u^T blocks)
+    # t I + (a - t) u u^T entry by entry (faster than forming u u^T blocks)
     ux, uy = d[:, 0] / r, d[:, 1] / r
     excess = axial - tangential
     out = np.empty((r.size, 2, 2))

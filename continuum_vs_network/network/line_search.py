@@ -147,18 +147,7 @@ def geodesic_path(
     solved; on the clamps' tangent space ``A a = 0``), bends the path back into the curved
     valley a rotation follows. The dense trust region bends every step (:mod:`.trust`);
     here only exact Newton steps (shift 0), and only where the straight point is refused,
-    at the lengths it is refused.
-
-    Iterations to 1e-10 under default pins (rest lengths within 10 % of the geometry /
-    0.3-3x it; k over six decades):
-
-    - 3-row strips of 130 columns, 3 seeds: 156 / 138 / 109 -> 50 / 54 / 41, and 2000
-      (failed) / 1040 / 2335 -> 465 / 487 / 589; of 265 columns: 359 / 349 / 246 -> 87 /
-      79 / 72, while of the prestressed ones 2 of 3 still fail (which ones changes);
-    - ``bench_family.py`` networks, all iterations summed: ``--medium`` 8396 -> 8212
-      (60, seed 0) and 8052 -> 8048 (seed 1); ``--large`` 6042 -> 5908 (30, seed 0) and
-      7394 -> 7508 (seed 1); ``--medium --displaced`` 1700 -> 1689 (40, seed 6); no
-      failure either way.
+    at the lengths it is refused (``docs/solver-notes.md#line-search-geodesic``).
     """
 
     @functools.cache  # computed once, when first asked
@@ -239,10 +228,8 @@ def follow_curvature(
     the free coordinates in the order of ``direction`` and ``step``) when its merit is lower
     (:func:`curvature_search`, from the largest coordinate move the line
     search took, or a thousandth of the step's when it took none); that move counts as a
-    full step (the shift decays).
-
-    Without it a prestressed 17 x 17 lattice (``bench_family.py --medium --seed 1``,
-    network 41) crept past 2000 iterations at a saddle of scaled curvature -5e-7.
+    full step (the shift decays). Without it a weak saddle is escaped only by a creep
+    (``docs/solver-notes.md#newton-negative-curvature``).
     """
     x, alpha = searched
     merit = merit_change(problem, start, A, viol, lam, rho)

@@ -2,7 +2,8 @@
 
 Problems of at most :data:`~.trust.TR_DENSE_MAX` free coordinates go to the dense
 trust-region Newton of :mod:`.trust` (exact reduced Hessian, negative curvature followed);
-larger ones use the shifted sparse Newton below.
+larger ones use the shifted sparse Newton below. The record behind its heuristics and
+constants is in ``docs/solver-notes.md#newton``.
 
 Clamps are equality constraints ``r_c(x) = l_c`` handled by sequential quadratic
 programming in range-space form. With ``A = dr_c/dx`` (m, n_free) and
@@ -27,51 +28,41 @@ halves the residual (the quadratic regime, where the merit is below round-off). 
 changes are computed without cancellation (:func:`~.energy.spring_energy_change`). When
 no step length decreases the merit, the shift is raised 100-fold and the Hessian
 refactorised (Levenberg-Marquardt as a trust region) instead of giving up; and ``rho``,
-raised where the exact Hessian was indefinite, decays back by 10 after every full step.
-Without both, strongly prestressed networks (rest lengths 0.3-3x the geometry, 1e-3..1e3
-stiffness, 3 clamps: ``benchmarks/bench_family.py --large``) failed in 18 of 60 cases, with
-``rho`` grown to 1e24 swamping ``W`` in round-off; with them, 0 of 60.
+raised where the exact Hessian was indefinite, decays back by 10 after every full step, so
+that it cannot grow until it swamps ``W`` in round-off (strongly prestressed networks
+need both: ``docs/solver-notes.md#newton-damping``).
 
 Negative curvature is followed, not only damped: when conjugate gradients preconditioned
 by the last factorisation meet a direction of negative curvature, the move along it that
 lowers the merit most (doubled while it falls) replaces the line search's point when it
 goes lower (:func:`~.line_search.follow_curvature`), and the shift restarts from twice
 that direction's Rayleigh quotient (:func:`_shift_estimate`). A shift alone, large
-enough to make ``W`` positive definite, damped the escape from a weak saddle to a creep
-(``bench_family.py --medium --seed 1``: one network past 2000 iterations). Without
-clamps, the direction the failed factorisation of the exact Hessian gives is followed
-too, once the best residual has not halved in ``_CREEP`` iterations.
+enough to make ``W`` positive definite, damps the escape from a weak saddle to a creep.
+Without clamps, the direction the failed factorisation of the exact Hessian gives is
+followed too, once the best residual has not halved in ``_CREEP`` iterations.
 
 Stiffness contrast: a linear step that rotates a spring lengthens it by
 ``|rotation|^2 r / 2``; for springs 10-1e12 times stiffer than the median that
 second-order error alone cuts steps short. Each trial step is therefore
-also tried after a Gauss-Newton projection that puts the stiff springs (and exact clamps)
-back to the lengths the linear model predicted (:class:`StiffSprings`). With it the
-8x8 lattices with 20 % of springs 1e9-1e12 times stiffer converge in 5-12 iterations
-instead of creeping. Putting back springs from 10x the median (the trust region's
-choice), not only from 1e3x, cut ``benchmarks/bench_family.py`` (60 networks, seed 0)
-from a median of 167 to 96 iterations (p95 511 to 388) with ``--medium`` and from 215 to
-158 (p95 720 to 600) with ``--large``, in 0.84x and 1.12x the time.
+also tried after a Gauss-Newton projection that puts the stiff springs (springs from
+:attr:`~.stiff_springs.StiffSprings.CONTRAST` times the median stiffness, the trust
+region's choice, and exact clamps) back to the lengths the linear model predicted
+(:class:`StiffSprings`; ``docs/solver-notes.md#newton-stiff-springs``).
 
 Curved valleys: where the line search refuses an exact Newton step (shift 0), the step is
 also tried bent along its geodesic acceleration (:func:`~.line_search.geodesic_path`, as
 the dense trust region bends every step): a long strip curling far from its start, or a
-lattice far from the origin, follows rotations that a straight step overshoots. On 3-row
-strips of 130 columns iterations went from 109-156 to 41-54 (rest lengths within 10 %),
-and on a 15 x 15 lattice with k over 10 decades started 1e3 away from 942 to 311.
+lattice far from the origin, follows rotations that a straight step overshoots
+(``docs/solver-notes.md#newton-geodesic``).
 
-Small problems (<= ``DENSE_MAX`` free coordinates) use dense Cholesky; larger ones
-:func:`~.kkt.factor_spd`: PARDISO's Cholesky when ``pypardiso`` is installed (it fails
-unless ``W > 0``), else SuperLU with nested-dissection rows and diagonal pivots, whose
-``U`` diagonal then carries the inertia of ``W`` (Sylvester), so a positive diagonal proves
-``W > 0``; up to about 1e4 nodes, where its band is narrow, LAPACK's banded Cholesky in a
-narrow-band order (:func:`~.ordering.band_order`: 2-3x faster; it too completes only for
-``W > 0``). Where ``W``'s diagonal spans at most :data:`~.spd.ROUGH_SPREAD`, the banded
-Cholesky, and from :data:`~.spd.ROUGH_MIN` rows SuperLU, factorise ``W`` rounded to float32
-when that solves to 1e-2 (``rough``: SuperLU's takes half the memory and is 1.8x faster at
-1e6 nodes; the banded one is 1.3-1.8x faster than float64 at 2e3-8e3 rows). Newton's step
-from such a factor is projected CG on the matrix factorised, preconditioned by it, to the
-forcing tolerance (:func:`_fresh_step`); the clamp predictor's step is taken as it is.
+Factorisations are :func:`~.kkt.factor_spd`'s (:mod:`.spd`): each completes only for
+``W > 0``, which is how positive definiteness is checked (dense Cholesky up to
+``DENSE_MAX`` free coordinates; above, PARDISO, LAPACK's banded Cholesky in a narrow-band
+order, or SuperLU with diagonal pivots, whose ``U`` diagonal carries the inertia). A
+``rough`` factor is ``W`` rounded to float32 where that solves to
+:data:`~.spd.ROUGH_RESIDUAL`; Newton's step from such a factor is projected CG on the
+matrix factorised, preconditioned by it, to the forcing tolerance (:func:`_fresh_step`);
+the clamp predictor's step is taken as it is.
 """
 
 from __future__ import annotations
@@ -116,27 +107,21 @@ DAMP_GIVE_UP = 1e6  # no decrease even at this shift: the solve fails
 # In-loop second-order certificate (relax then skips its check, a float64 factorisation):
 # the converging step came from an exact, positive-definite factorisation made one step
 # before and moved no coordinate more than _CERTIFY_MOVE mean rest lengths. Below
-# _FRESH_NEAR times tol the Hessian is factorised afresh, not reused, to make it so. The
-# last factorisation however far back (the rule before) certified a 530-node mesh at a
-# saddle of scaled curvature -62 (4 clamps at strains up to 20, started at 1e6 times its
-# size, tol 1e-4), from 6 iterations and several rest lengths away.
+# _FRESH_NEAR times tol the Hessian is factorised afresh, not reused, to make it so (a
+# factorisation further back can certify a saddle: docs/solver-notes.md#newton-certificate)
 _FRESH_NEAR = 1e4
 _CERTIFY_MOVE = 1e-6
 # The best residual not halved in this many iterations, at a residual within 10x of
 # float64's round-off floor there (checks.roundoff_floor): the solve stops, stalled (relax
-# then says tol is below float64's reach). A 1311-node lattice (k over 18 decades, started
-# at 1e6 times its size, default pins) sat at 8.6e-9 against a floor of 9.9e-9 from about
-# iteration 1200 and reported "no convergence in 2000 iterations" (29 s); now it stops at
-# 1209 (22 s). Accepted steps at round-off (a residual halved by chance) kept its shift
-# from growing to the line search's give-up, which stops such solves otherwise
+# then says tol is below float64's reach), instead of running out its iteration budget.
+# Needed because accepted steps at round-off (a residual halved by chance) keep the shift
+# from growing to the line search's give-up (docs/solver-notes.md#newton-stagnation)
 _STAGNANT = 50
 # The best residual not halved in this many iterations, the exact Hessian indefinite: the
 # direction of negative curvature its failed factorisation gave is followed after the line
-# search, as conjugate gradients' are. A shift alone made just positive definite crept
-# toward the stationary point (a 265 x 3 strip, rest lengths 0.3-3x: the residual fell
-# 0.08 % an iteration at shift 1e-6 for hundreds of iterations). Followed at every such
-# factorisation, not only in a creep, it cost iterations on strips that converged (130 x
-# 3, seeds 10-14: 2492 -> 4048, one new failure); gated, 2520
+# search, as conjugate gradients' are (a shift alone made just positive definite creeps).
+# Only in such a creep: followed at every such factorisation it costs iterations on
+# solves that converge (docs/solver-notes.md#newton-negative-curvature)
 _CREEP = 20
 
 
@@ -152,8 +137,7 @@ def newton(
     (the exact Hessian, still indefinite, made every reuse fail on negative curvature);
     when that model meets negative curvature, the model of the factor's own (larger) shift
     is tried before a refactorisation, and the direction found spares the factorisations
-    it proves indefinite (:func:`factor_positive_model`). bench_relax at 1e5 nodes,
-    one clamp at strain 2: 21 -> 12 iterations, 58.1 -> 18.3 s (limit 2.8 s).
+    it proves indefinite (:func:`factor_positive_model`; docs/solver-notes.md#newton-reuse).
 
     Rod clamps (``exact_first``): the problem with exact clamps is solved first, and the
     rods from its equilibrium (or from ``x`` where that fails).
@@ -164,9 +148,9 @@ def newton(
     if problem.free_flat.size <= TR_DENSE_MAX:
         return trust_region_newton(problem, problem.start(x), stop, trace)
     if exact_first and problem.clamp == "rod" and problem.n_clamps:
-        # rods of 1e10 stiffness held far from their lengths (strain 20) crept for 2000
-        # iterations from the start; the exact clamps' equilibrium is a rod's to within the
-        # rods' compliance, and it has the linear predictor: solved first, the rods follow
+        # stiff rods held far from their lengths creep from the start; the exact clamps'
+        # equilibrium is a rod's to within the rods' compliance, and it has the linear
+        # predictor: solved first, the rods follow (docs/solver-notes.md#newton-rods)
         exact = newton(problem.as_exact(), x, stop, trace)
         if exact.converged:
             trace.base += exact.iterations
@@ -237,11 +221,10 @@ def newton(
         step = lam = None
         indefinite = None  # (shift, direction): W + shift D met negative curvature along it
         # inexact Newton (Eisenstat-Walker-like forcing term): a relative solve error eta
-        # leaves a residual ~ eta * residual, superlinear with eta = sqrt(residual); at
-        # N = 1e4 it needed 31-41 solves against 45-63 with eta = residual, same iterations.
-        # Not below 0.5 tol / residual (Kelley's safeguard against oversolving): a last
-        # step from just above the tolerance needs no accurate solve (at N = 4096, strain 1
-        # one from 1.2e-10 took 14 preconditioner solves for eta = sqrt(residual))
+        # leaves a residual ~ eta * residual, superlinear with eta = sqrt(residual) (fewer
+        # solves than eta = residual, same iterations). Not below 0.5 tol / residual
+        # (Kelley's safeguard against oversolving): a last step from just above the
+        # tolerance needs no accurate solve (docs/solver-notes.md#newton-forcing)
         enough = min(0.5, 0.5 * stop.tol / max(residual, 1e-300))  # residual 0: clamps only
         eta = max(min(1e-1, np.sqrt(residual)), enough)
         # a shifted factorisation is not reused once the shift is 0: the exact Hessian is
@@ -249,9 +232,8 @@ def newton(
         # one is not reused either, so that the last step certifies the minimum in the
         # loop (_CERTIFY_MOVE; else the second-order check of relax factorises it)
         # and only when the step is expected to move little enough to certify: a step
-        # moves about as much, against its residual, as the last one did (bench_relax at
-        # N = 4096, strain 1: a fresh factorisation at 7e-7 moved 4.9e-6 mean rest lengths,
-        # certified nothing, and relax factorised again)
+        # moves about as much, against its residual, as the last one did
+        # (docs/solver-notes.md#newton-certificate)
         near = (
             residual <= _FRESH_NEAR * stop.tol
             and shift == 0.0
@@ -263,10 +245,7 @@ def newton(
             W = assemble_hessian(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             # the damped model a refactorisation would solve now; when that (a shift decayed
             # after full steps) is indefinite, the model the factor was made for, before
-            # any refactorisation (bench_relax at 1e5 nodes, strain 2: 4 iterations had
-            # decayed 0.2 -> 0.02, met negative curvature and refactorised at 0.2). On 60
-            # networks of bench_family --medium, 1012 of 1302 such retries solved; without
-            # them the most iterations were 1242, with them 710
+            # any refactorisation (docs/solver-notes.md#newton-reuse)
             trials = (shift, factor_shift) if factor_shift > shift else (shift,)
             scale = marquardt_scale(W) if trials[-1] > 0.0 else None
             for trial in trials:
@@ -345,16 +324,15 @@ def newton(
             shift, reusable = max(100.0 * shift, DAMP_RETRY), None
             continue
         # Levenberg-Marquardt: a cut step asks for more damping next time, a full one less.
-        # A step cut to a quarter or more only doubles it (Nielsen's gentler growth): 10x
-        # overshot and the shift oscillated between two decades (bench_family --large:
-        # median 239 -> 217 iterations, strongly prestressed 699 -> 516)
+        # A step cut to a quarter or more only doubles it (Nielsen's gentler growth: 10x
+        # makes the shift oscillate between two decades; docs/solver-notes.md#newton-damping)
         if alpha < 1.0:
             reusable = None
             shift = max((DAMP_UP if alpha < 0.25 else DAMP_UP_MILD) * shift, DAMP_MIN)
         else:
             shift = shift / 10 if shift > 10 * DAMP_MIN else 0.0
             # the augmentation decays back too: grown without bound over hundreds of
-            # iterations (1e24 on a prestressed lattice) it swamped W in round-off
+            # iterations it swamps W in round-off
             rho = max(rho_base, rho / 10)
     return Outcome(x, stop.max_iter, False, "no convergence")
 
@@ -376,15 +354,13 @@ def _clamp_predictor(
     search: the linear elastic response to the clamp lengths, prestress relaxed with it)
     is taken first; the caller then sets the clamped springs to their lengths. The step is
     refused when it turns any other spring by more than 90 degrees (the linearisation of
-    the rotations has failed: at strain 5 it crossed springs over and cost 6 -> 10
-    iterations at N = 1e4). Returns the positions after the step (``x`` itself when it
+    the rotations has failed, e.g. springs crossed over at large strain). Returns the
+    positions after the step (``x`` itself when it
     was not taken) and the factorisation (None when none was made). The next iterations
     reuse it, also after a refused step: conjugate gradients preconditioned by it either
     solve the start's Newton step or meet negative curvature along a direction that
     spares the factorisations bound to fail (:func:`factor_positive_model`).
-
-    ``benchmarks/bench_relax.py`` (N = 1024 / 1e4, one clamp at strains 0.05-2, stress-free
-    and random rest lengths, and two clamps of k in U(0.5, 50)): iterations 3-18 -> 2-12.
+    Measurements: ``docs/solver-notes.md#newton-clamp-predictor``.
     """
     viol = problem.clamp_violation(x)
     if stop.clamp_error(viol) <= stop.tol:
@@ -429,14 +405,10 @@ def _pin_predictor(
     :func:`_clamp_predictor`); otherwise ``x`` is kept. Problems with clamps, and any
     other start, are returned unchanged, with no factorisation (a warm start from an
     earlier equilibrium is nearer than the geometry). Returns the positions and the
-    factorisation made (None when none was), which the next iterations reuse.
-
-    ``bench_jaxmd.py``'s problem (a spring of a 32 x 32 lattice pulled apart by its two
-    pinned nodes), strain 1 / 2 / 2.5: 5 / 9 / 12 -> 5 / 7 / 8 iterations (the step
-    counted), 11 -> 10 / 48 -> 17 / 52 -> 26 ms; at 64 x 64, strain 2: 14 -> 7 iterations,
-    362 -> 76 ms. At strains 3-4 the step raises the energy and is refused. The dense trust
-    region (:mod:`.trust`) starts from ``x``: on a 12 x 12 lattice this start cost it
-    iterations at strain 2 (7 -> 10, the step counted).
+    factorisation made (None when none was), which the next iterations reuse. At large
+    pin displacements the step raises the energy and is refused. The dense trust region
+    (:mod:`.trust`) does not use it and starts from ``x`` (there it costs iterations;
+    measurements: ``docs/solver-notes.md#newton-pin-predictor``).
     """
     net = problem.net
     free = problem.free
@@ -486,9 +458,8 @@ def _fresh_step(
     A float32 factor (``factor.approximate``) solves only to ~1e-7 times the condition
     number: where ``refine`` (the projected CG pays), conjugate gradients on ``model``
     preconditioned by it take the step to the forcing tolerance ``eta``, usually in no
-    iteration beyond its first solve. Unrefined, its direct steps stalled at 3.9e-10 on a
-    prestressed lattice of stiffness over six decades (``bench_family.py --large``,
-    network 11: 'line search found no decrease'). Otherwise the direct KKT step.
+    iteration beyond its first solve (unrefined direct steps can stall short of a tight
+    tolerance: ``docs/solver-notes.md#newton-fresh-step``). Otherwise the direct KKT step.
     """
     if refine and factor.approximate:
         try:

@@ -18,8 +18,8 @@ def nested_dissection(positions: NDArray, springs: NDArray, *, leaf: int = 64) -
 
     The node set is split at the median of its longer extent; the nodes of one half that
     touch the other form the separator and are eliminated last. On 2D lattices this gives
-    less fill than SuperLU's minimum degree and about 1.1-1.8x faster factorisations at
-    N = 1e5 (benchmarks/bench_relax.py).
+    less fill than SuperLU's minimum degree and faster factorisations
+    (``docs/solver-notes.md#ordering-nested-dissection``).
 
     Parameters
     ----------
@@ -83,9 +83,8 @@ def band_order(
 
     The narrowest of reverse Cuthill-McKee and a sweep across the network along each axis
     (:func:`_sweep`). Cuthill-McKee from one peripheral node (a corner) sweeps a lattice
-    by its diagonals, up to 1.45x longer than its rows: on a 64 x 64 noisy lattice under
-    default pins a band of 191 coordinates against the sweep's 131, and the banded
-    Cholesky's work ``n u^2`` 2.1x larger.
+    by its diagonals, up to 1.45x longer than its rows, so on a lattice the row sweep's
+    band is usually the narrower (``docs/solver-notes.md#ordering-band``).
 
     Parameters
     ----------

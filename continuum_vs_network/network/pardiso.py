@@ -9,9 +9,9 @@ numerical factorisation one of its ``maxfct`` slots; a slot is released when its
 :class:`~.kkt.Factor` is garbage collected. When every slot is taken the oldest is reused
 and its factor, if ever used again, factorises its matrix anew: correct, only slower.
 
-PARDISO orders by METIS: on 2D lattices its numerical factorisation is 1.6x faster than with
-the package's nested-dissection order given as PARDISO's user permutation (2.3 s against
-3.8 s at 3e5 nodes), and the analysis is kept. ``mtype = 2`` (real symmetric positive
+PARDISO orders by METIS: on 2D lattices its numerical factorisation is faster than with
+the package's nested-dissection order given as PARDISO's user permutation
+(``docs/solver-notes.md#pardiso``), and the analysis is kept. ``mtype = 2`` (real symmetric positive
 definite): the factorisation stops with error -4 at the first non-positive pivot, which is
 how it proves ``W > 0``.
 

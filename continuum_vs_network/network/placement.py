@@ -5,24 +5,17 @@ far node ``b``) only remove rigid motion, and must carry no load. They do while 
 ``b - a`` has a component along ``b``'s free coordinate; a network that shrinks until
 that lever is no longer than ``b``'s offset from ``a`` along its pinned coordinate turns
 the pin into a strut. Prestressed networks (rest lengths 0.3-3x the geometry) shrink that
-far: on ``benchmarks/bench_family.py --medium`` the sparse Newton converged against such a
-strut, found the pins loaded, and relaxed again with new ones (30-100 more iterations,
-a fifth of its total).
+far: a solve then converges against such a strut, finds the pins loaded, and relaxes
+again with new ones.
 
 :func:`lever_frame` removes the offset: the solve runs with the network turned about ``a``
 so that the lever is the x axis, ``b``'s y pinned. ``b`` then stays on the line through
 ``a`` in the lever's start direction, free to approach ``a`` until they meet.
 :func:`place_on_pins` moves the result rigidly back onto the default pins. The frame's
 origin is ``a``'s start, so the solve also works in coordinates of the network's size,
-whose round-off is that of the network, not of its distance from 0: a 15 x 15 lattice
-1e3 from 0 at tol 1e-14 converges in the frame in 149 iterations, and 28 more find that
-1e3 from 0 the tol is below float64's reach, where the pinned solve wandered at that
-round-off floor for 1221 before saying so.
-
-On ``bench_family.py --medium`` (60 networks, seeds 1 and 2) this took the strongly
-prestressed half from a median of 262.5 / 228 iterations to 227.5 / 195 (p95 353 / 405 to
-316 / 356) and the time from 79 / 102 s to 68 / 89 s; the max moved 380 / 437 to 410 / 390
-(other paths, other local minima).
+whose round-off is that of the network, not of its distance from 0 (a network far from
+0 converges in the frame, and a tolerance below float64's reach there is found soon).
+Measurements: ``docs/solver-notes.md#placement``.
 """
 
 from __future__ import annotations
@@ -41,7 +34,7 @@ __all__ = ["LeverFrame", "lever_frame", "place_on_pins"]
 def _pins(free: NDArray) -> tuple[list[int], list[int]]:
     """The nodes a pin mask ``free`` (n_nodes, 2) pins fully, and its other pinned flat
     coordinates."""
-    pins = np.flatnonzero(~free.ravel()).tolist()  # scalars: math, not numpy (~1 ms relax)
+    pins = np.flatnonzero(~free.ravel()).tolist()  # scalars: math, not numpy (overhead)
     nodes = [p // 2 for p in pins]
     full = [i for i in dict.fromkeys(nodes) if nodes.count(i) == 2]
     return full, [p for p in pins if nodes.count(p // 2) == 1]

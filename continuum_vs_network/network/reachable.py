@@ -7,16 +7,16 @@ nodes (the triangle inequality, in any dimension). :func:`refuse_unreachable_cla
 checks that with shortest paths over the clamps' end nodes, and raises one ``ValueError``
 naming the chain where it fails: a clamped spring between two pinned nodes at another
 distance, three clamped springs of a triangle whose longest side exceeds the other two,
-clamps in a line between pins too short to span them. Before, these cost a whole solve
-(up to the iteration budget on the sparse path) and ended in "Hessian could not be made
-positive definite" or a non-converging projection.
+clamps in a line between pins too short to span them. Unrefused, such a set costs a
+whole solve (up to the iteration budget on the sparse path) and ends in "Hessian could
+not be made positive definite" or a non-converging projection.
 
 The check is necessary, not sufficient (a 2D embedding needs more), and it refuses only
 clear violations (by more than ``1e-9`` relative): clamp lengths that add up exactly are
 degenerate, not impossible, and the solvers name them so. Rods (``clamp="rod"``) stretch,
 so for them only the single spring between two pins is refused: a rod there carries only
 the pins' force, which no free coordinate measures. The chain check runs only where a chain
-can exist (a node shared by two clamps, or two pinned clamp ends: 20 us otherwise) and up
+can exist (a node shared by two clamps, or two pinned clamp ends) and up
 to ``_CHAIN_NODES_MAX`` clamp end nodes (its pinned pairs grow as their square).
 """
 

@@ -34,11 +34,10 @@ class NegativeCurvature(SolveFailed):
 def reuse_budget(size: int) -> int:
     """Preconditioned CG iterations allowed before a new factorisation of (size, size).
 
-    Measured here on 2D networks, one SuperLU nested-dissection factorisation costs about
-    ``0.15 sqrt(size)`` triangular solves (15 at N = 1e3, 20 at 1e4, 50 at 1e5 nodes); a
-    budget of twice that was fastest in benchmarks/bench_relax.py (0.075 and 0.15 were
-    slower). PARDISO with its analysis kept refactorises for about 9 solves at 1e5-3e5
-    nodes: twice that, 16. A count, not a timing, so that runs are reproducible bit for bit.
+    ``0.3 sqrt(size)`` (at least 2): twice the triangular solves that one SuperLU
+    nested-dissection factorisation costs on 2D networks; with PARDISO (its analysis
+    kept), 16, twice its cost in solves (``docs/solver-notes.md#reuse-budget``). A count,
+    not a timing, so that runs are reproducible bit for bit.
     """
     if sparse_solver() == "pardiso":
         return 16
@@ -50,10 +49,7 @@ def pcg(W: sp.csr_matrix, preconditioner: Factor, *, rtol: float, max_iter: int)
 
     ``max_iter`` bounds the iterations of all right-hand sides together; a right-hand side
     whose rate so far cannot reach ``rtol`` in budget is given up early, by the rule of
-    :func:`projected_pcg` (:func:`_hopeless`). At N = 4096, a spring pulled to strain 10
-    (``bench_jaxmd.py``'s problem), one run had spent its 27 iterations without reaching
-    the tolerance (17 ms, 1.4 factorisations); stopped after 4, the solve took 8 % less
-    time in the same 15 iterations.
+    :func:`projected_pcg` (:func:`_hopeless`; ``docs/solver-notes.md#reuse-hopeless``).
 
     Raises :class:`NegativeCurvature` on negative curvature (``W`` not positive definite),
     :class:`SolveFailed` when ``rtol`` is not reached.
@@ -139,8 +135,8 @@ def projected_pcg(
     At = A.T  # formed once: scipy.sparse builds a new matrix at every .T
     gram = A @ At
     gram = gram.toarray() if sp.issparse(gram) else np.asarray(gram)
-    # inverted once: (m, m) with m a few clamps, where np.linalg.solve's 31-35 us a call
-    # (12 with the inverse) were ~7 % of a profiled relax at N = 1024 (two per CG iteration)
+    # inverted once: (m, m) with m a few clamps, where np.linalg.solve's per-call overhead
+    # (two per CG iteration) shows in a profile (docs/solver-notes.md#reuse-gram-inverse)
     gram_inverse = np.linalg.inv(gram)
     zero = np.zeros(m)
 
@@ -183,10 +179,10 @@ def _hopeless(first: float, best: float, tol: float, done: int, max_iter: int) -
     (from ``first`` to the ``best`` so far) is none, or would need more than three times
     ``max_iter`` iterations to reach ``tol``.
 
-    At N = 1e4 and strains 1-2 (benchmarks/bench_relax.py) the preconditioners that failed
-    had not brought the residual below its start in 4 iterations and then used the whole
-    budget (44 SuperLU solves, 1.5 factorisations' time). The margin of 3 is there because
-    CG accelerates: predicting with the budget itself stopped some that then succeeded.
+    Preconditioners that fail typically do not bring the residual below its start in 4
+    iterations and then use the whole budget. The margin of 3 is there because CG
+    accelerates: predicting with the budget itself stops some that then succeed
+    (``docs/solver-notes.md#reuse-hopeless``).
     """
     if done < 4:
         return False

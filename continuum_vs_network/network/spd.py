@@ -7,15 +7,16 @@ built on these factors.
 
 Sparse positive-definite factorisations (:func:`factor_spd`) use MKL PARDISO's Cholesky
 (``pypardiso``, the optional extra ``continuum_vs_network[pardiso]``) when it is
-importable: on spring-network Hessians it factorises 1.9x / 2.4x faster than SuperLU at
-2e4 / 2e5 rows with half the memory (``benchmarks/bench_solvers_sparse.py``); it certifies
-``W > 0`` by completing. Otherwise, or with :func:`set_sparse_solver` ``("superlu")`` or the
-environment variable ``CVN_SPARSE_SOLVER=superlu``, SuperLU; or, for a matrix whose rows
-are in a narrow-band order (:func:`banded_pays`, e.g. :func:`~.ordering.band_order` on a
-network of up to ~1e4 nodes), LAPACK's banded Cholesky, which is 2-3x faster there. A
+importable (faster than SuperLU on spring-network Hessians, with half the memory); it
+certifies ``W > 0`` by completing. Otherwise, or with :func:`set_sparse_solver`
+``("superlu")`` or the environment variable ``CVN_SPARSE_SOLVER=superlu``, SuperLU; or, for
+a matrix whose rows are in a narrow-band order (:func:`banded_pays`, e.g.
+:func:`~.ordering.band_order` on a network of up to ~1e4 nodes), LAPACK's banded Cholesky,
+which is faster there. A
 ``rough`` factorisation (an approximate ``W^-1`` serves: a Newton step judged by the true
 residual, a preconditioner) is made in float32 where that is accurate: the banded Cholesky
-at any size, SuperLU from ``ROUGH_MIN`` rows.
+at any size, SuperLU from ``ROUGH_MIN`` rows. The measurements behind these choices and
+constants are in ``docs/solver-notes.md#spd``.
 """
 
 from __future__ import annotations
@@ -52,24 +53,18 @@ __all__ = [
 ]
 
 DENSE_MAX = 400  # below this many unknowns dense LAPACK beats scipy.sparse's overhead
-# Banded Cholesky (LAPACK pbtrf, about n u^2 flops for lower bandwidth u) against SuperLU
-# with nested dissection, one core, on noisy triangular lattices in reverse Cuthill-McKee
-# order (u ~ 2.1 sqrt(n)): 0.19 / 0.67 / 1.7 / 4.9 / 22 ms against 0.77 / 2.1 / 4.4 / 10 /
-# 45 (28 with minimum degree) ms at n = 505 / 1145 / 2041 / 4043 / 8185 unknowns
-# (n (u + 1)^2 = 1.2e6 .. 3.0e8), even (87 / 82 ms) at n = 2e4 (1.8e9). In band_order's
-# row sweep (u ~ 1.43 sqrt(n)): 45 against 77 ms at n = 2e4 (8.3e8), 149 against 121 at
-# 2.9e4 (1.7e9), 262 against 175 at 3.9e4 (3.2e9): the work, not n, sets the crossover
+# the most work n (u + 1)^2 (LAPACK pbtrf: about n u^2 flops for lower bandwidth u) at
+# which the banded Cholesky beats SuperLU with nested dissection; the work, not n, sets
+# the crossover (docs/solver-notes.md#spd-banded)
 BAND_MAX_WORK = 1e9
 SPARSE_SOLVERS = ("auto", "pardiso", "superlu")
-# From this many rows a ``rough`` factorisation (factor_spd) is SuperLU in float32: on a
-# noisy lattice's Hessian in nested-dissection order at 5e5 / 2e6 rows it factorises in
-# 2.9 / 21 s against 4.8 / 39 s with half the memory for values (5e8 of them at 2e6 rows),
-# which coupled learning on a million-node lattice needs to stay under 12 GB
+# From this many rows a ``rough`` factorisation (factor_spd) is SuperLU in float32: faster,
+# and half the memory for values, which coupled learning on a million-node lattice needs
+# (docs/solver-notes.md#spd-rough)
 ROUGH_MIN = 100_000
 ROUGH_RESIDUAL = 1e-2  # a float32 factor must solve a random right-hand side to this
 # nor is float32 tried where the diagonal spans more (rods, stiffness over many decades):
-# at 1e10-1e12 (rod clamps on a lattice of k in 0.1..10) 11 of 23 float32 factorisations
-# missed ROUGH_RESIDUAL, each then made again in float64
+# there float32 factorisations often miss ROUGH_RESIDUAL and are made again in float64
 ROUGH_SPREAD = 1e6
 _EMPTY_INDEX = np.empty(0, dtype=np.int64)
 _SOLVER = {"name": os.environ.get("CVN_SPARSE_SOLVER", "auto"), "pardiso": None}
@@ -130,8 +125,7 @@ class Factor:
     precondition : callable
         An approximate ``W^-1 b`` for use as a preconditioner: ``solve`` itself, or, for
         the banded Cholesky, the same factor rounded to float32 (relative error ~1e-7;
-        1.3x / 1.7x / 2x faster than float64 at 2e3 / 8e3 / 2e4 rows, where the solve is
-        limited by reading the band from memory).
+        faster, where the solve is limited by reading the band from memory).
     approximate : bool
         ``solve`` itself is only float32-accurate (a ``rough`` factor of ``W`` rounded to
         float32): a caller that needs more refines it (Newton: projected CG).
@@ -159,10 +153,10 @@ def sparse_lu(W: sp.spmatrix, *, ordering: str = "MMD_AT_PLUS_A", symmetric: boo
     """SuperLU factorisation of a square sparse ``W`` (raises RuntimeError when singular).
 
     ``ordering``: SuperLU ``permc_spec``. Minimum degree on ``W + W^T`` suits symmetric
-    stiffness matrices (``benchmarks/bench_continuum.py``: 35-55 % less fill and 1.6-2.4x
-    faster factorisations than ``COLAMD`` at 1e5 DOFs). ``symmetric``: diagonal pivots in
-    SuperLU's symmetric mode, which keep that ordering (for symmetric positive-definite
-    ``W``; partial pivoting broke it and was 5-50x slower); False: partial pivoting.
+    stiffness matrices (less fill and faster factorisations than ``COLAMD``).
+    ``symmetric``: diagonal pivots in SuperLU's symmetric mode, which keep that ordering
+    (for symmetric positive-definite ``W``; partial pivoting breaks it and is much slower);
+    False: partial pivoting. Measurements: ``docs/solver-notes.md#spd-superlu``.
     """
     pivots: dict = (
         {"diag_pivot_thresh": 0.0, "options": {"SymmetricMode": True}} if symmetric else {}
@@ -225,8 +219,8 @@ def _banded_cholesky(
         return x.astype(np.float64)
 
     def solve(b: NDArray) -> NDArray:
-        # LAPACK directly: scipy's cho_solve_banded checks cost as much as the solve at 1e3
-        # nodes (0.15 against 0.08 ms), and the chord of a learning step makes ~7 of them
+        # LAPACK directly: scipy's cho_solve_banded checks cost as much as the solve on
+        # small networks, and a learning step's chord iteration makes several solves
         b = np.asarray(b, dtype=np.float64)
         if b.shape[:1] != (n,) or b.ndim > 2:
             raise ValueError(f"right-hand side must be ({n},) or ({n}, k), got {b.shape}")
@@ -245,9 +239,9 @@ def _band_layout(W: sp.csr_matrix) -> tuple[int, NDArray, NDArray, NDArray] | No
     are on the diagonal; None when ``W`` is not in canonical format.
 
     Kept per structure (``W.indptr``, checked against ``W.indices``): a Newton solve
-    factorises matrices of one pattern many times, and finding the layout took 130 of
-    the 350 us the factorisation spent outside LAPACK at 2e3 rows. Entries are written
-    in one flat step (a 2D scatter was 3x slower: 126 against 41 us there)."""
+    factorises matrices of one pattern many times, and finding the layout is a large
+    part of the factorisation's time outside LAPACK. Entries are written in one flat step
+    (faster than a 2D scatter; ``docs/solver-notes.md#spd-banded``)."""
     store = per_array(W.indptr, "band_layout")
     hit = store.get("layout")
     if hit is not None and np.array_equal(hit[0], W.indices):
@@ -290,8 +284,8 @@ def _banded_float32(W: sp.csr_matrix, band: NDArray) -> Factor | bool | None:
     positive definite only beyond float32's reach); False when the band leaves float32's
     range or the factor does not solve to ``ROUGH_RESIDUAL`` (:func:`_accurate`).
 
-    LAPACK's spbtrf runs 1.3-1.8x faster than dpbtrf on lattice Hessians of 2e3-8e3 rows
-    (its blocks vectorise twice as wide), as the float32 SuperLU of ``ROUGH_MIN`` rows.
+    LAPACK's spbtrf runs faster than dpbtrf (its blocks vectorise twice as wide), as the
+    float32 SuperLU of ``ROUGH_MIN`` rows does (``docs/solver-notes.md#spd-rough``).
     """
     rounded = np.asfortranarray(band, dtype=np.float32)
     if not np.all(np.isfinite(rounded)):  # beyond float32's range
@@ -328,7 +322,7 @@ def factor_spd(
     (:func:`sparse_solver`; it orders by METIS and ignores ``ordered``). ``ordered``: the
     rows are already in a fill-reducing order (natural order is kept); otherwise minimum
     degree on ``W``. ``certify=False`` skips reading SuperLU's ``U`` diagonal (a copy of
-    ``U``: 3-4 % of the factorisation at 1e4-1e5 unknowns) for a ``W`` positive definite by
+    ``U``) for a ``W`` positive definite by
     construction (a stiffness with rigid motion removed); only exact singularity then
     returns None. ``rough``: an approximate ``W^-1`` serves the caller (a Newton or chord
     step judged by the true residual, a preconditioner): the banded Cholesky, and from
@@ -338,10 +332,8 @@ def factor_spd(
     (:func:`~.hessian_ladder.factor_positive_model`), whose failure sends the caller to a
     10x larger shift: a non-positive pivot of the float32 banded Cholesky is then final,
     without the float64 factorisation (``W`` is indefinite, or within float32's rounding
-    of singular, where the step along its near-null direction is one a line search cuts).
-    On 180 networks of ``bench_family.py`` (``--medium``, ``--large``, ``--medium
-    --displaced``) every solve took the same iterations to the same equilibrium, in 3-8 %
-    less time.
+    of singular, where the step along its near-null direction is one a line search cuts;
+    the same iterations and equilibria, less time: ``docs/solver-notes.md#spd-rung``).
     """
     n = W.shape[0]
     if n <= DENSE_MAX:
@@ -415,7 +407,7 @@ def _accurate(W: sp.spmatrix, solve: Callable[[NDArray], NDArray]) -> bool:
 @functools.lru_cache(maxsize=8)
 def fixed_vector(n: int) -> NDArray:
     """A fixed generic vector (n,): standard normal draws of seed 0, read-only, kept for
-    the last few sizes (drawing it took 0.09 ms of a 7.6 ms relax at 1e3 nodes, twice).
+    the last few sizes (drawing it is a noticeable part of a small relax).
 
     The right-hand side :func:`_accurate` probes a rough factor with, and the start vector
     of every Krylov eigensolve (``eigsh(..., v0=fixed_vector(n))``): scipy's default start
@@ -440,7 +432,7 @@ def _superlu(
         values = sp.csc_matrix(W, dtype=np.float32)
         if not np.all(np.isfinite(values.data)):
             return None, None
-    # float32 elimination can reach subnormal numbers, up to 4.5x slower in SuperLU here
+    # float32 elimination can reach subnormal numbers, much slower in SuperLU (.fpenv)
     flush = flushing_subnormals if dtype == np.float32 else contextlib.nullcontext
     try:
         with flush():

@@ -9,9 +9,9 @@ clamps.
 The projection is called for most rejected trial steps, so it works on arrays alone: the Jacobian
 ``J`` (one row per stiff spring, ``-u`` and ``u`` on its end nodes' free coordinates) is
 applied by gathers and scatters, and the pattern of ``J J^T`` (pairs of stiff springs on a
-common free coordinate) is found once, so each factorisation only fills its values. Built
-with ``scipy.sparse`` products instead, the matrices' construction was 80 % of the dense
-trust region's time on ``benchmarks/bench_family.py``.
+common free coordinate) is found once, so each factorisation only fills its values
+(``scipy.sparse`` products would dominate the dense trust region's time:
+``docs/solver-notes.md#stiff-springs-arrays``).
 """
 
 from __future__ import annotations
@@ -112,19 +112,17 @@ class StiffSprings:
 
         ``dx`` (n,) is the linear step in the row order of ``index``. A chord iteration:
         ``J J^T`` is factorised at the first iterate and reused while each correction cuts
-        the length error at least 10-fold (refactorised otherwise; a factorisation per
-        Gauss-Newton iteration was half of the sparse trust region's time). Gives up
+        the length error at least 10-fold (refactorised otherwise: a factorisation per
+        Gauss-Newton iteration would dominate the cost). Gives up
         when a correction with a fresh factorisation does not cut it 10-fold either: near
         reachable lengths Gauss-Newton converges quadratically, so that mostly means they
-        are not reachable (a review found 4 of 200 random reachable large steps given up;
-        the caller then keeps the unprojected point). Giving up at 2-fold instead took 5
-        factorisations a failed call and 6 % more time on ``benchmarks/bench_family.py``,
-        for about the same iterations. Also gives up after 12 corrections.
+        are not reachable (rarely, reachable lengths of a large step are given up; the
+        caller then keeps the unprojected point). Also gives up after 12 corrections.
 
-        The nearest iterate serves the trust region: most of its rejected trials were steps
-        whose projection gave up, leaving stiff springs stretched 1.4-3x; the partly
-        projected point is usually far better. (Pushing on to 2-fold cuts made that worse
-        again: the linear lengths of a long step are not worth meeting at any cost.)
+        The nearest iterate serves the trust region: where the projection gives up, the
+        partly projected point is usually far better than the plain one (the linear lengths
+        of a long step are not worth meeting at any cost, so no 2-fold rule pushes on).
+        Measurements: ``docs/solver-notes.md#stiff-springs-chord``.
 
         Not for threads sharing one network: the cached ``J J^T`` matrix is refilled in
         place (processes, as the package's own parallel runs use, are safe)."""
@@ -187,8 +185,7 @@ class _GramPattern:
         second = by_column[np.repeat(starts[group], width) + within]
         key = np.concatenate([(second // 4) * s + first // 4, np.arange(s) * (s + 1)])
         stored, slot = np.unique(key, return_inverse=True)  # column-major: CSC order
-        # kept for the network's lifetime: int32 where it fits (half the memory; at 1e5
-        # nodes with half the springs stiff the int64 pairs were 71 MB)
+        # kept for the network's lifetime: int32 where it fits (half the memory)
         small = np.int32 if key.size < 2**31 and 4 * s < 2**31 else np.int64
         self._first, self._second = first.astype(small), second.astype(small)  # pairs
         self._slot = slot[: first.size].astype(small)

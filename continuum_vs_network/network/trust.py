@@ -7,13 +7,9 @@ each iteration
    included), the gradient and the clamp Jacobian ``A``; the multipliers in ``W`` are the
    least-squares clamp tensions in the metric ``D^-1`` in which trials are moved back onto
    the clamps (step 4): then the model of the energy along the clamps is exact to second
-   order also away from equilibrium. With the tensions by which ``relax`` judges the
-   residual (weighted by the local force scale) it was not: a prestressed 8 x 8 lattice,
-   two far nodes pinned, three clamps at strains up to 8 (``bench_family.py --pinned
-   --seed 4``, network 406) crept at a constant radius, every step keeping half its
-   promise, past 2000 iterations (45 now; under default pins 298 -> 78). Euclidean
-   tensions (and projection) fixed it but sent a patch with a soft clamped node into a
-   scaled curvature of -1.5e4 (2000 iterations again);
+   order also away from equilibrium (with ``relax``'s residual tensions, weighted by the
+   local force scale, it is not, and prestressed networks creep at a constant radius;
+   Euclidean tensions fail elsewhere: ``docs/solver-notes.md#trust-multipliers``);
 2. scales every coordinate by its node's stiffness ``kappa_i = sum_j k_j`` over its springs
    and rods (``x = D^-1/2 z``): a stiff region and a soft one get steps of the same
    energetic size, which is what makes contrasts of 1e12 harmless;
@@ -42,26 +38,11 @@ each iteration
    projected, an accepted step that kept less than 3/4 of its promise is halved (up to
    :data:`_SHORTER_TRIES` times) while the energy falls further.
 
-On the 500-network family of ``benchmarks/bench_family.py`` these took the median from 82
-to 25 iterations (p95 349 to 74). On its first 100 networks (median 71.5, p95 320 before):
-rigid motions removed 50 / 240; with the geodesic step 37.5 / 161; with the radius tries
-33.5 / 126; with stiff springs from 10x the median (not 1e3x) 23 / 75.
+What each of these parts gained, measured on ``benchmarks/bench_family.py``, is recorded
+in ``docs/solver-notes.md#trust``.
 
-Most of the iterations left on lattices and Delaunay meshes are spent between 1 % and
-1e-6 of the energy drop, at indefinite Hessians of prestressed networks (rest lengths
-0.3-3x), with half of the models' first trials rejected. Most rejected trials were steps
-whose stiff-spring projection gave up, leaving stiff springs stretched 1.4-3x; the rest
-turned or stretched a handful of springs by more than their length (the median spring
-barely moved). On the first 300 networks of seeds 0 and 1 (lattices and Delaunay meshes:
-median 34 / 36, p95 86 / 78 before) the projection's nearest iterate, the lower of it and
-the plain point, the shorter tries and the radius between doublings each took a share:
-30-33 / 65-68 with all four. On the full family (seeds 0-5) the overall median went from
-24-29 to 22-26 and the p95 from 71-83 to 58-64, with no new failure, in the same time;
-the N = 10 patch took 10-18 % longer (more trials per Hessian), until the shorter tries
-were kept to networks with stiff springs (:data:`_SHORTER_TRIES`).
-
-Cost on small problems (the paper's N = 10 patch: ~10 models and ~18 trials, 20
-coordinates), where numpy's per-call overhead is the cost: the spring terms are dense
+Cost on small problems (the paper's N = 10 patch: 20 coordinates), where numpy's per-call
+overhead is the cost: the spring terms are dense
 incidence products (:mod:`.trust_kernels`, up to 32 nodes) and the reduced Hessian is
 assembled in the model's basis from the springs' length and rotation Jacobians, without an
 (n, n) matrix; under default pins the rigid motions are removed by Householder
@@ -74,7 +55,8 @@ trial's spring geometry is the next gradient's; products are ``ndarray.dot`` (se
 :mod:`.trust_kernels`). What the network, pins and clamp set alone
 decide (the frame, ``D^-1/2``, the stiff springs, the translation basis) is kept while the
 network lives (:func:`_setup`), so repeated solves of one network skip it.
-``benchmarks/bench_patch.py --against OLD_CHECKOUT`` measures it.
+``benchmarks/bench_patch.py --against OLD_CHECKOUT`` compares this cost with another
+checkout.
 
 Near the solution the radius no longer binds and the iteration is Newton's, quadratically
 convergent. Saddles cannot be returned: a step along a negative eigenvector always lowers
@@ -105,11 +87,8 @@ _GROW = 2.0  # radius growth after a good step that reached the boundary
 _GROW_TRIES = 6  # doublings of the radius tried at one Hessian while the model holds
 _MID = math.sqrt(2.0)  # the radius tried between the last good doubling and a worse one
 # halvings tried at one Hessian after a step of ratio below 0.75, only where stiff springs
-# are projected: they were made for trials whose projection gave up (see the module). With
-# no stiff spring they saved no iteration and cost trials: bench_family.py --stiffness
-# 0.5,50 --count 300, seeds 0-2, p95 34 / 30.1 / 31 -> 30.1 / 28.1 / 30 iterations without
-# them; the paper's N = 10 patch (k in U(0.5, 50)) 21.3 -> 17.8 trials, 10.5 -> 10.4
-# iterations, 1.22 -> 1.05 ms (bench_patch.py)
+# are projected: they are for trials whose projection gave up (see the module); with no
+# stiff spring they save no iteration and cost trials (docs/solver-notes.md#trust-shorter-tries)
 _SHORTER_TRIES = 4
 _NOISY = 4.0  # a ratio above this is checked for an energy change at round-off
 ACCEL_MAX = 0.75  # largest |geodesic acceleration| / |step| used (Transtrum & Sethna)
@@ -374,8 +353,8 @@ def trust_region_newton(problem: Problem, x: NDArray, stop: StopRule, trace: Tra
                         break
                     if model.certified and length < model.newton_length and not newton_tried:
                         # the radius was shrunk by energies the noise decides: the Newton
-                        # step itself, whose residual the force can judge (a patch stalled
-                        # at 1.03e-10 on trials 1e3-1e6 times shorter than it)
+                        # step itself, whose residual the force can judge (else the trials
+                        # shrink far below it and the solve stalls)
                         radius, newton_tried = model.newton_length, True
                         continue
             radius = 0.25 * min(radius, length)

@@ -13,8 +13,8 @@ per spring, ``u`` and ``u_perp`` on its node pair)::
 (``k u u^T + t (I - u u^T)`` per spring), so no (n, n) matrix is formed; ``J B`` and ``P B``
 also give the bending force of every trial step. At the paper's N = 10 patch numpy's
 per-call overhead, not arithmetic, is the cost: products are ``ndarray.dot``, not ``@``
-(matmul's dispatch took 0.95 against 0.35 us a call at these sizes; with it the patch
-took 1.04 -> 0.93 ms in ``benchmarks/bench_patch.py``, the same numbers), except where an
+(matmul's dispatch costs more a call at these sizes, with the same numbers:
+``docs/solver-notes.md#trust-kernels-dot``), except where an
 operand is strided (there the two round differently). Larger problems get :class:`SparseKernels`
 (gathers, ``bincount`` scatters and the cached Hessian pattern). Both compute the same
 quantities; results agree to round-off.
