@@ -13,8 +13,8 @@ import pytest
 
 from continuum_vs_network.cli import EXIT, main
 from continuum_vs_network.scenes import load_scene
+from continuum_vs_network.scenes.compute import KILL_ENV
 from continuum_vs_network.scenes.grid import expand, grid_shape, parse_set, with_overrides
-from continuum_vs_network.scenes.runner import KILL_ENV
 from continuum_vs_network.scenes.schema import SceneError, parse_scene
 
 BASE = """

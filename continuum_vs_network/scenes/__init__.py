@@ -18,7 +18,8 @@ parallel runs and sweeps.
 
 from __future__ import annotations
 
-from .runner import SceneResult, SceneRunError, load_result, run_scene
+from .compute import SceneRunError
+from .runner import SceneResult, load_result, run_scene
 from .schema import Scene, SceneError, builtin_names, builtin_path, load_scene, parse_scene
 
 __all__ = [
