@@ -28,7 +28,7 @@ def _paper_network(rng: np.random.Generator, *, noise: float):
 
 
 def _stern_network(rng: np.random.Generator, *, n_nodes: int, kind: str, noise: float):
-    from ..learning.stern import stern_network
+    from .stern import stern_network
 
     return stern_network(n_nodes, rng, kind=kind, noise=noise)
 
@@ -105,7 +105,7 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
 
     The paper task uses :func:`~continuum_vs_network.learning.replication.paper_experiments`
     (every spring learns in ``gcl``, ``gpc`` and ``exact``, as in the paper); Stern-scale
-    tasks :func:`~continuum_vs_network.learning.stern.stern_rules`: ``gcl``, ``gpc`` and
+    tasks :func:`~continuum_vs_network.scenes.stern.stern_rules`: ``gcl``, ``gpc`` and
     ``exact`` learn in the bulk (sources and targets frozen; the exact gradient uses
     ``alpha_gcl`` on the length cost, as ``stern_rules`` matches the step sizes),
     ``gcl_all`` and ``gpc_all`` let every spring learn, ``aging`` and ``aging_k`` are
@@ -120,7 +120,7 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
     if scene.task.kind == "paper":
         table = {e.name: e.rule for e in _paper_experiments(scene, eq_solver)}
     else:
-        from ..learning.stern import stern_rules
+        from .stern import stern_rules
 
         kw = {"alpha": L.alpha_gcl, "eta": L.eta, "alpha_gpc": L.alpha_gpc, "solver": eq_solver}
         bulk = stern_rules(**kw)

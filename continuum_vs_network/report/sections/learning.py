@@ -83,7 +83,7 @@ def section(doc: Document, result) -> None:
             feas = feasibility(doc, result, h, first, names[0])
     else:
         notes = {}
-        from ...learning.stern import stern_table
+        from ...scenes.stern import stern_table
 
         doc.heading("Stern-scale allostery")
         for solver in solvers:
