@@ -14,9 +14,9 @@ from continuum_vs_network.learning.coupling import (
 )
 from continuum_vs_network.learning.history import History
 from continuum_vs_network.learning.noise import floor_scaling, noise_floor
-from continuum_vs_network.learning.replication import paper_experiments
 from continuum_vs_network.learning.tasks import stern_task
 from continuum_vs_network.report.verdicts.claims import check_claims, majority
+from continuum_vs_network.scenes.replication import paper_experiments
 from continuum_vs_network.scenes.stern import stern_network
 
 

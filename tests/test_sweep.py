@@ -201,7 +201,7 @@ def test_table_rows_match_an_independent_training_call(serial, tmp_path):
     assert df["steps_to_threshold"].notna().any()  # the threshold is reached somewhere
     # the coupling verdict is the learning package's measurement of the trained network
     from continuum_vs_network.learning.coupling import measure_coupling, outcome
-    from continuum_vs_network.learning.replication import exact_solver
+    from continuum_vs_network.scenes.replication import exact_solver
 
     for k in range(2):
         c = measure_coupling(
