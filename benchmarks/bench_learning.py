@@ -32,9 +32,9 @@ from continuum_vs_network.learning import (
     Tracker,
     stern_task,
 )
-from continuum_vs_network.learning.stern import stern_network
 from continuum_vs_network.network.constraints import Problem
 from continuum_vs_network.network.lagrangian import Frame, lagrangian_hessian
+from continuum_vs_network.scenes.stern import stern_network
 
 
 def _hessian_factor(net, task, x, repeat: int) -> float:

@@ -93,8 +93,8 @@ def main() -> None:
     from continuum_vs_network.network.constraints import Problem
     from continuum_vs_network.network.energy import HessianPattern, spring_hessian_blocks
     from continuum_vs_network.network.kkt import set_sparse_solver, sparse_solver
-    from continuum_vs_network.network.newton import factor_pd, pattern_for
-    from continuum_vs_network.network.spd import sparse_lu
+    from continuum_vs_network.network.lagrangian import pattern_for
+    from continuum_vs_network.network.spd import factor_spd, sparse_lu
 
     sizes = [int(s) for s in args.sizes.split(",") if s]
     if args.big and 100_000 not in sizes:
@@ -157,7 +157,7 @@ def main() -> None:
             )
 
         x, where = problem.start(net.positions), "start"
-        if factor_pd(hessian(x), ordered=ordered) is None:
+        if factor_spd(hessian(x), ordered=ordered) is None:
             x, where = net.positions, "indefinite start: at the positions"
         best: dict[str, float] = {}
 
@@ -171,8 +171,8 @@ def main() -> None:
         b = np.ones(pattern.size)  # a right-hand side for the timed triangular solves
         for _ in range(args.repeat):
             W = timed("assembly", lambda: hessian(x))
-            f = timed("factor", lambda W=W: factor_pd(W, ordered=ordered))
-            timed("rough", lambda W=W: factor_pd(W, ordered=ordered, rough=True))
+            f = timed("factor", lambda W=W: factor_spd(W, ordered=ordered))
+            timed("rough", lambda W=W: factor_spd(W, ordered=ordered, rough=True))
             if rows is not None:
                 nested = W[rows][:, rows]
                 timed("superlu", lambda M=nested: sparse_lu(M, ordering="NATURAL"))

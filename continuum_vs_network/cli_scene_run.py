@@ -36,8 +36,9 @@ def _process(args: argparse.Namespace, scene, *, report: bool, force_export: boo
 def _process_locked(args: argparse.Namespace, scene, out: Path, *, report: bool) -> int:
     """:func:`_process` while the scene's result folder is locked."""
     from .io.atomic import remove_stale_temporaries
+    from .scenes.compute import SceneRunError
     from .scenes.meshes import export_meshes
-    from .scenes.runner import SceneRunError, run_scene
+    from .scenes.runner import run_scene
 
     for folder in (out / "reports" / scene.name, out / "meshes" / scene.name):
         remove_stale_temporaries(folder, locked=True)

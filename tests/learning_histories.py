@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from continuum_vs_network.learning.history import History
-from continuum_vs_network.learning.stern import stern_network
 from continuum_vs_network.learning.tasks import stern_task
+from continuum_vs_network.scenes.stern import stern_network
 
 
 def paper_task():

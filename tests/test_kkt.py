@@ -217,10 +217,10 @@ def _weighted_grid_laplacian(side: int, weights: NDArray, ground: float) -> sp.c
 def test_sparse_solver_choice_is_checked(solver_choice):
     with pytest.raises(ValueError, match="name must be one of"):
         set_sparse_solver("umfpack")
-    assert set_sparse_solver("superlu") in kkt_module.SPARSE_SOLVERS
+    assert set_sparse_solver("superlu") in spd_module.SPARSE_SOLVERS
     assert sparse_solver() == "superlu"
     set_sparse_solver("pardiso")
-    if kkt_module._pardiso() is None:
+    if spd_module._pardiso() is None:
         with pytest.raises(ImportError, match="pypardiso"):
             factor_spd(_laplacian_2d(22))
 

@@ -7,16 +7,16 @@ from __future__ import annotations
 import numpy as np
 from learning_histories import history, stopped
 
-from continuum_vs_network.learning.claims import (
+from continuum_vs_network.learning.history import History
+from continuum_vs_network.report.sections.learning import _common_steps, _ends_note
+from continuum_vs_network.report.sections.learning_checks import trial_outcomes
+from continuum_vs_network.report.verdicts.claims import (
     MIN_STEPS,
     check_claims,
     enough_trials,
     last_measured,
 )
-from continuum_vs_network.learning.history import History
-from continuum_vs_network.learning.replication import paper_experiments
-from continuum_vs_network.report.sections.learning import _common_steps, _ends_note
-from continuum_vs_network.report.sections.learning_checks import trial_outcomes
+from continuum_vs_network.scenes.replication import paper_experiments
 
 STEPS = MIN_STEPS
 

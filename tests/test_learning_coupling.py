@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 import continuum_vs_network as cvn
-from continuum_vs_network.learning.claims import check_claims, majority
 from continuum_vs_network.learning.coupling import (
     coupling_verdict,
     measure_coupling,
@@ -15,9 +14,10 @@ from continuum_vs_network.learning.coupling import (
 )
 from continuum_vs_network.learning.history import History
 from continuum_vs_network.learning.noise import floor_scaling, noise_floor
-from continuum_vs_network.learning.replication import paper_experiments
-from continuum_vs_network.learning.stern import stern_network
 from continuum_vs_network.learning.tasks import stern_task
+from continuum_vs_network.report.verdicts.claims import check_claims, majority
+from continuum_vs_network.scenes.replication import paper_experiments
+from continuum_vs_network.scenes.stern import stern_network
 
 
 def _lattice_task(seed: int = 0, strain: float = 0.1):

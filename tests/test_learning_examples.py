@@ -107,7 +107,7 @@ def test_symmetric_exchanges_sources_and_targets_and_learns_both_ways():
 
 
 def _stern_lattice(seed: int):
-    from continuum_vs_network.learning.stern import stern_network
+    from continuum_vs_network.scenes.stern import stern_network
 
     rng = np.random.default_rng(seed)
     net = stern_network(64, rng)

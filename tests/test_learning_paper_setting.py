@@ -8,17 +8,17 @@ import dataclasses
 import numpy as np
 import pytest
 
-from continuum_vs_network.learning.claims import MIN_STEPS, diverged
-from continuum_vs_network.learning.paper_setting import (
-    NotebookCoupledLearning,
-    draw_feasibility,
-    paper_setting_experiments,
-)
-from continuum_vs_network.learning.replication import _network
 from continuum_vs_network.learning.rules import CoupledLearning
 from continuum_vs_network.learning.tasks import paper_task
 from continuum_vs_network.report.sections.learning import MEAN_OVER_MEDIAN, mean_note
 from continuum_vs_network.report.sections.learning_paper import degenerate
+from continuum_vs_network.report.verdicts.claims import MIN_STEPS, diverged
+from continuum_vs_network.scenes.paper_setting import (
+    NotebookCoupledLearning,
+    draw_feasibility,
+    paper_setting_experiments,
+)
+from continuum_vs_network.scenes.replication import _network
 
 
 def _draw(seed=0):

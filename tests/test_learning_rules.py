@@ -147,9 +147,9 @@ def test_learning_steps_with_float32_factorisations_match_float64_relax(monkeypa
     factorisation rough (float32 SuperLU, as above ROUGH_MIN rows) the learning steps equal
     those of relax with float64 factorisations to its tolerance, and the chord still
     finds the states (no relax after the first step)."""
-    from continuum_vs_network.learning.stern import stern_network, stern_rules
     from continuum_vs_network.learning.tasks import stern_task
     from continuum_vs_network.network import spd
+    from continuum_vs_network.scenes.stern import stern_network, stern_rules
 
     monkeypatch.setattr(spd, "BAND_MAX_WORK", 0)  # SuperLU, not the banded Cholesky
     made = []
@@ -190,8 +190,8 @@ def test_learning_steps_with_float32_factorisations_match_float64_relax(monkeypa
 def test_the_tracker_keeps_one_factorisation_alive_per_key(superlu_lifetimes):
     """A key's old factorisation is released before its next is made: GCL steps that
     refactorise at every chance (refactor_ratio 0.01) never hold two."""
-    from continuum_vs_network.learning.stern import stern_network, stern_rules
     from continuum_vs_network.learning.tasks import stern_task
+    from continuum_vs_network.scenes.stern import stern_network, stern_rules
 
     rng = np.random.default_rng(2)
     net = stern_network(400, rng)

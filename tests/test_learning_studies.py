@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from continuum_vs_network.learning import replication as R
 from continuum_vs_network.learning.metrics import length_error, rest_length_error, summary
 from continuum_vs_network.learning.noise import noise_rules, noise_study, noise_table
-from continuum_vs_network.learning.stern import stern_rules, stern_study, stern_table
+from continuum_vs_network.scenes import replication as R
+from continuum_vs_network.scenes.stern import stern_rules, stern_study, stern_table
 
 
 def test_replication_runs_and_tabulates_a_short_gpc_run():

@@ -278,9 +278,9 @@ def test_no_factorisation_is_tried_that_a_known_direction_proves_indefinite(
         clamped[second] = float(net.clamp_length(second, -0.5))
     witness: list = []  # the direction of the last CG failure, until a factor is made
     curvatures: list[float] = []
-    pcg, factor_pd, factor_or_curvature = (
+    pcg, factor_spd, factor_or_curvature = (
         nw.projected_pcg,
-        nw.factor_pd,
+        nw.factor_spd,
         ladder._factor_or_curvature,
     )
 
@@ -298,7 +298,7 @@ def test_no_factorisation_is_tried_that_a_known_direction_proves_indefinite(
 
     def spy_factor(M, **kwargs):
         checked(M)
-        out = factor_pd(M, **kwargs)
+        out = factor_spd(M, **kwargs)
         if out is not None:
             witness.clear()
         return out
@@ -308,7 +308,7 @@ def test_no_factorisation_is_tried_that_a_known_direction_proves_indefinite(
         return factor_or_curvature(M, pattern)
 
     monkeypatch.setattr(nw, "projected_pcg", spy_pcg)
-    monkeypatch.setattr(nw, "factor_pd", spy_factor)  # the clamp predictor's
+    monkeypatch.setattr(nw, "factor_spd", spy_factor)  # the clamp predictor's
     monkeypatch.setattr(ladder, "factor_spd", spy_factor)  # the ladder's
     monkeypatch.setattr(ladder, "_factor_or_curvature", spy_factor_or_curvature)
     eq = cvn.relax(net, clamped=clamped)

@@ -13,7 +13,7 @@ import pytest
 
 from continuum_vs_network.learning.states import Tracker
 from continuum_vs_network.scenes import load_result, load_scene, run_scene
-from continuum_vs_network.scenes.runner import KILL_ENV, SceneRunError
+from continuum_vs_network.scenes.compute import KILL_ENV, SceneRunError
 
 LEARN = """
 name = "learn"

@@ -13,8 +13,8 @@ import pytest
 
 from continuum_vs_network.cli import EXIT, main
 from continuum_vs_network.scenes import load_scene
+from continuum_vs_network.scenes.compute import KILL_ENV
 from continuum_vs_network.scenes.grid import expand, grid_shape, parse_set, with_overrides
-from continuum_vs_network.scenes.runner import KILL_ENV
 from continuum_vs_network.scenes.schema import SceneError, parse_scene
 
 BASE = """
@@ -201,7 +201,7 @@ def test_table_rows_match_an_independent_training_call(serial, tmp_path):
     assert df["steps_to_threshold"].notna().any()  # the threshold is reached somewhere
     # the coupling verdict is the learning package's measurement of the trained network
     from continuum_vs_network.learning.coupling import measure_coupling, outcome
-    from continuum_vs_network.learning.replication import exact_solver
+    from continuum_vs_network.scenes.replication import exact_solver
 
     for k in range(2):
         c = measure_coupling(

@@ -49,9 +49,6 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-# the factorisations live in .spd; their names are re-exported so that imports from here
-# keep working (``x as x``: re-exported, unused here)
-from .spd import _SOLVER as _SOLVER
 from .spd import (
     BAND_MAX_WORK,
     DENSE_MAX,
@@ -64,10 +61,6 @@ from .spd import (
     sparse_lu,
     sparse_solver,
 )
-from .spd import SPARSE_SOLVERS as SPARSE_SOLVERS
-from .spd import _banded_cholesky as _banded_cholesky
-from .spd import _pardiso as _pardiso
-from .spd import _pardiso_spd as _pardiso_spd
 
 __all__ = [
     "BAND_MAX_WORK",

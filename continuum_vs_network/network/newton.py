@@ -97,9 +97,8 @@ from .stiff_springs import StiffSprings
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX, trust_region_newton
 
-__all__ = ["DENSE_MAX", "factor_pd", "newton", "pattern_for"]
+__all__ = ["DENSE_MAX", "newton", "pattern_for"]
 
-factor_pd = factor_spd  # the name dynamics and benchmarks use
 DAMP_UP = 10.0  # shift growth after a step cut below a quarter
 DAMP_UP_MILD = 2.0  # after a step cut to a quarter or more (Nielsen's gentler growth)
 DAMP_RETRY = 1e-4  # least shift after a line search that found no decrease
@@ -369,7 +368,7 @@ def _clamp_predictor(
     grad = spring_gradient(x, *problem.all_springs()).ravel()[coords]
     A = problem.clamp_jacobian(x, coords, dense=dense_jacobian)
     lam = clamp_tensions(A, grad, problem.scale[coords])
-    factor = factor_pd(
+    factor = factor_spd(
         assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho)),
         ordered=pattern.ordered,
         rough=True,
@@ -423,7 +422,7 @@ def _pin_predictor(
     # gradient at the geometry plus the Hessian times the displacement (spring by spring)
     stretch = np.einsum("sij,sj->si", blocks, spring_vectors(load, net.springs))
     rhs = spring_gradient(reference, *springs) + _scatter_nodes(stretch, net.springs, net.n_nodes)
-    factor = factor_pd(assemble_hessian(pattern, blocks), ordered=pattern.ordered, rough=True)
+    factor = factor_spd(assemble_hessian(pattern, blocks), ordered=pattern.ordered, rough=True)
     if factor is None:
         return x, None
     y = x.copy()

@@ -13,8 +13,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .energy import spring_energy_change, spring_gradient, spring_hessian_blocks
+from .lagrangian import pattern_for
 from .model import SpringNetwork, spring_vectors
-from .newton import factor_pd, pattern_for
+from .spd import factor_spd
 
 __all__ = ["ProximalSolver"]
 
@@ -66,7 +67,7 @@ class ProximalSolver:
                 L = np.minimum(L, np.hypot(d[:, 0], d[:, 1]))
             blocks = spring_hessian_blocks(x, net.springs, net.stiffness, L)
             W = self.pattern.assemble(blocks, shift=self.a)
-            factor = factor_pd(W, ordered=ordered)
+            factor = factor_spd(W, ordered=ordered)
             self.factorisations += 1
             if factor is not None:
                 self.factor = factor

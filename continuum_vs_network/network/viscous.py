@@ -52,8 +52,9 @@ from .energy import (
     spring_gradient,
     spring_hessian_blocks,
 )
+from .lagrangian import pattern_for
 from .model import SpringNetwork, spring_vectors, unit_vectors, vector_lengths
-from .newton import factor_pd, pattern_for
+from .spd import factor_spd
 
 __all__ = [
     "Stepper",
@@ -370,7 +371,7 @@ class Stepper:
                 W = self.pattern.assemble(blocks, shift=D.a)
             else:
                 W = self.pattern.assemble(blocks) + D
-            factor = factor_pd(W, ordered=self.ordered)
+            factor = factor_spd(W, ordered=self.ordered)
             self.factorisations += 1
             if factor is not None:
                 return factor
@@ -390,7 +391,7 @@ def _impulse(
     h = np.flatnonzero(~free.ravel())
     rhs = -(D[f][:, h] @ delta[h])
     out = np.zeros_like(delta)
-    factor = factor_pd(D[f][:, f].tocsr())
+    factor = factor_spd(D[f][:, f].tocsr())
     if factor is None:
         raise ValueError("the dashpots and drag do not hold every free coordinate (add drag)")
     out[f] = factor.solve(rhs)

@@ -3,7 +3,8 @@
 :func:`~.writer.write_report` turns a scene result into ``reports/<scene>/report.md`` with
 its figures by handing a :class:`~.document.Document` to ``SECTIONS[kind]`` (one module per
 kind in :mod:`.sections`); sections register :class:`~.findings.Finding` objects (claim,
-metric, measured values, verdict, rule), which land in ``report.json``;
+metric, measured values, verdict, rule), which land in ``report.json``; the verdicts on
+the paper's learning claims are judged in :mod:`.verdicts`;
 :func:`~.writer.write_index` writes ``reports/README.md``, opening with every scene's
 findings. matplotlib and pyvista are imported only while drawing.
 """

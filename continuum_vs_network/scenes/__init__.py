@@ -10,6 +10,9 @@
 * :mod:`.grid` and :mod:`.sweep`: a scene's ``[sweep]`` expanded into a grid of variants and
   run point by point into one tidy table (``cvn sweep``);
 * :mod:`.meshes`: the meshes of a result (:func:`export_meshes`);
+* :mod:`.replication`, :mod:`.paper_setting` and :mod:`.stern`: the learning studies the
+  learning units compute (the paper's runs, the runs of the author's notebooks and what each
+  draw of the paper's task allows, Stern-scale allostery);
 * ``builtin/*.toml``: the built-in scenes (:func:`builtin_names`).
 
 Importing this package needs only numpy and scipy; Dask and pandas are imported only by
@@ -18,7 +21,8 @@ parallel runs and sweeps.
 
 from __future__ import annotations
 
-from .runner import SceneResult, SceneRunError, load_result, run_scene
+from .compute import SceneRunError
+from .runner import SceneResult, load_result, run_scene
 from .schema import Scene, SceneError, builtin_names, builtin_path, load_scene, parse_scene
 
 __all__ = [

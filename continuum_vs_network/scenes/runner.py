@@ -17,7 +17,7 @@ its own seed, and its solver makes the same decisions wherever it runs.
 
 Parts: :mod:`.store` (unit files: write, check, read back, merge trial histories) and
 :mod:`.compute` (compute units serially or on an executor; the ``CVN_TEST_KILL_AFTER``
-testing hook that kills the process to test resuming). Their names are re-exported here.
+testing hook that kills the process to test resuming).
 """
 
 from __future__ import annotations
@@ -35,36 +35,14 @@ from typing import Any
 from ..io.atomic import remove_stale_temporaries, write_text_atomic
 from ..io.lock import folder_lock
 from ..io.strict_json import dumps_record, loads_record
-
-# .compute and .store hold what was defined here before: all those names stay importable
-# from here (``x as x``: re-exported, unused here)
-from .compute import KILL_ENV as KILL_ENV
-from .compute import SceneRunError, _Killer, _run_parallel, _run_serial
-from .compute import _compute as _compute
-from .compute import _worker as _worker
+from .compute import _Killer, _run_parallel, _run_serial
 from .executor import open_executor
 from .provenance import Provenance, blas_threads, environment
 from .schema import Scene
 from .store import _clean, _is_done, _merged_history, _read_record, _read_unit, _units_dir
-from .store import _json_default as _json_default
-from .store import _payload_loads as _payload_loads
-from .store import _payload_path as _payload_path
-from .store import _record_path as _record_path
-from .store import _save_unit as _save_unit
-from .store import _trial_keys as _trial_keys
-from .units import Unit, UnitContext, UnitResult
+from .units import Unit, UnitResult
 
-__all__ = [
-    "Provenance",
-    "SceneResult",
-    "SceneRunError",
-    "Unit",
-    "UnitContext",
-    "UnitResult",
-    "load_result",
-    "plan",
-    "run_scene",
-]
+__all__ = ["SceneResult", "load_result", "plan", "run_scene"]
 
 
 @dataclass(frozen=True, eq=False)

@@ -466,7 +466,7 @@ def _require_table_libraries() -> None:
 def _dispatch(
     scene, todo, directory, workers, scheduler, progress, serial_fallback, say
 ) -> tuple[str, int]:
-    from .runner import _Killer
+    from .compute import _Killer
 
     bar = _bar(progress, scene.name, len(todo))
     killer = _Killer()

@@ -14,7 +14,7 @@
   result states whether the sources cause the target strains;
 * ``feasibility`` (paper task, ``[learning] paper_setting``): what each draw of the task
   allows (linear response, the exact optimum, self-stress, collapse;
-  :func:`~continuum_vs_network.learning.paper_setting.draw_feasibility`);
+  :func:`~continuum_vs_network.scenes.paper_setting.draw_feasibility`);
 * ``fields/<solver>/<rule>`` (only with ``[export]`` or ``[report] images``): free states of
   the exported trials' initial and final networks and, with ``[export] series``, of the
   trajectory frames.

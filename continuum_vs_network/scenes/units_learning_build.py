@@ -28,7 +28,7 @@ def _paper_network(rng: np.random.Generator, *, noise: float):
 
 
 def _stern_network(rng: np.random.Generator, *, n_nodes: int, kind: str, noise: float):
-    from ..learning.stern import stern_network
+    from .stern import stern_network
 
     return stern_network(n_nodes, rng, kind=kind, noise=noise)
 
@@ -92,7 +92,7 @@ def builders(scene: Scene):
 
 
 def _solver(scene: Scene, name: str):
-    from ..learning.replication import exact_solver, paper_solver
+    from .replication import exact_solver, paper_solver
 
     if name == "newton":
         return exact_solver()
@@ -103,9 +103,9 @@ def _solver(scene: Scene, name: str):
 def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
     """The learning rules the scene names, with the equilibrium solver ``solver``.
 
-    The paper task uses :func:`~continuum_vs_network.learning.replication.paper_experiments`
+    The paper task uses :func:`~continuum_vs_network.scenes.replication.paper_experiments`
     (every spring learns in ``gcl``, ``gpc`` and ``exact``, as in the paper); Stern-scale
-    tasks :func:`~continuum_vs_network.learning.stern.stern_rules`: ``gcl``, ``gpc`` and
+    tasks :func:`~continuum_vs_network.scenes.stern.stern_rules`: ``gcl``, ``gpc`` and
     ``exact`` learn in the bulk (sources and targets frozen; the exact gradient uses
     ``alpha_gcl`` on the length cost, as ``stern_rules`` matches the step sizes),
     ``gcl_all`` and ``gpc_all`` let every spring learn, ``aging`` and ``aging_k`` are
@@ -120,7 +120,7 @@ def build_rules(scene: Scene, solver: str = "newton") -> dict[str, Any]:
     if scene.task.kind == "paper":
         table = {e.name: e.rule for e in _paper_experiments(scene, eq_solver)}
     else:
-        from ..learning.stern import stern_rules
+        from .stern import stern_rules
 
         kw = {"alpha": L.alpha_gcl, "eta": L.eta, "alpha_gpc": L.alpha_gpc, "solver": eq_solver}
         bulk = stern_rules(**kw)
@@ -163,15 +163,15 @@ def aging_rules(alpha: float, like) -> dict[str, Any]:
 
 
 def experiments(scene: Scene, solver: str = "newton"):
-    """The paper's :class:`~.learning.replication.Experiment` objects the scene names."""
+    """The paper's :class:`~.replication.Experiment` objects the scene names."""
     exps = _paper_experiments(scene, _solver(scene, solver))
     return tuple(e for e in exps if e.name in scene.learning.rules)
 
 
 def _paper_experiments(scene: Scene, eq_solver):
     """The paper's runs: the author's notebooks' setting with ``[learning] paper_setting``
-    (:func:`~continuum_vs_network.learning.paper_setting.paper_setting_experiments`), else
-    the package's (:func:`~continuum_vs_network.learning.replication.paper_experiments`)."""
+    (:func:`~continuum_vs_network.scenes.paper_setting.paper_setting_experiments`), else
+    the package's (:func:`~continuum_vs_network.scenes.replication.paper_experiments`)."""
     L = scene.learning
     common = {
         "solver": eq_solver,
@@ -182,10 +182,10 @@ def _paper_experiments(scene: Scene, eq_solver):
         "floor": L.floor,
     }
     if L.paper_setting:
-        from ..learning.paper_setting import paper_setting_experiments
+        from .paper_setting import paper_setting_experiments
 
         return paper_setting_experiments(**common)
-    from ..learning.replication import paper_experiments
+    from .replication import paper_experiments
 
     return paper_experiments(strain_reference=L.strain_reference, **common)
 

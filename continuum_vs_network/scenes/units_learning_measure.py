@@ -26,8 +26,8 @@ __all__ = ["coupling_unit", "feasibility_unit", "fields_unit", "gradient_unit", 
 def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Coupling of every trial's trained network (sources on / off, a source sweep)."""
     from ..learning.coupling import SCALES, measure_coupling
-    from ..learning.replication import exact_solver
     from ..network.equilibrium import EquilibriumError
+    from .replication import exact_solver
 
     history = ctx.history(params["group"])
     tasks = [task_example(t) for t in history.tasks]
@@ -68,7 +68,7 @@ def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
 
 def sweeps_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Source sweeps of every trial's final network (exact equilibria)."""
-    from ..learning.replication import exact_solver, sweeps
+    from .replication import exact_solver, sweeps
 
     history = ctx.history(params["group"])
     strains, target = sweeps(
@@ -187,8 +187,8 @@ def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
 def feasibility_unit(scene: Scene, params: dict, ctx: UnitContext):
     """Per draw of the paper's task (the untrained networks of run ``group``): linear
     response, nonlinearity, the exact optimum, self-stress share and collapse
-    (:func:`~continuum_vs_network.learning.paper_setting.draw_feasibility`)."""
-    from ..learning.paper_setting import draw_feasibility
+    (:func:`~continuum_vs_network.scenes.paper_setting.draw_feasibility`)."""
+    from .paper_setting import draw_feasibility
 
     history = ctx.history(params["group"])
     rows = [draw_feasibility(history.initial[i], history.tasks[i]) for i in range(history.trials)]

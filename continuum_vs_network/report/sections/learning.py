@@ -83,7 +83,7 @@ def section(doc: Document, result) -> None:
             feas = feasibility(doc, result, h, first, names[0])
     else:
         notes = {}
-        from ...learning.stern import stern_table
+        from ...scenes.stern import stern_table
 
         doc.heading("Stern-scale allostery")
         for solver in solvers:
@@ -169,10 +169,10 @@ def held_at_last(hist, values: NDArray) -> NDArray:
     """``values`` (trials, steps + 1) with each trial that stopped held at its last
     measured value (:func:`~continuum_vs_network.learning.metrics.final_values`, the
     tables' final value) from its last measurement
-    (:func:`~continuum_vs_network.learning.claims.last_measured`) on, so that a median
+    (:func:`~continuum_vs_network.report.verdicts.claims.last_measured`) on, so that a median
     over trials at every step is over all of them."""
-    from ...learning.claims import last_measured
     from ...learning.metrics import final_values
+    from ..verdicts.claims import last_measured
 
     out = np.array(values, dtype=np.float64)
     last = np.minimum(last_measured(hist), out.shape[1] - 1)
@@ -186,7 +186,7 @@ def held_at_last(hist, values: NDArray) -> NDArray:
 def _held_note(runs) -> str:
     """Caption sentence: how many trials of each run stopped early (held at their last
     measured value in the median)."""
-    from ...learning.claims import last_measured
+    from ..verdicts.claims import last_measured
 
     stopped = [(name, int(np.sum(last_measured(h) < h.steps)), h.trials) for name, h in runs]
     parts = [f"{name} {n} of {trials}" for name, n, trials in stopped if n]
@@ -200,9 +200,9 @@ def _held_note(runs) -> str:
 
 def _common_steps(hist) -> int:
     """Last measurement index every trial reached (curves over trials stop there): the
-    smallest :func:`~continuum_vs_network.learning.claims.last_measured` (a trial that lost
+    smallest :func:`~continuum_vs_network.report.verdicts.claims.last_measured` (a trial that lost
     its equilibrium at step ``completed`` has no measurement there)."""
-    from ...learning.claims import last_measured
+    from ..verdicts.claims import last_measured
 
     return int(np.min(last_measured(hist))) if hist.trials else 0
 

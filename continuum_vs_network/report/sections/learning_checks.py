@@ -41,8 +41,8 @@ def claims(doc: Document, result, h, solvers) -> dict[str, str]:
     the paper's own setting, ``[learning] paper_setting``; another paper scene says where
     they are judged). Returns, per solver whose stored states are not equilibria, the note
     its findings carry."""
-    from ...learning.claims import MIN_STEPS, check_claims
     from ...scenes.units_learning import experiments
+    from ..verdicts.claims import MIN_STEPS, check_claims
 
     L = result.scene.learning
     doc.heading("The paper's claims and what this package measures")

@@ -39,9 +39,9 @@ def coupling(
     was achieved; the sweep figure; one finding per run of the scene's default task.
     ``notes``: per solver whose stored states are not equilibria, the note its findings
     carry (from :func:`.learning_checks.claims`; they are tagged as the claims are)."""
-    from ...learning.claims import MIN_STEPS, enough_trials, last_measured
     from ...learning.coupling import COUPLED_AT, DECOUPLED_BELOW, MET_AT
     from ...learning.metrics import final_values, normalised
+    from ..verdicts.claims import MIN_STEPS, enough_trials, last_measured
 
     doc.heading("Are the targets driven by the sources? (coupling of every trained network)")
     doc.add(
@@ -180,12 +180,12 @@ def trial_outcomes(final: NDArray, verdicts: list[str], *, ran: NDArray | None =
     text, ``short`` (trials that did not run the steps), ``long_median`` (median C/C0 over
     those that did, nan for none) and the finding's ``verdict``: reproduced when a majority
     of the trials learned, not comparable when most are unmeasured, contradicted when at least
-    :func:`~continuum_vs_network.learning.claims.enough_trials` trials ran
-    :data:`~continuum_vs_network.learning.claims.MIN_STEPS` steps (``ran``, (trials,) bool;
+    :func:`~continuum_vs_network.report.verdicts.claims.enough_trials` trials ran
+    :data:`~continuum_vs_network.report.verdicts.claims.MIN_STEPS` steps (``ran``, (trials,) bool;
     None: all of them did) and the median C/C0 over those trials is >= 1, not reproduced
     otherwise."""
-    from ...learning.claims import enough_trials
     from ...learning.coupling import MET_AT
+    from ..verdicts.claims import enough_trials
 
     final = np.asarray(final, dtype=np.float64)
     n = len(final)

@@ -3,7 +3,7 @@ task allows, and the explanations of what the runs show, each computed from the 
 
 Read by :mod:`.learning` for a paper-task scene with ``[learning] paper_setting``. The
 per-draw measures come from the scene's ``feasibility`` unit
-(:func:`~continuum_vs_network.learning.paper_setting.draw_feasibility`).
+(:func:`~continuum_vs_network.scenes.paper_setting.draw_feasibility`).
 """
 
 from __future__ import annotations
@@ -151,7 +151,7 @@ def feasibility(doc: Document, result, h, solver: str, rule: str) -> dict:
 
 
 def _linear() -> float:
-    from ...learning.paper_setting import LINEAR
+    from ...scenes.paper_setting import LINEAR
 
     return LINEAR
 
@@ -291,7 +291,7 @@ def explanations(doc: Document, result, h, solver: str, feas: dict) -> list[list
             ]
         )
         res = np.asarray(feas["adagrad_residual"])
-        from ...learning.paper_setting import ADAGRAD_ITERATIONS
+        from ...scenes.paper_setting import ADAGRAD_ITERATIONS
 
         text = (
             "**The paper's relaxation is not an equilibrium.** The paper's Adagrad (learning "

@@ -59,7 +59,7 @@ KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
 }
 
 #: Learning runs a scene can name. Paper task: the paper's experiments (see
-#: :func:`continuum_vs_network.learning.replication.paper_experiments`; ``gcl``, ``gpc`` and
+#: :func:`continuum_vs_network.scenes.replication.paper_experiments`; ``gcl``, ``gpc`` and
 #: ``exact`` let every spring learn, as the paper does). Stern-scale tasks: ``gcl``, ``gpc``
 #: and ``exact`` learn in the bulk only (sources and targets frozen), ``gcl_all`` and
 #: ``gpc_all`` let every spring learn (a target can then meet the task alone); ``aging`` and

@@ -321,7 +321,7 @@ class LearningSpec:
         False,
         "paper task: the runs of the author's notebooks, each rule in its own convention "
         "(GCL of both signs against the learning L, GPC against fixed rods, sources frozen; "
-        "learning.paper_setting)",
+        "scenes.paper_setting)",
         used=_when(lambda s: s.task.kind == "paper", "by the paper task"),
     )
     steps_gpc: int = _key(

@@ -1,6 +1,6 @@
 """The paper's claims about its learning runs, checked against histories by stated rules.
 
-Every claim of :func:`~.replication.paper_experiments` is split into the statements it
+Every claim of :func:`...scenes.replication.paper_experiments` is split into the statements it
 makes (C falls by orders of magnitude; E^C descends; ...). :func:`check_claims` measures
 each on the histories of a run and gives a verdict by the rule printed next to it:
 
@@ -10,7 +10,7 @@ each on the histories of a run and gives a verdict by the rule printed next to i
     it shows the opposite (a quantity said to fall rises; none of the trials converges);
 ``not reproduced``
     neither (the right direction but not the stated size), or a task success that the
-    coupling measurement shows to be trivial (:mod:`.coupling`: the targets keep their
+    coupling measurement shows to be trivial (:mod:`...learning.coupling`: the targets keep their
     strain with the sources off), which is not the success the paper claims;
 ``not comparable``
     the run differs from the paper's in what the claim depends on (a rule run in the other
@@ -27,13 +27,13 @@ their last value, a failure), and are "not comparable" when fewer than
 A claim that a quantity *converges to 0* (C falls by orders of magnitude, all trials but
 one reach C = 0, the rest-length error converges to 0) is "not reproduced" or
 "contradicted" only when the median curve over the judged trials has stopped falling by
-the plateau test (:func:`.metrics.tail_change`, :func:`.metrics.bound`), and "not
-comparable" while it still falls (the run settles lower than the value read; the reason
-gives the change).
+the plateau test (:func:`...learning.metrics.tail_change`,
+:func:`...learning.metrics.bound`), and "not comparable" while it still falls (the run
+settles lower than the value read; the reason gives the change).
 
 A claim that the task is learned, or that C is lowered, is judged per trial: a trial meets
 it when its own final value does *and* its own coupling verdict is not decoupled (a trial
-that meets it while decoupled met it trivially, :mod:`.coupling`); the verdict is
+that meets it while decoupled met it trivially, :mod:`...learning.coupling`); the verdict is
 "reproduced" only when the statement's count of such trials is reached (a majority for
 "lowers C" and "orders of magnitude"). Medians taken separately over the error and over
 the coupling are not combined.
@@ -64,9 +64,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ...learning.history import History
+from ...learning.metrics import PLATEAU, bound, tail_change
 from .claim_statements import statements
-from .history import History
-from .metrics import PLATEAU, bound, tail_change
 
 __all__ = [
     "MIN_STEPS",
@@ -200,9 +200,9 @@ def check_claims(
     Parameters
     ----------
     histories : {experiment name: History}
-    experiments : sequence of :class:`~.replication.Experiment`
+    experiments : sequence of :class:`...scenes.replication.Experiment`
     coupling : {experiment name: per-trial coupling verdicts}, optional
-        From :mod:`.coupling`; a claim that the task is learned needs them (without them
+        From :mod:`...learning.coupling`; a claim that the task is learned needs them (without them
         such a claim is "not comparable": it cannot be told from a trivial solution).
 
     Returns
@@ -306,7 +306,7 @@ def _settled(curves: NDArray, h: History, verdict: str) -> tuple[str, str]:
     """``verdict`` (not reproduced or contradicted) of a convergence claim and its reason,
     from the median over the trials of ``curves`` (trials, steps + 1) up to the last step
     all of ``h``'s trials measured: it stands when that median has stopped falling (a
-    plateau, or still rising: :func:`.metrics.bound`), else "not comparable"."""
+    plateau, or still rising: :func:`...learning.metrics.bound`), else "not comparable"."""
     end = int(np.min(last_measured(h)))
     change = tail_change(np.median(np.asarray(curves, dtype=np.float64)[:, : end + 1], axis=0))
     kind = bound(change)

@@ -9,7 +9,7 @@ time per step, and the histories.
 
 Strains here are measured against the initial rest lengths (``strain_reference=
 "initial"``): the desired output is a fixed geometry, and coupled learning then descends
-the task error (see :mod:`.rules`). Learning rates are chosen so that the three rules take
+the task error (see :mod:`..learning.rules`). Learning rates are chosen so that the three rules take
 comparable steps: coupled learning's update is ``-alpha K dC_len`` (``K`` the targets'
 effective stiffness, of order ``k``), so the exact gradient uses the same ``alpha`` on
 the length cost.
@@ -22,13 +22,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ..learning.history import History
+from ..learning.metrics import first_below, summary
+from ..learning.rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
+from ..learning.states import Solver
+from ..learning.tasks import stern_task
+from ..learning.train import train
 from ..network.model import SpringNetwork
-from .history import History
-from .metrics import first_below, summary
-from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
-from .states import Solver
-from .tasks import stern_task
-from .train import train
 
 __all__ = ["stern_network", "stern_rules", "stern_study", "stern_table"]
 

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .history import History
-from .metrics import final_values, length_error, normalised, rest_length_error
+from ...learning.history import History
+from ...learning.metrics import final_values, length_error, normalised, rest_length_error
 
 __all__ = ["Statement", "statements"]
 

@@ -33,12 +33,12 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from .history import History
-from .metrics import length_error, rest_length_error, source_sweep, summary
-from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
-from .states import Solver
-from .tasks import paper_task
-from .train import train
+from ..learning.history import History
+from ..learning.metrics import length_error, rest_length_error, source_sweep, summary
+from ..learning.rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
+from ..learning.states import Solver
+from ..learning.tasks import paper_task
+from ..learning.train import train
 
 __all__ = [
     "Experiment",
@@ -365,15 +365,15 @@ def verification(
     and cosine of ``GCL / alpha`` against ``-K L0^2 dC/dL`` (strains against the initial
     ``L``, where ``C`` is a length cost; ``K`` is the target's effective stiffness);
     ``rel_frozen`` / ``cos_strain``: with strains against the learning ``L``, against
-    the gradient of the frozen-reference length cost (:func:`~.sensitivity.gcl_limit`)
+    the gradient of the frozen-reference length cost (:func:`~..learning.sensitivity.gcl_limit`)
     and the cosine with ``-dC/dL`` of Eq. 26 itself; and ``fd`` (trials,): the median
     relative error of the exact gradient of Eq. 26 (learning ``L``) against central
     finite differences with step ``fd_step * mean(L)``.
     """
+    from ..learning.metrics import cosine, relative_error
+    from ..learning.sensitivity import Sensitivity, cost_gradient, gcl_limit
+    from ..learning.states import Tracker
     from ..network.equilibrium import relax
-    from .metrics import cosine, relative_error
-    from .sensitivity import Sensitivity, cost_gradient, gcl_limit
-    from .states import Tracker
 
     out = {
         k: np.full((trials, len(etas)), np.nan)

@@ -10,7 +10,7 @@ with exact equilibria in place of the notebooks' Adagrad relaxation:
   rest lengths that would go negative are set to ``1e-6`` (here: a floor of ``1e-6``).
   The notebook's update is ``l0 += (alpha / eta) k (dl_free - dl_clamped)``, i.e.
   ``dL = (alpha / eta) k (r^F - r^C)``: the second line of Eq. 14 as printed, the opposite
-  sign of the package's derived rule (:mod:`.rules`). Both are run: ``gcl`` (the package's
+  sign of the package's derived rule (:mod:`..learning.rules`). Both are run: ``gcl`` (the package's
   sign) and ``gcl_notebook`` (:class:`NotebookCoupledLearning`, the notebook's sign).
 * GPC: ``alpha = 5e-3``, 150 epochs; sources and target clamped as rods of fixed length
   (``strain_reference="initial"``, Sec. 7.2), the source does not learn, the target does
@@ -22,7 +22,7 @@ with exact equilibria in place of the notebooks' Adagrad relaxation:
 :func:`draw_feasibility` measures, per draw of the paper's task, whether the target responds
 to the source at all (the linear response ``dS_T / dS_s`` of the untrained network), whether
 the draw is in linear response at its source strain, the exact optimum of the task over the
-bulk rest lengths (:func:`~.optimum.exact_optimum`), whether the source spring carries the
+bulk rest lengths (:func:`~..learning.optimum.exact_optimum`), whether the source spring carries the
 network's state of self-stress, and how close the free state is to a line.
 """
 
@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..learning.rules import CoupledLearning, ExactGradient, ProspectiveConfiguration
+from ..learning.states import Solver
 from .replication import Experiment, exact_solver
-from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration
-from .states import Solver
 
 __all__ = [
     "ADAGRAD_ITERATIONS",
@@ -63,7 +63,7 @@ class NotebookCoupledLearning(CoupledLearning):
     """Coupled learning with the update sign of the author's notebook.
 
     ``dL = (alpha / eta) k (r^F - r^C)`` (and the matching stiffness line): the negative of
-    :class:`~.rules.CoupledLearning`'s step, everything else (states, nudge, masks, floor)
+    :class:`~..learning.rules.CoupledLearning`'s step, everything else (states, nudge, masks, floor)
     the same.
     """
 
@@ -188,10 +188,10 @@ def draw_feasibility(
     by the paper's relaxation (Adagrad, learning rate 0.1, rods of stiffness 1e10) after
     ``adagrad_iterations`` iterations from the untrained positions, with the source clamped.
     """
+    from ..learning.examples import TaskSet
+    from ..learning.optimum import exact_optimum
+    from ..learning.states import Tracker
     from ..network.equilibrium import EquilibriumError
-    from .examples import TaskSet
-    from .optimum import exact_optimum
-    from .states import Tracker
 
     out = dict.fromkeys(
         (
@@ -261,9 +261,9 @@ def _eq23(net, task, tracker) -> dict:
 
 def _adagrad_residual(net, task, iterations: int) -> float:
     """Largest net force left by the paper's Adagrad relaxation (free state)."""
+    from ..learning.states import Tracker
     from ..network.equilibrium import EquilibriumError
     from .replication import paper_solver
-    from .states import Tracker
 
     if iterations <= 0:
         return float("nan")
