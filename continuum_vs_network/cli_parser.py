@@ -1,13 +1,22 @@
-"""The command line of ``cvn`` (:mod:`.cli`): :func:`build_parser` and the options every
-scene-running subcommand shares.
+"""The command line of ``cvn`` (:mod:`.cli`): its subcommands, options and help texts.
+
+:func:`build_parser` only declares them: ``args.command`` names the subcommand, and
+:func:`.cli.main` runs its handler. Kept apart from :mod:`.cli` because the help texts
+alone are most of its length.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from .cli_commands import _demo, _export, _report, _run, _scenes, _sweep
-from .cli_messages import _DEBUG_ENV, _EPILOG
+_EPILOG = (
+    "exit codes: 0 ok; 1 demo: a method did not converge; 2 bad command line or scene file; "
+    "3 a scene's computation failed; 4 writing a report failed; 5 writing meshes failed; "
+    "6 the --out folder cannot be used; 7 the scene's result folder is in use by another "
+    "run; 70 internal error (a bug; traceback printed); 130 interrupted (rerun to resume). "
+    "Errors are one line on stderr; --debug (or CVN_DEBUG=1) prints their tracebacks."
+)
+_SCENE_HELP = "a scene file (.toml) or the name of a built-in scene"
 
 
 def _common(
@@ -51,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--debug",
         action="store_true",
-        help=f"print the traceback of every error (also: {_DEBUG_ENV}=1)",
+        help="print the traceback of every error (also: CVN_DEBUG=1)",
     )
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser(
@@ -73,13 +82,11 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="METHOD",
         help=f"methods to run (default: all of {', '.join(METHODS)})",
     )
-    demo.set_defaults(func=_demo)
 
     run = sub.add_parser("run", help="run one scene and write its report", epilog=_EPILOG)
-    run.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    run.add_argument("scene", help=_SCENE_HELP)
     _common(run)
     run.add_argument("--no-report", action="store_true", help="compute (and export) only")
-    run.set_defaults(func=_run)
 
     report = sub.add_parser(
         "report",
@@ -98,14 +105,12 @@ def build_parser() -> argparse.ArgumentParser:
         "up to 8, when dask.distributed is installed, else 1; results agree with 1 to solver "
         "round-off)",
     )
-    report.set_defaults(func=_report)
 
     export = sub.add_parser(
         "export", help="write a scene's meshes (VTU, PVD) for ParaView", epilog=_EPILOG
     )
-    export.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    export.add_argument("scene", help=_SCENE_HELP)
     _common(export, report=False)
-    export.set_defaults(func=_export)
 
     sweep = sub.add_parser(
         "sweep",
@@ -117,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
         "for a scene without a [sweep] table of its own).",
         epilog=_EPILOG,
     )
-    sweep.add_argument("scene", help="a scene file (.toml) or the name of a built-in scene")
+    sweep.add_argument("scene", help=_SCENE_HELP)
     sweep.add_argument(
         "--set",
         action="append",
@@ -155,9 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
         workers_help="local Dask worker processes (default: this machine's cores; 1: serial, "
         "no Dask)",
     )
-    sweep.set_defaults(func=_sweep)
 
     scenes = sub.add_parser("scenes", help="list the built-in scenes")
     scenes.add_argument("--keys", action="store_true", help="list every key a scene may set")
-    scenes.set_defaults(func=_scenes)
     return parser

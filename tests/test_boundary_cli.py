@@ -189,10 +189,7 @@ def test_a_bug_shows_its_traceback_and_exits_70(tmp_path, capsys, monkeypatch):
     def bug(args):
         raise ZeroDivisionError("a real bug")
 
-    monkeypatch.setattr(cli, "_run", bug)
-    parser = cli.build_parser()
-    monkeypatch.setattr(cli, "build_parser", lambda: parser)
-    parser._subparsers._group_actions[0].choices["run"].set_defaults(func=bug)
+    monkeypatch.setitem(cli._COMMANDS, "run", bug)
     assert main(["run", _write(tmp_path, TRANS), "--out", str(tmp_path)]) == EXIT["internal"]
     err = capsys.readouterr().err
     assert "Traceback" in err and "ZeroDivisionError: a real bug" in err and "bug" in err

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import subprocess
+import sys
+
 from scene_texts import TRANS
 
 from continuum_vs_network.cli import EXIT, main
@@ -91,3 +95,24 @@ def test_report_runs_named_scenes_and_writes_the_index(tmp_path):
     # a failing scene does not stop the others; the exit code names the first failure
     c = _write(tmp_path, EXPLODE, "c.toml")
     assert main(["report", c, a, "--out", str(tmp_path), "--quiet"]) == 3
+
+
+def test_every_subcommand_has_a_handler():
+    import continuum_vs_network.cli as cli
+
+    (sub,) = cli.build_parser()._subparsers._group_actions
+    assert set(sub.choices) == set(cli._COMMANDS)
+
+
+def test_the_command_line_imports_no_heavy_dependency():
+    code = (
+        "import json, sys\n"
+        "from continuum_vs_network.cli import build_parser\n"
+        "build_parser().parse_args(['run', 'x.toml'])\n"
+        "heavy = ('dask', 'distributed', 'pandas', 'pyarrow', 'pyvista', 'vtk', 'matplotlib',\n"
+        "         'skfem', 'meshio', 'torch')\n"
+        "print(json.dumps(sorted(m for m in heavy if m in sys.modules)))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert json.loads(proc.stdout) == []
