@@ -67,7 +67,7 @@ def decoupled_count(units) -> int | None:
 def coupling_reason(units) -> str:
     """Why a claim about learning over ``units`` (physical_time units, one per size and
     draw) is not comparable, or "" when it can be judged: a claim about learning counts only
-    runs that are not decoupled (as in :mod:`...learning.claims`), so every unit needs a
+    runs that are not decoupled (as in :mod:`..verdicts.claims`), so every unit needs a
     coupling verdict (meta ``"coupling"``, :mod:`...learning.coupling`) and none may be
     decoupled. A unit's verdict is that of its smallest source share over its runs
     (:mod:`...scenes.units_time_coupling`)."""
