@@ -87,7 +87,7 @@ from ..network.viscous import Viscosity, simulate_viscous
 from .medium import is_medium
 from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
 from .tasks import AllosteryTask
-from .time_media import BodyTime, NetworkTime
+from .time_media import BodyTime, NetworkTime, check_clamp
 
 __all__ = [
     "Form",
@@ -173,7 +173,7 @@ def network_relaxation_time(
     """
     if measure not in ("target", "force"):
         raise ValueError(f"measure must be 'target' or 'force', got {measure!r}")
-    _check_clamp(clamp)
+    check_clamp(clamp)
     if clamp == "strain":
         return _strain_relaxation_time(net, task, viscosity, reference, fraction, measure)
     clamps = task.source_clamps(net, reference)
@@ -204,11 +204,6 @@ def network_relaxation_time(
     raise RuntimeError("the network does not relax after the source step (is it rigid?)")
 
 
-def _check_clamp(clamp: str) -> None:
-    if clamp not in ("strain", "nodes"):
-        raise ValueError(f"clamp must be 'strain' or 'nodes', got {clamp!r}")
-
-
 def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) -> float:
     """:func:`network_relaxation_time` with the sources held as rods (strain clamps).
 
@@ -221,6 +216,7 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
     0] [v; mu] = [f; 0]`` (``f`` the original springs' and arms' force, ``G`` the rods'
     chord-strain rows).
     """
+    from ..network.constraints import strain_jacobian
     from ..network.dynamics import _boundary
     from ..network.energy import spring_gradient
     from ..network.kkt import factor_kkt
@@ -257,7 +253,7 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
         if arm0 is not None:
             k2 = np.full(net.n_springs, viscosity.arm_stiffness)
             force = force - spring_gradient(xj, net.springs, k2, arm_j)
-        G = _chord_rows_at(net, xj, list(clamps))[:, fdofs]
+        G = strain_jacobian(xj, net.springs[list(clamps)]).tocsc()[:, fdofs]
         v0, _ = factor_kkt(C.tocsc(), G).solve(force.ravel()[fdofs])
         f0 = float(np.max(np.abs(C @ v0))) if v0.size else 0.0
         if f0 == 0:
@@ -280,20 +276,6 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
             return tau
         t_end *= 2.0
     raise RuntimeError("the network does not relax after the source step (is it rigid?)")
-
-
-def _chord_rows_at(net, x, springs) -> sp.csr_matrix:
-    """Chord-strain rows ``n.(u_b - u_a) / r`` of ``springs`` at positions ``x``."""
-    rows, cols, vals = [], [], []
-    for r, s in enumerate(springs):
-        a, b = net.springs[int(s)]
-        d = x[b] - x[a]
-        L2 = float(d @ d)
-        for node, sign in ((a, -1.0), (b, 1.0)):
-            rows += [r, r]
-            cols += [2 * node, 2 * node + 1]
-            vals += list(sign * d / L2)
-    return sp.csr_matrix((vals, (rows, cols)), shape=(len(springs), 2 * net.n_nodes))
 
 
 def learn_in_time(
@@ -369,7 +351,7 @@ def learn_in_time(
     if int(n_outputs) != n_outputs or n_outputs < 1:
         raise ValueError(f"n_outputs must be an integer >= 1, got {n_outputs}")
     dt, duration = float(dt), float(duration)
-    _check_clamp(clamp)
+    check_clamp(clamp)
     if isinstance(net, SpringNetwork):
         task.check(net)
         ends = net.springs[np.concatenate([task.sources, task.targets])].ravel()

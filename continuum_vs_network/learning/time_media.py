@@ -147,7 +147,7 @@ def held_free_state(
     RuntimeError
         The equilibrium step does not converge.
     """
-    _check_clamp(clamp)
+    check_clamp(clamp)
     clamps = task.source_clamps(net, reference)
     if clamp == "strain":
         rods = rod_clamped(net, clamps)
@@ -158,7 +158,8 @@ def held_free_state(
     return _equilibrium_stepper(net, free, tol).step(net, x)[0]
 
 
-def _check_clamp(clamp: str) -> None:
+def check_clamp(clamp: str) -> None:
+    """Refuse a ``clamp`` other than ``"strain"`` or ``"nodes"``."""
     if clamp not in ("strain", "nodes"):
         raise ValueError(f"clamp must be 'strain' or 'nodes', got {clamp!r}")
 
@@ -188,7 +189,7 @@ class NetworkTime:
     ) -> None:
         if not isinstance(viscosity, Viscosity):
             raise ValueError(f"viscosity must be a Viscosity, got {type(viscosity).__name__}")
-        _check_clamp(clamp)
+        check_clamp(clamp)
         self.clamp = clamp
         self.task, self.ref, self.vis = task, rule.strain_reference, viscosity
         self.dt, self.quasistatic, self.tol = dt, quasistatic, tol

@@ -146,6 +146,16 @@ def length_jacobian(
     return sp.csr_matrix((vals[keep], (rows[keep], cols[keep])), shape=(m, n))
 
 
+def strain_jacobian(x: NDArray, pairs: NDArray) -> sp.csr_matrix:
+    """``d(r/r_x)/dx`` (m, 2 n_nodes) at ``x`` (n_nodes, 2): the linear chord-strain rows
+    ``u_j . (dx_b - dx_a) / r_j`` of the springs with node pairs ``pairs`` (m, 2), ``r_j``
+    their lengths at ``x``; sparse CSR over every coordinate."""
+    n = 2 * len(x)
+    _, r = unit_vectors(x, pairs)
+    J = length_jacobian(x, pairs, np.arange(n), n, dense=False)
+    return sp.diags(1.0 / r) @ J
+
+
 def clamp_tensions(A: sp.spmatrix | NDArray, g: NDArray, scale: NDArray) -> NDArray:
     """Clamp tensions ``mu`` (m,) minimising ``sum_k ((g + A^T mu)_k / scale_k)^2``.
 

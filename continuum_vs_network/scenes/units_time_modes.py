@@ -39,6 +39,8 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from ..network.constraints import strain_jacobian
+
 __all__ = [
     "body_modes",
     "edge_weights",
@@ -193,22 +195,6 @@ def _network_matrices(net, viscosity, free: NDArray, *, stiffness=None, drag=Non
     return H[free][:, free], C[free][:, free], H, C
 
 
-def _chord_rows(net, springs, n_dofs: int) -> sp.csr_matrix:
-    """Linear strain rows ``n.(u_b - u_a) / L`` of ``springs`` on the full DOFs."""
-    x = net.positions
-    springs = np.atleast_1d(springs)
-    rows, cols, vals = [], [], []
-    for r, s in enumerate(springs):
-        a, b = net.springs[int(s)]
-        d = x[b] - x[a]
-        L2 = float(d @ d)
-        for node, sign in ((a, -1.0), (b, 1.0)):
-            rows += [r, r]
-            cols += [2 * node, 2 * node + 1]
-            vals += list(sign * d / L2)
-    return sp.csr_matrix((vals, (rows, cols)), shape=(springs.size, n_dofs))
-
-
 def edge_weights(net) -> tuple[NDArray, NDArray]:
     """``(spring factor, node area)``: each spring's number of lattice triangles over 2 (1
     inside, 1/2 on the edge) and each node's area (a third of its triangles') over the
@@ -253,7 +239,6 @@ def network_modes(
 
     from ..network.kkt import factor_kkt
 
-    n_dofs = 2 * net.n_nodes
     held = task.pinned.copy()
     u = np.zeros((net.n_nodes, 2))
     x = net.positions
@@ -269,10 +254,10 @@ def network_modes(
     uh = u.ravel()[~free]
     u_eq = -splu(Kff.tocsc()).solve(H[free][:, ~free] @ uh)
     jump = -splu(Cff.tocsc()).solve(C[free][:, ~free] @ uh) if viscosity.dashpot > 0 else 0.0
-    g = _chord_rows(net, task.targets, n_dofs).tocsc()[:, free]
+    g = strain_jacobian(net.positions, net.springs[task.targets]).tocsc()[:, free]
     nodes = modal_response(Kff, Cff, jump - u_eq, g, g @ u_eq, fraction=fraction)
     pins = ~task.pinned.ravel()
-    Gs = _chord_rows(net, task.sources, n_dofs).tocsc()[:, pins]
+    Gs = strain_jacobian(net.positions, net.springs[task.sources]).tocsc()[:, pins]
     Kp, Cp, _, _ = _network_matrices(net, viscosity, pins)
     if clamp == "strain":
         clamps = task.source_clamps(net)
@@ -281,7 +266,7 @@ def network_modes(
         zero = np.zeros(Kp.shape[0])
         jump_s, _ = factor_kkt(Cp.tocsc(), Gs).solve(zero, S)
         end_s, _ = factor_kkt(Kp.tocsc(), Gs).solve(zero, S)
-        gp = _chord_rows(net, task.targets, n_dofs).tocsc()[:, pins]
+        gp = strain_jacobian(net.positions, net.springs[task.targets]).tocsc()[:, pins]
         out = modal_response(Kp, Cp, jump_s - end_s, gp, gp @ end_s, Gs, fraction=fraction)
         out["tau_mode_constraint"] = out["tau_mode"]
     else:
