@@ -1,7 +1,7 @@
 """The report: matplotlib figures, one section module per scene kind, the writer, findings.
 
 :func:`~.writer.write_report` turns a scene result into ``reports/<scene>/report.md`` with
-its figures by handing a :class:`~.document.Document` to ``SECTIONS[kind]`` (one module per
+its figures by handing a :class:`~.document.Document` to its kind's ``section`` (one module per
 kind in :mod:`.sections`); sections register :class:`~.findings.Finding` objects (claim,
 metric, measured values, verdict, rule), which land in ``report.json``; the verdicts on
 the paper's learning claims are judged in :mod:`.verdicts`;

@@ -2,7 +2,8 @@
 
 :func:`write_report` reads a :class:`~continuum_vs_network.scenes.runner.SceneResult` (it
 runs nothing), hands a :class:`~.document.Document` to the section of the scene's kind
-(:data:`~.sections.SECTIONS`), then adds the meshes, settings and provenance. When the scene
+(its ``section`` in the kind registry, :data:`~continuum_vs_network.scenes.schema.KINDS`),
+then adds the meshes, settings and provenance. When the scene
 asks for images and off-screen rendering works, sections draw pyvista renders. Every file is
 written atomically; figures of an earlier report that the new one does not use are removed.
 ``report.json`` beside the report holds its metadata and findings;
@@ -24,7 +25,6 @@ from ..io.strict_json import dumps_record, loads_record
 from . import escape
 from .document import Document
 from .findings import Finding
-from .sections import SECTIONS
 from .sections.provenance import scene_toml, short_source
 from .sections.provenance import section as provenance
 
@@ -70,7 +70,7 @@ def write_report(
     elif not render:
         reason = "rendering switched off for this run"
     doc = Document(folder, scene.report.dpi, render=render, render_reason=reason)
-    from ..scenes.schema import builtin_names
+    from ..scenes.schema import KINDS, builtin_names
 
     builtin = scene.name in builtin_names() and Path(scene.source).parent.name == "builtin"
     target = scene.name if builtin else short_source(scene.source)
@@ -82,7 +82,7 @@ def write_report(
         f"Kind: `{scene.kind}`. Regenerate with `cvn run {target}`"
         + (" (a built-in scene; `cvn scenes` lists them)." if builtin else "."),
     )
-    SECTIONS[scene.kind](doc, result)
+    KINDS[scene.kind].section(doc, result)
     unshown = doc.unshown()
     if unshown:
         doc.heading("Findings")

@@ -15,7 +15,8 @@
   draw of the paper's task allows, Stern-scale allostery);
 * ``builtin/*.toml``: the built-in scenes (:func:`builtin_names`).
 
-Importing this package needs only numpy and scipy; Dask and pandas are imported only by
+Importing this package needs only numpy and scipy (the scene models, pydantic, load with
+the first scene read); Dask and pandas are imported only by
 parallel runs and sweeps.
 """
 
@@ -23,7 +24,16 @@ from __future__ import annotations
 
 from .compute import SceneRunError
 from .runner import SceneResult, load_result, run_scene
-from .schema import Scene, SceneError, builtin_names, builtin_path, load_scene, parse_scene
+from .schema import SceneError, builtin_names, builtin_path, load_scene
+
+
+def __getattr__(name: str):
+    if name in ("Scene", "parse_scene"):  # the models: pydantic, imported when first used
+        from . import schema
+
+        return getattr(schema, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "Scene",

@@ -16,12 +16,14 @@ import signal
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .executor import Executor, TaskError
-from .schema import Scene
 from .store import _merged_history, _read_unit, _save_unit
 from .units import Unit, UnitContext
+
+if TYPE_CHECKING:
+    from .schema import Scene
 
 __all__ = ["KILL_ENV", "SceneRunError"]
 

@@ -22,6 +22,9 @@ if TYPE_CHECKING:
 
 __all__ = ["Estimate", "check_grid", "check_resources", "estimate"]
 
+# the estimates of the kinds that have one are named in the kind registry
+# (:data:`~.schema.KINDS`, ``limits``)
+
 #: peak bytes per network node of an equilibrium solve (sparse Newton, factorisation fill)
 SOLVE_BYTES_PER_NODE = 10_000
 #: bytes of a stored network per node (positions; springs, k, L for ~3 springs per node)
@@ -61,85 +64,88 @@ def _history_bytes(steps: int, n_targets: int) -> int:
 
 
 def estimate(scene: Scene) -> Estimate:
-    """Estimated peak memory of running ``scene``, part by part."""
+    """Estimated peak memory of running ``scene``, part by part (its kind's estimate,
+    :attr:`~.schema.Kind.limits`; empty for a kind without one)."""
+    from .schema import KINDS
+
     est = Estimate()
+    KINDS[scene.kind].estimate(scene, est)
+    return est
+
+
+def learning(scene: Scene, est: Estimate) -> None:
+    """A learning scene: its solves, trial histories and units."""
     net, L = scene.network, scene.learning
-    if scene.kind == "learning":
-        assert net is not None and L is not None and scene.task is not None
-        nodes = PAPER_NODES if net.builder == "paper" else net.n_nodes
-        n_targets = 1 if scene.task.kind == "paper" else scene.task.n_targets
-        n_sources = 1 if scene.task.kind == "paper" else scene.task.n_sources
-        methods = len(scene.solver.methods) if scene.solver is not None else 1
-        # a GCL rule runs once per nudge when etas lists several
-        rules = sum(len(L.etas) if r.startswith("gcl") and L.etas else 1 for r in L.rules)
-        runs = methods * rules * len(L.noise)
-        units = runs * L.trials
-        est.add("network", "n_nodes", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
-        # every trial's history and its initial and final networks are merged in memory
-        per_trial = _history_bytes(L.steps, n_targets) + 2 * nodes * NETWORK_BYTES_PER_NODE
-        key = "steps" if L.steps / 300 > L.trials / 10 else "trials"
+    nodes = PAPER_NODES if net.builder == "paper" else net.n_nodes
+    n_targets = 1 if scene.task.kind == "paper" else scene.task.n_targets
+    n_sources = 1 if scene.task.kind == "paper" else scene.task.n_sources
+    methods = len(scene.solver.methods) if scene.solver is not None else 1
+    # a GCL rule runs once per nudge when etas lists several
+    rules = sum(len(L.etas) if r.startswith("gcl") and L.etas else 1 for r in L.rules)
+    runs = methods * rules * len(L.noise)
+    units = runs * L.trials
+    est.add("network", "n_nodes", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
+    # every trial's history and its initial and final networks are merged in memory
+    per_trial = _history_bytes(L.steps, n_targets) + 2 * nodes * NETWORK_BYTES_PER_NODE
+    key = "steps" if L.steps / 300 > L.trials / 10 else "trials"
+    est.add("learning", key, 2 * units * per_trial, f"{units} trial histories of {L.steps} steps")
+    est.add("learning", "trials", units * UNIT_BYTES, f"{units} units")
+    if L.sweeps:
+        per_point = 8 * (2 * n_sources + n_targets + 4)
         est.add(
-            "learning", key, 2 * units * per_trial, f"{units} trial histories of {L.steps} steps"
+            "learning",
+            "sweep_points",
+            L.trials * L.sweep_points * per_point,
+            f"sweeps of {L.sweep_points} points",
         )
-        est.add("learning", "trials", units * UNIT_BYTES, f"{units} units")
-        if L.sweeps:
-            per_point = 8 * (2 * n_sources + n_targets + 4)
-            est.add(
-                "learning",
-                "sweep_points",
-                L.trials * L.sweep_points * per_point,
-                f"sweeps of {L.sweep_points} points",
-            )
-        return est
-    if scene.kind == "continuum_learning" and net is not None and L is not None:
-        nodes = net.size**2
-        c = scene.continuum
-        refine, order = (c.refine, c.order) if c is not None else (0, 1)
-        dofs = 2 * nodes * 4**refine * (4 if order == 2 else 1)
-        est.add("network", "size", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
-        what = f"{dofs} finite-element unknowns (refine {refine}, order {order})"
-        est.add("network", "size", dofs * FE_BYTES_PER_DOF, what)
-        n_targets = scene.task.n_targets if scene.task is not None else 1
-        runs = len(L.rules) * L.trials * (refine + 2)  # the network and every refinement
-        key = "steps" if L.steps / 300 > L.trials / 10 else "trials"
-        est.add("learning", key, 2 * runs * _history_bytes(L.steps, n_targets),
-                f"{runs} histories of {L.steps} steps")  # fmt: skip
-        return est
-    if scene.kind == "accuracy":
-        a = scene.accuracy
-        assert a is not None
-        # Lamé's annulus (radii 1 and 2, area 3 pi) meshed at the finest h: about
-        # area / (0.43 h^2) vertices, four times as many unknowns per vertex for P2
-        vertices = 3 * math.pi / (0.43 * min(a.mesh_sizes) ** 2)
-        dofs = 2 * vertices * (4 if any(e.startswith("P2") for e in a.elements) else 1)
-        est.add("accuracy", "mesh_sizes", dofs * FE_BYTES_PER_DOF, f"{dofs:.0f} FE unknowns")
-        frames = max(a.steps) + 1
-        est.add("accuracy", "steps", frames * 2 * a.size**2 * 16, f"{frames} time steps")
-        return est
-    if net is not None and scene.kind == "continuum_learning":
-        c = scene.continuum
-        nodes = net.size**2
-        dofs = 2 * nodes * 4**c.refine * (4 if c.order == 2 else 1)
-        est.add("network", "size", nodes * SOLVE_BYTES_PER_NODE, f"{nodes} lattice nodes")
-        # element operators (~ 600 bytes per DOF for P1) next to the factorisation
-        est.add("continuum", "refine", dofs * FE_BYTES_PER_DOF, f"{dofs} FE unknowns")
-        return est
-    if net is not None and scene.kind == "beyond_paper":
-        n = max(net.sizes)
-        nodes = n * n
-        est.add("network", "sizes", nodes * SOLVE_BYTES_PER_NODE, f"solving a {n} x {n} lattice")
-        runs = len(net.sizes) * len(L.examples) + 2 * len(L.rules) + 2
-        est.add(
-            "learning", "steps", runs * _history_bytes(L.steps, 2 * max(L.examples)),
-            f"{runs} histories of {L.steps} steps",
-        )  # fmt: skip
-        return est
-    if net is None or scene.kind not in ("transmission", "relaxation", "stability", "solvers"):
-        return est  # a kind without an estimate yet
-    sizes = (net.size,) if scene.kind == "stability" else net.sizes
+
+
+def continuum_learning(scene: Scene, est: Estimate) -> None:
+    """Both media learning: the lattice, its continuum's unknowns, the histories."""
+    net, L, c = scene.network, scene.learning, scene.continuum
+    nodes = net.size**2
+    dofs = 2 * nodes * 4**c.refine * (4 if c.order == 2 else 1)
+    est.add("network", "size", nodes * SOLVE_BYTES_PER_NODE, f"solving {nodes} nodes")
+    what = f"{dofs} finite-element unknowns (refine {c.refine}, order {c.order})"
+    est.add("network", "size", dofs * FE_BYTES_PER_DOF, what)
+    runs = len(L.rules) * L.trials * (c.refine + 2)  # the network and every refinement
+    key = "steps" if L.steps / 300 > L.trials / 10 else "trials"
+    est.add("learning", key, 2 * runs * _history_bytes(L.steps, scene.task.n_targets),
+            f"{runs} histories of {L.steps} steps")  # fmt: skip
+
+
+def accuracy(scene: Scene, est: Estimate) -> None:
+    """The finest mesh of Lamé's annulus and the longest time series."""
+    a = scene.accuracy
+    # Lamé's annulus (radii 1 and 2, area 3 pi) meshed at the finest h: about
+    # area / (0.43 h^2) vertices, four times as many unknowns per vertex for P2
+    vertices = 3 * math.pi / (0.43 * min(a.mesh_sizes) ** 2)
+    dofs = 2 * vertices * (4 if any(e.startswith("P2") for e in a.elements) else 1)
+    est.add("accuracy", "mesh_sizes", dofs * FE_BYTES_PER_DOF, f"{dofs:.0f} FE unknowns")
+    frames = max(a.steps) + 1
+    est.add("accuracy", "steps", frames * 2 * a.size**2 * 16, f"{frames} time steps")
+
+
+def beyond_paper(scene: Scene, est: Estimate) -> None:
+    """The largest lattice and the histories of every study."""
+    net, L = scene.network, scene.learning
+    n = max(net.sizes)
+    nodes = n * n
+    est.add("network", "sizes", nodes * SOLVE_BYTES_PER_NODE, f"solving a {n} x {n} lattice")
+    runs = len(net.sizes) * len(L.examples) + 2 * len(L.rules) + 2
+    est.add(
+        "learning", "steps", runs * _history_bytes(L.steps, 2 * max(L.examples)),
+        f"{runs} histories of {L.steps} steps",
+    )  # fmt: skip
+
+
+def lattice(scene: Scene, est: Estimate) -> None:
+    """transmission, relaxation, stability and solvers: the largest lattice, its continuum
+    and (relaxation) the trajectories."""
+    net = scene.network
+    sizes, key = (net.sizes, "sizes") if net.sizes else ((net.size,), "size")  # stability: size
     n = max(sizes)
     nodes = n * n
-    key = "size" if scene.kind == "stability" else "sizes"
     est.add("network", key, nodes * SOLVE_BYTES_PER_NODE, f"solving a {n} x {n} lattice")
     dofs = 0
     if scene.continuum is not None:
@@ -148,17 +154,12 @@ def estimate(scene: Scene) -> Estimate:
         dofs = 2 * vertices * (4 if c.order == 2 else 1)
         what = f"{dofs} finite-element unknowns (refine {c.refine}, order {c.order})"
         est.add("network", key, dofs * FE_BYTES_PER_DOF, what)
-    if scene.kind == "relaxation":
+    if scene.dynamics is not None:
         d = scene.dynamics
-        assert d is not None
         frames = math.ceil(d.steps_per_tau * d.duration) + 1
         key = "steps_per_tau" if d.steps_per_tau / 20 > d.duration / 12 else "duration"
         # the network trajectory (and its displacements), and the continuum's
         est.add("dynamics", key, frames * (3 * nodes * 16 + 2 * dofs * 8), f"{frames} time steps")
-    if scene.kind == "physical_time":
-        # a run keeps at most 300 outputs of positions and learning degrees of freedom
-        est.add("network", key, 300 * (nodes * 16 + 6 * nodes * 16), "300 recorded outputs")
-    return est
 
 
 def check_resources(scene: Scene, file: str) -> None:

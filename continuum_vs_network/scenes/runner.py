@@ -30,7 +30,7 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..io.atomic import remove_stale_temporaries, write_text_atomic
 from ..io.lock import folder_lock
@@ -38,9 +38,11 @@ from ..io.strict_json import dumps_record, loads_record
 from .compute import _Killer, _run_parallel, _run_serial
 from .executor import open_executor
 from .provenance import Provenance, blas_threads, environment
-from .schema import Scene
 from .store import _clean, _is_done, _merged_history, _read_record, _read_unit, _units_dir
 from .units import Unit, UnitResult
+
+if TYPE_CHECKING:
+    from .schema import Scene
 
 __all__ = ["SceneResult", "load_result", "plan", "run_scene"]
 
@@ -73,46 +75,10 @@ class SceneResult:
 
 # -- planning --------------------------------------------------------------------------------
 def plan(scene: Scene) -> list[Unit]:
-    """The units of ``scene``, in order (only what the scene names)."""
-    if scene.kind == "learning":
-        from .units_learning import plan_learning
+    """The units of ``scene``, in order (only what the scene names): its kind's planner."""
+    from .schema import KINDS
 
-        return plan_learning(scene)
-    if scene.kind == "continuum_learning":
-        from .units_continuum_learning import plan_continuum_learning
-
-        return plan_continuum_learning(scene)
-    if scene.kind == "beyond_paper":
-        from .units_beyond import plan_beyond_paper
-
-        return plan_beyond_paper(scene)
-    if scene.kind == "allostery":
-        from .units_allostery import plan_allostery
-
-        return plan_allostery(scene)
-    if scene.kind == "continuum_mechanism":
-        from .units_mechanism import plan_mechanism
-
-        return plan_mechanism(scene)
-    if scene.kind in ("transmission", "relaxation"):
-        from .units_physics import plan_physics
-
-        return plan_physics(scene)
-    if scene.kind == "stability":
-        from .units_stability import plan_stability
-
-        return plan_stability(scene)
-    if scene.kind == "accuracy":
-        from .units_accuracy import plan_accuracy
-
-        return plan_accuracy(scene)
-    if scene.kind == "physical_time":
-        from .units_time import plan_time
-
-        return plan_time(scene)
-    from .units_solvers import plan_solvers
-
-    return plan_solvers(scene)
+    return KINDS[scene.kind].plan(scene)
 
 
 # -- running ---------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Scene files: TOML validated into frozen dataclasses.
+"""Scene files: TOML validated into frozen (pydantic) dataclasses, one model per kind.
 
 A scene is data only (no code is executed from it). Top-level keys::
 
@@ -13,52 +13,58 @@ and the optional tables ``[network]``, ``[task]``, ``[learning]``, ``[solver]``,
 ``[continuum]``, ``[dynamics]``, ``[stability]``, ``[accuracy]``, ``[physical_time]``,
 ``[allostery]``, ``[export]``, ``[report]``, and ``[sweep]`` (the scene as a grid of variants,
 :class:`SweepSpec`). Which tables a kind needs and which it accepts is in
-:data:`KIND_TABLES`; a table a kind does not use is an error (a scene never carries settings
-that are silently ignored). Every key of every table is
-listed, with its type, default and meaning, in the table dataclasses (``cvn scenes --keys``
-prints them).
+its model (:mod:`.kinds`, summed up in :data:`KIND_TABLES`); a table a kind does not use is
+an error (a scene never carries settings that are silently ignored). Every key of every
+table is listed, with its type, default and meaning, in the table dataclasses (``cvn scenes
+--keys`` prints them). :data:`KINDS` is the registry of kinds: each one's model, checks,
+planner, report section and memory estimate (:class:`Kind`).
 
 Unknown keys, wrong types and impossible values raise :class:`SceneError`, a ``ValueError``
 whose message and attributes name the file, the table and the key.
 
-Modules: :mod:`.keys` (vocabulary and key declarations), :mod:`.values` (:class:`SceneError`,
-value conversion), :mod:`.tables_learning`, :mod:`.tables_physics` and :mod:`.tables_allostery` (one
-dataclass per table), :mod:`.tables` (tables by name), :mod:`.sweep` (``[sweep]``), :mod:`.scene`
-(:class:`Scene`, parsing, per-kind checks), :mod:`.builtin` (files, built-in scenes, key
-reference).
+Modules: :mod:`.keys` (vocabulary, key types and checks), :mod:`.values` (:class:`SceneError`,
+validation errors said as scene errors), :mod:`.tables_learning`, :mod:`.tables_physics`,
+:mod:`.tables_allostery` and :mod:`.tables_mechanism` (one dataclass per table), :mod:`.tables`
+(tables by name), :mod:`.sweep` (``[sweep]``), :mod:`.scene` (:class:`Scene`, parsing),
+:mod:`.kinds` (one model per kind, the registry), :mod:`.checks` (each kind's checks),
+:mod:`.builtin` (files, built-in scenes, key reference).
 """
 
 from __future__ import annotations
 
+from importlib import import_module
+from typing import Any
+
 from .builtin import builtin_names, builtin_path, key_reference, load_scene
-from .keys import (
-    BEYOND_RULES,
-    CONTINUUM_RULES,
-    KIND_TABLES,
-    KINDS,
-    PAPER_RULES,
-    RENAMED,
-    RULES,
-    SOLVER_METHODS,
-    STERN_RULES,
-)
-from .scene import Scene, parse_scene
-from .sweep import SweepSpec, check_zip, parse_sweep, sweep_values
-from .tables import _TABLES as _TABLES
-from .tables_allostery import ALLOSTERY_RULES, AllosterySpec
-from .tables_learning import LearningSpec, NetworkSpec, SolverSpec, TaskSpec
-from .tables_mechanism import MechanismSpec
-from .tables_physics import (
-    TIME_RULES,
-    AccuracySpec,
-    ContinuumSpec,
-    DynamicsSpec,
-    ExportSpec,
-    PhysicalTimeSpec,
-    ReportSpec,
-    StabilitySpec,
-)
-from .values import SceneError
+from .errors import SceneError
+
+# everything else is imported when first used: the models need pydantic, which importing
+# the package (``import continuum_vs_network``) must not
+_LAZY = {
+    **dict.fromkeys(
+        ("BEYOND_RULES", "CONTINUUM_RULES", "PAPER_RULES", "RENAMED", "RULES", "SOLVER_METHODS",
+         "STERN_RULES"), ".keys"),
+    **dict.fromkeys(("KINDS", "KIND_TABLES", "SCENES", "Kind"), ".kinds"),
+    "Scene": ".scene",
+    "parse_scene": ".parse",
+    **dict.fromkeys(("SweepSpec", "check_zip", "parse_sweep", "sweep_values"), ".sweep"),
+    "_TABLES": ".tables",
+    **dict.fromkeys(("ALLOSTERY_RULES", "AllosterySpec"), ".tables_allostery"),
+    **dict.fromkeys(("LearningSpec", "NetworkSpec", "SolverSpec", "TaskSpec"), ".tables_learning"),
+    "MechanismSpec": ".tables_mechanism",
+    **dict.fromkeys(
+        ("TIME_RULES", "AccuracySpec", "ContinuumSpec", "DynamicsSpec", "ExportSpec",
+         "PhysicalTimeSpec", "ReportSpec", "StabilitySpec"), ".tables_physics"),
+}  # fmt: skip
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(_LAZY[name], __name__), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "ALLOSTERY_RULES",
@@ -69,6 +75,7 @@ __all__ = [
     "PAPER_RULES",
     "RENAMED",
     "RULES",
+    "SCENES",
     "SOLVER_METHODS",
     "STERN_RULES",
     "TIME_RULES",
@@ -77,6 +84,7 @@ __all__ = [
     "ContinuumSpec",
     "DynamicsSpec",
     "ExportSpec",
+    "Kind",
     "LearningSpec",
     "MechanismSpec",
     "NetworkSpec",

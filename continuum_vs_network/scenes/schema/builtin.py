@@ -8,11 +8,12 @@ import dataclasses
 import tomllib
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from .keys import KIND_TABLES, KINDS
-from .scene import _NAME, _NAME_MAX, Scene, parse_scene
-from .tables import _TABLES
-from .values import SceneError, _short
+from .errors import _NAME, _NAME_MAX, SceneError, _short
+
+if TYPE_CHECKING:
+    from .scene import Scene
 
 _FILE_MAX = 1 << 20  # bytes; a scene is a few dozen lines
 
@@ -76,21 +77,27 @@ def load_scene(scene: str | Path) -> Scene:
         raise SceneError(str(path), "(syntax)", "", "nested too deeply to be a scene") from None
     except OSError as err:
         raise SceneError(str(path), "", "", f"cannot read: {err.strerror or err}") from None
+    from .parse import parse_scene  # the models (pydantic): imported by the first scene read
+
     return parse_scene(data, str(path))
 
 
 def key_reference() -> str:
     """Every table and key with its type, default and meaning (plain text)."""
+    from .keys import toml_type
+    from .kinds import KIND_TABLES, KINDS
+    from .tables import _TABLES
+
     lines = [
         f"(top level): name (str), description (str), seed (int, 0), kind ({' | '.join(KINDS)})"
     ]
     for table, cls in _TABLES.items():
         lines.append(f"\n[{table}]")
         for f in dataclasses.fields(cls):
-            meta = f.metadata
+            type_, options = toml_type(f.type)
             default = "required" if f.default is dataclasses.MISSING else repr(f.default)
-            choices = f" one of {', '.join(map(repr, meta['choices']))};" if meta["choices"] else ""
-            lines.append(f"  {f.name} ({meta['type']}, {default}):{choices} {meta['doc']}")
+            choices = f" one of {', '.join(map(repr, options))};" if options else ""
+            lines.append(f"  {f.name} ({type_}, {default}):{choices} {f.metadata['doc']}")
     lines.append(
         "\n[sweep] (any kind; run with `cvn sweep`): <table>.<key> = [values] or seed = 'a..b' "
         "(a grid: cartesian product, first key slowest); zip = [[keys varied together]]; "

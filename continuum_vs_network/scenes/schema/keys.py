@@ -1,62 +1,22 @@
-"""Scene vocabulary (kinds, tables per kind, rules) and how a table declares its keys:
-``_key`` and the small value checks and where-used predicates its options take.
+"""Scene vocabulary (kinds, rules) and how a table declares its keys.
+
+A table is a frozen pydantic dataclass (:func:`table`); a key is a field whose annotation
+is its type and its value checks (``Annotated[Int, _at_least(1)]``, ``Literal[...]`` for
+choices, ``tuple[...]`` for TOML lists) and whose default is :func:`key` (default, the
+meaning ``cvn scenes --keys`` prints, and where the key is used).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import itertools
+import types
 from collections.abc import Callable
-from dataclasses import field
-from typing import TYPE_CHECKING, Any
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
-if TYPE_CHECKING:
-    from .scene import Scene
-
-
-KINDS = (
-    "learning",
-    "transmission",
-    "relaxation",
-    "stability",
-    "solvers",
-    "accuracy",
-    "physical_time",
-    "continuum_learning",
-    "beyond_paper",
-    "allostery",
-    "continuum_mechanism",
-)
-
-#: For each kind: (tables it needs, tables it also accepts).
-KIND_TABLES: dict[str, tuple[frozenset[str], frozenset[str]]] = {
-    "learning": (
-        frozenset({"network", "task", "learning"}),
-        frozenset({"solver", "export", "report"}),
-    ),
-    "transmission": (
-        frozenset({"network", "task"}),
-        frozenset({"continuum", "solver", "export", "report"}),
-    ),
-    "relaxation": (
-        frozenset({"network", "dynamics"}),
-        frozenset({"continuum", "export", "report"}),
-    ),
-    "stability": (frozenset({"network", "task", "solver"}), frozenset({"stability", "report"})),
-    "solvers": (frozenset({"network", "task", "solver"}), frozenset({"report"})),
-    "accuracy": (frozenset({"accuracy"}), frozenset({"report"})),
-    "physical_time": (
-        frozenset({"network", "task", "physical_time"}),
-        frozenset({"export", "report"}),
-    ),
-    "continuum_learning": (
-        frozenset({"network", "task", "learning", "continuum"}),
-        frozenset({"export", "report"}),
-    ),
-    "beyond_paper": (frozenset({"network", "task", "learning"}), frozenset({"report"})),
-    "allostery": (frozenset({"allostery"}), frozenset({"report"})),
-    "continuum_mechanism": (frozenset({"mechanism"}), frozenset({"export", "report"})),
-}
+from pydantic import AfterValidator, BeforeValidator, ConfigDict, Strict
+from pydantic.dataclasses import dataclass as _pydantic_dataclass
+from pydantic_core import PydanticCustomError
 
 #: Learning runs a scene can name. Paper task: the paper's experiments (see
 #: :func:`continuum_vs_network.scenes.replication.paper_experiments`; ``gcl``, ``gpc`` and
@@ -95,68 +55,102 @@ RENAMED = {("learning", "reference"): "strain_reference"}
 #: Equilibrium methods of :func:`continuum_vs_network.relax`.
 SOLVER_METHODS = ("newton", "fire", "lbfgs", "paper")
 
-_REQUIRED = object()
+_REQUIRED = dataclasses.MISSING
+
+#: TOML's scalar types; a TOML list is a ``tuple[...]`` of them (a list is read as a tuple).
+#: A bool is not an int and a string is never a number (nothing is coerced), an int is a
+#: float.
+Int = Annotated[int, Strict()]
+Float = Annotated[float, Strict()]
+Bool = Annotated[bool, Strict()]
+Str = Annotated[str, Strict()]
+
+
+def _not_bool(value: Any) -> Any:
+    if isinstance(value, bool):  # True == 1: a Literal of ints alone would take it
+        raise PydanticCustomError("int_type", "Input should be a valid integer")
+    return value
+
+
+#: Integer choices: ``Annotated[Literal[1, 2], NOT_BOOL]``.
+NOT_BOOL = BeforeValidator(_not_bool)
+
+#: One config for every table and scene: unknown keys are errors, numbers are finite.
+CONFIG = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+
+def table(cls: type) -> type:
+    """A scene table: a frozen, validating dataclass (``dataclasses.replace`` validates)."""
+    return _pydantic_dataclass(frozen=True, config=CONFIG)(cls)
 
 
 # -- key declarations ----------------------------------------------------------------------
-def _key(
-    type_: str,
+def key(
     default: Any = _REQUIRED,
     doc: str = "",
     *,
-    choices: tuple | None = None,
-    check: Callable[[Any], str | None] | None = None,
-    used: tuple[Callable[[Scene], bool], str] | None = None,
+    used: tuple[Callable[[Any], bool], str] | None = None,
 ) -> Any:
-    """A scene key: TOML type (``int``, ``float``, ``bool``, ``str``, ``list[...]``).
+    """A scene key's default (none: required), meaning and where it is used.
 
     ``used``: ``(predicate, where)`` when the key matters only in some scenes: a key given
     in a scene where ``predicate(scene)`` is false is an error naming ``where`` it is used,
     and :meth:`Scene.to_dict` (the settings a report prints) leaves it out. None: used
     wherever its table is.
     """
-    meta = {"type": type_, "doc": doc, "choices": choices, "check": check, "used": used}
-    if default is _REQUIRED:
-        return field(metadata=meta)
-    return field(default=default, metadata=meta)
+    meta = {"doc": doc, "used": used}
+    return dataclasses.field(default=default, metadata=meta)
 
 
-def _positive(v: float) -> str | None:
-    return None if v > 0 else "must be > 0"
+@dataclasses.dataclass(frozen=True)
+class _Check(AfterValidator):
+    """A value check: ``message(value)`` is None when the value is fine, else the problem."""
+
+    message: Callable[[Any], str | None] = lambda v: None
 
 
-def _non_negative(v: float) -> str | None:
-    return None if v >= 0 else "must be >= 0"
+def _check(message: Callable[[Any], str | None]) -> _Check:
+    def run(value: Any) -> Any:
+        msg = message(value)
+        if msg:
+            raise ValueError(msg)
+        return value
+
+    return _Check(run, message)
 
 
-def _open_unit(v: float) -> str | None:
-    return None if 0 < v < 1 else "must lie strictly between 0 and 1"
+_positive = _check(lambda v: None if v > 0 else "must be > 0")
+_non_negative = _check(lambda v: None if v >= 0 else "must be >= 0")
+_open_unit = _check(lambda v: None if 0 < v < 1 else "must lie strictly between 0 and 1")
+_strain = _check(
+    lambda v: None if v > -1 else "a strain must be > -1 (a spring cannot have negative length)"
+)
+_nonempty = _check(lambda v: None if v else "must list at least one entry")
 
 
-def _at_least(n: float) -> Callable[[Any], str | None]:
-    return lambda v: None if v >= n else f"must be >= {n}"
+def _at_least(n: float) -> _Check:
+    return _check(lambda v: None if v >= n else f"must be >= {n}")
 
 
-def _between(lo: float, hi: float) -> Callable[[Any], str | None]:
-    return lambda v: None if lo <= v <= hi else f"must lie in [{lo}, {hi}]"
+def _between(lo: float, hi: float) -> _Check:
+    return _check(lambda v: None if lo <= v <= hi else f"must lie in [{lo}, {hi}]")
 
 
-def _strain(v: float) -> str | None:
-    return None if v > -1 else "a strain must be > -1 (a spring cannot have negative length)"
+def _each(check: _Check) -> _Check:
+    """``check`` on every entry of a list; the problem names the first entry that fails."""
+    inner = check.message
 
-
-def _each(check: Callable[[Any], str | None]) -> Callable[[tuple], str | None]:
     def run(values: tuple) -> str | None:
         for i, v in enumerate(values):
-            msg = check(v)
+            msg = inner(v)
             if msg:
                 return f"entry {i} ({v!r}) {msg}"
         return None
 
-    return run
+    return _check(run)
 
 
-def _unique_nonempty(values: tuple) -> str | None:
+def _unique(values: tuple) -> str | None:
     if not values:
         return "must list at least one entry"
     if len(set(values)) != len(values):
@@ -164,37 +158,48 @@ def _unique_nonempty(values: tuple) -> str | None:
     return None
 
 
-def _all(*checks: Callable[[Any], str | None]) -> Callable[[Any], str | None]:
-    def run(v: Any) -> str | None:
-        for c in checks:
-            msg = c(v)
-            if msg:
-                return msg
-        return None
-
-    return run
-
-
-def _increasing(values: tuple) -> str | None:
-    if any(b <= a for a, b in itertools.pairwise(values)):
-        return "must be strictly increasing"
-    return None
+_unique_nonempty = _check(_unique)
+_increasing = _check(
+    lambda values: (
+        "must be strictly increasing"
+        if any(b <= a for a, b in itertools.pairwise(values))
+        else None
+    )
+)
 
 
 # -- where a key is used ---------------------------------------------------------------------
-def _kinds(*kinds: str) -> tuple[Callable[[Scene], bool], str]:
+def _kinds(*kinds: str) -> tuple[Callable[[Any], bool], str]:
     names = kinds[0] if len(kinds) == 1 else ", ".join(kinds[:-1]) + " and " + kinds[-1]
     return (lambda scene: scene.kind in kinds), f"used by {names} scenes"
 
 
-def _when(pred: Callable[[Scene], bool], where: str) -> tuple[Callable[[Scene], bool], str]:
+def _when(pred: Callable[[Any], bool], where: str) -> tuple[Callable[[Any], bool], str]:
     return pred, f"used {where}"
 
 
-def _uses(scene: Scene, table: str, key: str) -> bool:
-    """Whether ``scene`` uses ``[table] key`` (see ``_key(used=...)``)."""
+def _uses(scene: Any, table: str, key: str) -> bool:
+    """Whether ``scene`` uses ``[table] key`` (see ``key(used=...)``)."""
     spec = getattr(scene, table)
     if spec is None:
         return False
     used = {f.name: f for f in dataclasses.fields(spec)}[key].metadata["used"]
     return used is None or bool(used[0](scene))
+
+
+_TOML = {int: "int", float: "float", bool: "bool", str: "str"}
+
+
+def toml_type(annotation: Any) -> tuple[str, tuple | None]:
+    """A key's TOML type (``int``, ``list[float]``, ...) and its choices (None: any)."""
+    origin, args = get_origin(annotation), get_args(annotation)
+    if origin is Annotated:
+        return toml_type(args[0])
+    if origin in (Union, types.UnionType):
+        return toml_type(next(a for a in args if a is not type(None)))
+    if origin is Literal:
+        return _TOML[type(args[0])], args
+    if origin is tuple:
+        inner, choices = toml_type(args[0])
+        return f"list[{inner}]", choices
+    return _TOML[annotation], None

@@ -6,11 +6,14 @@ import dataclasses
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from functools import cache
+from typing import Annotated, Any
 
-from .keys import RENAMED
+import pydantic
+
+from .keys import RENAMED, Float, Int, _non_negative, toml_type
 from .tables import _TABLES
-from .values import SceneError, _convert, _value
+from .values import SceneError, value_problem
 
 #: Tables whose keys a sweep may vary (besides the top-level ``seed``).
 _SWEEPABLE = tuple(t for t in _TABLES if t not in ("export", "report"))
@@ -60,9 +63,7 @@ def sweep_values(key: str, raw: Any, file: str) -> tuple[Any, ...]:
     """
     where = (file, "sweep", key)
     if key == "seed":
-        f = dataclasses.field(
-            metadata={"type": "int", "choices": None, "check": _non_negative_int, "doc": ""}
-        )
+        annotation: object = Annotated[Int, _non_negative]
     else:
         table, _, name = key.partition(".")
         if table not in _SWEEPABLE:
@@ -79,8 +80,8 @@ def sweep_values(key: str, raw: Any, file: str) -> tuple[Any, ...]:
                 key,
                 f"unknown key; [{table}] accepts {', '.join(sorted(fields))}",
             )
-        f = fields[name]
-    type_ = f.metadata["type"]
+        annotation = fields[name].type
+    type_ = toml_type(annotation)[0]
     match = _RANGE.match(raw) if isinstance(raw, str) else None
     if match and type_ == "int":
         lo, hi = int(match[1]), int(match[2])
@@ -98,14 +99,20 @@ def sweep_values(key: str, raw: Any, file: str) -> tuple[Any, ...]:
         if type_.startswith("list[") and not isinstance(item, list):
             item = [item]
         label = key if len(items) == 1 else f"{key}[{i}]"
-        out.append(_value(f, item, (file, "sweep", label)))
+        try:
+            out.append(_adapter(annotation).validate_python(item))
+        except pydantic.ValidationError as exc:
+            index, problem = value_problem(exc.errors()[0], annotation, item)
+            raise SceneError(file, "sweep", label + index, problem) from None
     if len(set(map(repr, out))) != len(out):
         raise SceneError(*where, f"must not repeat values (got {raw!r})")
     return tuple(out)
 
 
-def _non_negative_int(v: int) -> str | None:
-    return None if v >= 0 else "must be >= 0"
+@cache
+def _adapter(annotation: object) -> pydantic.TypeAdapter:
+    """The validator of one key's values (its annotation: type and checks)."""
+    return pydantic.TypeAdapter(annotation, config=pydantic.ConfigDict(allow_inf_nan=False))
 
 
 def parse_sweep(data: Any, file: str) -> SweepSpec:
@@ -125,7 +132,11 @@ def parse_sweep(data: Any, file: str) -> SweepSpec:
                 axes[f"{key}.{sub}"] = sweep_values(f"{key}.{sub}", v, file)
         else:
             axes[key] = sweep_values(key, value, file)
-    threshold = _convert(threshold, "float", (file, "sweep", "threshold"))
+    try:
+        threshold = _adapter(Float).validate_python(threshold)
+    except pydantic.ValidationError as exc:
+        _, problem = value_problem(exc.errors()[0], Float, threshold)
+        raise SceneError(file, "sweep", "threshold", problem) from None
     if not 0 < threshold < 1:
         raise SceneError(file, "sweep", "threshold", "must lie strictly between 0 and 1")
     if not axes:

@@ -1,19 +1,18 @@
 """Scene tables ``[network]``, ``[task]``, ``[learning]`` and ``[solver]``: one frozen dataclass
-each, every key declared with :func:`.keys._key`.
+each, every key declared with :func:`.keys.key`.
 """
 
-from __future__ import annotations
-
-from dataclasses import dataclass
+from typing import Annotated, Literal
 
 from .keys import (
     RULES,
     SOLVER_METHODS,
-    _all,
+    Bool,
+    Float,
+    Int,
     _at_least,
     _each,
     _increasing,
-    _key,
     _kinds,
     _non_negative,
     _open_unit,
@@ -21,6 +20,8 @@ from .keys import (
     _strain,
     _unique_nonempty,
     _when,
+    key,
+    table,
 )
 
 #: the raw-rate keys: every kind but beyond_paper, which uses the package's default rates
@@ -29,7 +30,7 @@ _NOT_BEYOND = _when(
 )
 
 
-@dataclass(frozen=True)
+@table
 class NetworkSpec:
     """``[network]``: which network to build.
 
@@ -38,66 +39,48 @@ class NetworkSpec:
     packing's contact network).
     """
 
-    builder: str = _key(
-        "str", doc="network builder", choices=("paper", "triangular", "diluted", "jammed")
-    )
-    n_nodes: int | None = _key(
-        "int",
+    builder: Literal["paper", "triangular", "diluted", "jammed"] = key(doc="network builder")
+    n_nodes: Annotated[Int, _at_least(4)] | None = key(
         None,
         "about this many nodes (learning on lattices, diluted or jammed networks)",
-        check=_at_least(4),
         used=_when(
             lambda s: s.kind == "learning" and s.network.builder != "paper",
             "by learning scenes on triangular, diluted or jammed networks",
         ),
     )
-    size: int | None = _key(
-        "int",
+    size: Annotated[Int, _at_least(3)] | None = key(
         None,
         "one n x n triangular lattice (stability, continuum_learning)",
-        check=_at_least(3),
         used=_kinds("stability", "continuum_learning"),
     )
-    sizes: tuple[int, ...] | None = _key(
-        "list[int]",
-        None,
-        "n x n triangular lattices, one per entry (transmission, relaxation, solvers, "
-        "physical_time; beyond_paper: the largest hosts the single-network studies, all "
-        "the capacity study)",
-        check=_all(_unique_nonempty, _each(_at_least(3)), _increasing),
-        used=_kinds("transmission", "relaxation", "solvers", "beyond_paper", "physical_time"),
+    sizes: Annotated[tuple[Int, ...], _unique_nonempty, _each(_at_least(3)), _increasing] | None = (
+        key(
+            None,
+            "n x n triangular lattices, one per entry (transmission, relaxation, solvers, "
+            "physical_time; beyond_paper: the largest hosts the single-network studies, all "
+            "the capacity study)",
+            used=_kinds("transmission", "relaxation", "solvers", "beyond_paper", "physical_time"),
+        )
     )
-    noise: float | None = _key(
-        "float",
+    noise: Annotated[Float, _non_negative] | None = key(
         None,
         "position noise as a fraction of the spacing "
         "(default 0.1 for learning and stability, 0 otherwise)",
-        check=_non_negative,
     )
-    fraction: float = _key(
-        "float",
+    fraction: Annotated[Float, _open_unit] = key(
         0.2,
         "fraction of springs removed (diluted)",
-        check=_open_unit,
         used=_when(lambda s: s.network.builder == "diluted", "by diluted networks"),
     )
-    stiffness_ratios: tuple[float, ...] = _key(
-        "list[float]",
-        (),
-        "stiffness ratios k_stiff / k_soft (stability)",
-        check=_each(_at_least(1.0)),
-        used=_kinds("stability"),
+    stiffness_ratios: Annotated[tuple[Float, ...], _each(_at_least(1.0))] = key(
+        (), "stiffness ratios k_stiff / k_soft (stability)", used=_kinds("stability")
     )
-    stiff_fraction: float = _key(
-        "float",
-        0.2,
-        "fraction of springs made stiff (stability)",
-        check=_open_unit,
-        used=_kinds("stability"),
+    stiff_fraction: Annotated[Float, _open_unit] = key(
+        0.2, "fraction of springs made stiff (stability)", used=_kinds("stability")
     )
 
 
-@dataclass(frozen=True)
+@table
 class TaskSpec:
     """``[task]``: what is clamped and what should respond.
 
@@ -106,37 +89,24 @@ class TaskSpec:
     the centre, clamped at ``strain``; transmission, stability, solvers).
     """
 
-    kind: str = _key("str", doc="task kind", choices=("paper", "stern", "source"))
-    n_sources: int = _key(
-        "int",
-        10,
-        "source springs (stern)",
-        check=_at_least(1),
-        used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
+    kind: Literal["paper", "stern", "source"] = key(doc="task kind")
+    n_sources: Annotated[Int, _at_least(1)] = key(
+        10, "source springs (stern)", used=_when(lambda s: s.task.kind == "stern", "by stern tasks")
     )
-    n_targets: int = _key(
-        "int",
-        3,
-        "target springs (stern)",
-        check=_at_least(1),
-        used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
+    n_targets: Annotated[Int, _at_least(1)] = key(
+        3, "target springs (stern)", used=_when(lambda s: s.task.kind == "stern", "by stern tasks")
     )
-    source_std: float = _key(
-        "float",
+    source_std: Annotated[Float, _positive] = key(
         0.1,
         "std of the source strains (stern)",
-        check=_positive,
         used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
     )
-    target_std: float = _key(
-        "float",
+    target_std: Annotated[Float, _positive] = key(
         0.1,
         "std of the desired target strains (stern)",
-        check=_positive,
         used=_when(lambda s: s.task.kind == "stern", "by stern tasks"),
     )
-    anchored: bool = _key(
-        "bool",
+    anchored: Bool = key(
         False,
         "train the task together with its rest example (sources at zero strain, targets "
         "at their untrained rest strains): cannot be met trivially (stern, learning)",
@@ -145,63 +115,42 @@ class TaskSpec:
             "by stern tasks in learning scenes",
         ),
     )
-    node_outputs: tuple[str, ...] = _key(
-        "list[str]",
+    node_outputs: Annotated[tuple[Literal["absolute", "relative"], ...], _unique_nonempty] = key(
         ("absolute", "relative"),
         "outputs of the node task, one run per entry and rule: node coordinates "
         "('absolute') or a node's coordinate relative to another node's ('relative')",
-        choices=("absolute", "relative"),
-        check=_unique_nonempty,
         used=_kinds("beyond_paper"),
     )
-    strain: float = _key(
-        "float",
+    strain: Annotated[Float, _strain] = key(
         0.1,
         "strain of the clamped source spring (source)",
-        check=_strain,
         used=_when(lambda s: s.task.kind == "source", "by source tasks"),
     )
-    strains: tuple[float, ...] = _key(
-        "list[float]",
-        (),
-        "extreme source strains (stability)",
-        check=_each(_strain),
-        used=_kinds("stability"),
+    strains: Annotated[tuple[Float, ...], _each(_strain)] = key(
+        (), "extreme source strains (stability)", used=_kinds("stability")
     )
 
 
-@dataclass(frozen=True)
+@table
 class LearningSpec:
     """``[learning]``: the training runs (every rule x solver x noise level, ``trials`` each)."""
 
-    rules: tuple[str, ...] = _key(
-        "list[str]", doc="learning runs", choices=RULES, check=_unique_nonempty
+    rules: Annotated[tuple[Literal[RULES], ...], _unique_nonempty] = key(doc="learning runs")
+    trials: Annotated[Int, _at_least(1)] = key(
+        10, "independent trials (seeds seed, seed + 1, ...)", used=_kinds("learning")
     )
-    trials: int = _key(
-        "int",
-        10,
-        "independent trials (seeds seed, seed + 1, ...)",
-        check=_at_least(1),
-        used=_kinds("learning"),
-    )
-    steps: int = _key("int", 300, "learning steps per trial", check=_at_least(1))
-    strain_reference: str = _key(
-        "str",
+    steps: Annotated[Int, _at_least(1)] = key(300, "learning steps per trial")
+    strain_reference: Literal["initial", "current"] = key(
         "initial",
         "strain convention of clamps and error: 'initial' (fixed target geometries) or "
         "'current' (the paper's literal S = r / L - 1 with the learning L)",
-        choices=("initial", "current"),
     )
-    alpha_gcl: float = _key(
-        "float", 1e-3, "GCL learning rate", check=_positive, used=_NOT_BEYOND
-    )
-    eta: float = _key("float", 0.1, "GCL nudge amplitude", check=_positive)
-    etas: tuple[float, ...] = _key(
-        "list[float]",
+    alpha_gcl: Annotated[Float, _positive] = key(1e-3, "GCL learning rate", used=_NOT_BEYOND)
+    eta: Annotated[Float, _positive] = key(0.1, "GCL nudge amplitude")
+    etas: Annotated[tuple[Float, ...], _each(_positive)] = key(
         (),
         "GCL nudge amplitudes, one GCL run per value (named <rule>_eta<value>); empty: eta "
         "(beyond_paper: the thermal study's nudges)",
-        check=_each(_positive),
         used=_when(
             lambda s: (
                 s.kind == "beyond_paper"
@@ -210,130 +159,101 @@ class LearningSpec:
             "by learning scenes with a GCL rule and beyond_paper scenes",
         ),
     )
-    alpha_gpc: float = _key(
-        "float", 1e-3, "GPC learning rate", check=_positive, used=_NOT_BEYOND
+    alpha_gpc: Annotated[Float, _positive] = key(1e-3, "GPC learning rate", used=_NOT_BEYOND)
+    alpha_exact: Annotated[Float, _positive] = key(
+        1.0, "exact-gradient learning rate", used=_kinds("learning", "continuum_learning")
     )
-    alpha_exact: float = _key(
-        "float",
-        1.0,
-        "exact-gradient learning rate",
-        check=_positive,
-        used=_kinds("learning", "continuum_learning"),
-    )
-    alpha_aging: float = _key(
-        "float",
+    alpha_aging: Annotated[Float, _positive] = key(
         0.5,
         "directed-aging rate (aging, aging_k)",
-        check=_positive,
         used=_when(
-            lambda s: s.kind != "beyond_paper"
-            and any(r.startswith("aging") for r in s.learning.rules),
+            lambda s: (
+                s.kind != "beyond_paper" and any(r.startswith("aging") for r in s.learning.rules)
+            ),
             "with rules aging or aging_k (beyond_paper uses the default rates)",
         ),
     )
-    temperatures: tuple[float, ...] = _key(
-        "list[float]",
+    temperatures: Annotated[
+        tuple[Float, ...], _unique_nonempty, _each(_non_negative), _increasing
+    ] = key(
         (0.0, 1e-8, 1e-6),
         "temperatures k_B T of the thermal study (every state read as a harmonic Boltzmann "
         "draw), one GCL run per nudge of etas and one exact-gradient run per entry",
-        check=_all(_unique_nonempty, _each(_non_negative), _increasing),
         used=_kinds("beyond_paper"),
     )
-    compare_tasks: tuple[str, ...] = _key(
-        "list[str]",
+    compare_tasks: Annotated[tuple[Literal["paper", "lattice"], ...], _unique_nonempty] = key(
         ("paper", "lattice"),
         "beyond_paper: the tasks every rule is compared on ('paper': the paper's network "
         "and task; 'lattice': Rocks et al.'s allosteric task on the first lattice)",
-        choices=("paper", "lattice"),
-        check=_unique_nonempty,
         used=_kinds("beyond_paper"),
     )
-    examples: tuple[int, ...] = _key(
-        "list[int]",
+    examples: Annotated[tuple[Int, ...], _unique_nonempty, _each(_at_least(1)), _increasing] = key(
         (1, 2, 4, 8),
         "numbers of examples trained together, one capacity run per entry and lattice size",
-        check=_all(_unique_nonempty, _each(_at_least(1)), _increasing),
         used=_kinds("beyond_paper"),
     )
-    capacity_seeds: int = _key(
-        "int",
+    capacity_seeds: Annotated[Int, _at_least(1)] = key(
         3,
         "draws of the examples per lattice size and number of examples (capacity study)",
-        check=_at_least(1),
         used=_kinds("beyond_paper"),
     )
-    floor: float = _key(
-        "float",
+    floor: Annotated[Float, _positive] = key(
         0.1,
         "rest-length floor of the *_floor, *_frozen, gpc and exact runs",
-        check=_positive,
         used=_kinds("learning"),
     )
-    noise: tuple[float, ...] = _key(
-        "list[float]",
-        (0.0,),
-        "relative read-out noise levels (one run per level)",
-        check=_all(_unique_nonempty, _each(_non_negative)),
-        used=_kinds("learning"),
+    noise: Annotated[tuple[Float, ...], _unique_nonempty, _each(_non_negative)] = key(
+        (0.0,), "relative read-out noise levels (one run per level)", used=_kinds("learning")
     )
-    measure: bool = _key(
-        "bool",
+    measure: Bool = key(
         True,
         "solve the free state after every step to measure the "
         "error even when the rule does not need it (GPC), and measure the coupling of "
         "every trained network",
         used=_kinds("learning"),
     )
-    sweeps: bool = _key(
-        "bool", False, "source sweeps of the trained networks (Fig. 5)", used=_kinds("learning")
+    sweeps: Bool = key(
+        False, "source sweeps of the trained networks (Fig. 5)", used=_kinds("learning")
     )
-    sweep_span: float = _key(
-        "float",
+    sweep_span: Annotated[Float, _positive] = key(
         5.0,
         "sweep source strains S +- span",
-        check=_positive,
         used=_when(
             lambda s: s.kind == "learning" and s.learning.sweeps,
             "by learning scenes with sweeps = true",
         ),
     )
-    sweep_points: int = _key(
-        "int",
+    sweep_points: Annotated[Int, _at_least(2)] = key(
         11,
         "points per sweep",
-        check=_at_least(2),
         used=_when(
             lambda s: s.kind == "learning" and s.learning.sweeps,
             "by learning scenes with sweeps = true",
         ),
     )
-    compare_gradient: bool = _key(
-        "bool",
+    compare_gradient: Bool = key(
         False,
         "cosine of each rule's step with the exact gradient, at the initial and final networks",
         used=_kinds("learning"),
     )
-    checkpoint_every: int = _key(
-        "int", 25, "steps between checkpoints", check=_at_least(1), used=_kinds("learning")
+    checkpoint_every: Annotated[Int, _at_least(1)] = key(
+        25, "steps between checkpoints", used=_kinds("learning")
     )
-    paper_setting: bool = _key(
-        "bool",
+    paper_setting: Bool = key(
         False,
         "paper task: the runs of the author's notebooks, each rule in its own convention "
         "(GCL of both signs against the learning L, GPC against fixed rods, sources frozen; "
         "scenes.paper_setting)",
         used=_when(lambda s: s.task.kind == "paper", "by the paper task"),
     )
-    steps_gpc: int = _key(
-        "int",
+    steps_gpc: Annotated[Int, _non_negative] = key(
         0,
         "learning steps of the GPC runs (0: steps)",
-        check=_non_negative,
         used=_when(lambda s: s.task.kind == "paper", "by the paper task"),
     )
 
 
-@dataclass(frozen=True)
+@table
 class SolverSpec:
     """``[solver]``: equilibrium methods and their budgets.
 
@@ -342,49 +262,28 @@ class SolverSpec:
     every method listed.
     """
 
-    methods: tuple[str, ...] = _key(
-        "list[str]",
-        ("newton",),
-        "equilibrium methods",
-        choices=SOLVER_METHODS,
-        check=_unique_nonempty,
-        used=_kinds("learning", "stability", "solvers"),
+    methods: Annotated[tuple[Literal[SOLVER_METHODS], ...], _unique_nonempty] = key(
+        ("newton",), "equilibrium methods", used=_kinds("learning", "stability", "solvers")
     )
-    tol: float = _key(
-        "float",
+    tol: Annotated[Float, _open_unit] = key(
         1e-10,
         "relative residual tolerance (net force on a free coordinate / its node's sum k L)",
-        check=_open_unit,
         used=_kinds("transmission", "stability", "solvers"),
     )
-    max_seconds: float = _key(
-        "float",
-        60.0,
-        "time budget of one solve (s)",
-        check=_positive,
-        used=_kinds("stability", "solvers"),
+    max_seconds: Annotated[Float, _positive] = key(
+        60.0, "time budget of one solve (s)", used=_kinds("stability", "solvers")
     )
-    paper_iterations: int = _key(
-        "int",
+    paper_iterations: Annotated[Int, _at_least(1)] = key(
         300,
         "Adagrad iterations per state (learning with 'paper')",
-        check=_at_least(1),
         used=_when(
             lambda s: s.kind == "learning" and "paper" in s.solver.methods,
             "by learning scenes with method 'paper'",
         ),
     )
-    rod_stiffnesses: tuple[float, ...] = _key(
-        "list[float]",
-        (),
-        "stiffness of the paper's clamp rods (stability)",
-        check=_each(_positive),
-        used=_kinds("stability"),
+    rod_stiffnesses: Annotated[tuple[Float, ...], _each(_positive)] = key(
+        (), "stiffness of the paper's clamp rods (stability)", used=_kinds("stability")
     )
-    ramp: int = _key(
-        "int",
-        4,
-        "strain continuation steps (stability)",
-        check=_at_least(1),
-        used=_kinds("stability"),
+    ramp: Annotated[Int, _at_least(1)] = key(
+        4, "strain continuation steps (stability)", used=_kinds("stability")
     )

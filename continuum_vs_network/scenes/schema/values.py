@@ -1,90 +1,58 @@
-"""The scene error and the conversion of one TOML value to its declared type."""
+"""Pydantic's validation errors said as scene errors (file, table, key, what is allowed)."""
 
 from __future__ import annotations
 
 import dataclasses
-import math
+from collections.abc import Mapping
 from typing import Any
 
+from .errors import SceneError as SceneError
+from .errors import _short as _short
+from .keys import toml_type
 
-class SceneError(ValueError):
-    """A scene file that cannot be used: names the file, the table and the key.
-
-    Attributes
-    ----------
-    file : str
-    table : str
-        ``"(top level)"`` for the top-level keys, ``"(syntax)"`` for a TOML syntax error.
-    key : str
-        The offending key ("" when the problem is the whole table or file).
-    problem : str
-    """
-
-    def __init__(self, file: str, table: str, key: str, problem: str) -> None:
-        self.file, self.table, self.key, self.problem = str(file), table, key, problem
-        where = f"[{table}]" if table and not table.startswith("(") else table
-        loc = f"{where} {key}".strip() if key else where
-        super().__init__(f"{self.file}: {loc}: {problem}" if loc else f"{self.file}: {problem}")
+_WANT = {
+    "int_type": "an integer",
+    "float_type": "a number",
+    "bool_type": "true or false",
+    "string_type": "a string",
+}
 
 
-def _convert(value: Any, type_: str, where: tuple[str, str, str]) -> Any:
-    file, table, key = where
-
-    def fail(want: str) -> SceneError:
-        got = type(value).__name__
-        return SceneError(file, table, key, f"must be {want}, got {got} {value!r}")
-
-    if type_ == "int":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise fail("an integer")
-        return int(value)
-    if type_ == "float":
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise fail("a number")
-        value = float(value)
-        if not math.isfinite(value):
-            raise SceneError(file, table, key, f"must be finite, got {value}")
-        return value
-    if type_ == "bool":
-        if not isinstance(value, bool):
-            raise fail("true or false")
-        return value
-    if type_ == "str":
-        if not isinstance(value, str):
-            raise fail("a string")
-        return value
-    if type_.startswith("list["):
-        inner = type_[5:-1]
-        if not isinstance(value, list):
-            raise fail(f"a list of {inner}s")
-        out = []
-        for i, item in enumerate(value):
-            out.append(_convert(item, inner, (file, table, f"{key}[{i}]")))
-        return tuple(out)
-    raise AssertionError(type_)  # pragma: no cover
+def value_problem(
+    err: Mapping[str, Any], annotation: Any, raw: Any, *, got: bool = True
+) -> tuple[str, str]:
+    """``(index, problem)`` of one pydantic error on a key's value: ``index`` is ``"[i]"``
+    when the error is a list entry's type, "" otherwise; ``raw`` the value as given; ``got``:
+    whether a check's problem ends with ``(got <raw>)``."""
+    kind, loc, value = err["type"], err["loc"], err["input"]
+    index = f"[{loc[-1]}]" if loc and isinstance(loc[-1], int) else ""
+    if kind in _WANT:
+        return index, f"must be {_WANT[kind]}, got {type(value).__name__} {value!r}"
+    if kind == "finite_number":
+        return index, f"must be finite, got {value}"
+    if kind == "tuple_type":
+        inner = toml_type(annotation)[0][5:-1]
+        return "", f"must be a list of {inner}s, got {type(value).__name__} {value!r}"
+    if kind == "literal_error":
+        choices = toml_type(annotation)[1] or ()
+        return "", f"{value!r} is not one of {', '.join(map(repr, choices))}"
+    if kind == "value_error":
+        msg = str(err["ctx"]["error"])
+        return "", f"{msg} (got {raw!r})" if got else msg
+    if kind in ("missing", "missing_argument"):
+        return "", "is required"
+    return index, err["msg"]  # pragma: no cover - a pydantic error not said above
 
 
-def _value(f: dataclasses.Field, value: Any, where: tuple[str, str, str]) -> Any:
-    """One key's value converted to its type and checked against its choices and rules."""
-    file, table, key = where
-    meta = f.metadata
-    converted = _convert(value, meta["type"], where)
-    choices = meta["choices"]
-    if choices is not None:
-        items = converted if isinstance(converted, tuple) else (converted,)
-        for item in items:
-            if item not in choices:
-                raise SceneError(
-                    file, table, key, f"{item!r} is not one of {', '.join(map(repr, choices))}"
-                )
-    if meta["check"] is not None:
-        msg = meta["check"](converted)
-        if msg:
-            raise SceneError(file, table, key, f"{msg} (got {value!r})")
-    return converted
-
-
-def _short(value: Any, width: int = 60) -> str:
-    """``repr(value)`` (strings: the text itself) cut to ``width`` characters."""
-    text = value if isinstance(value, str) else repr(value)
-    return text if len(text) <= width else text[: width - 3] + "..."
+def table_error(
+    err: Mapping[str, Any], cls: type, data: Mapping[str, Any], file: str, table: str
+) -> SceneError:
+    """The scene error of one pydantic error inside table ``table`` (class ``cls``)."""
+    key = str(err["loc"][0])
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    if err["type"] == "unexpected_keyword_argument" or key not in fields:
+        return SceneError(
+            file, table, key, f"unknown key; [{table}] accepts {', '.join(sorted(fields))}"
+        )
+    index, problem = value_problem(err, fields[key].type, data.get(key))
+    return SceneError(file, table, key + index, problem)
