@@ -641,8 +641,6 @@ def simulate(
         An implicit step that does not converge, or an explicit run that leaves its
         stability limit (springs compressed below half their rest length) or blows up.
     """
-    if scheme not in _SCHEMES:
-        raise ValueError(f"scheme must be one of {_SCHEMES}, got {scheme!r}")
     dt = _check_number("dt", dt, positive=True)
     t_end = _check_number("t_end", t_end, positive=True)
     c = _check_number("damping", damping, positive=not inertia)
