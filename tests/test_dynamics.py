@@ -9,8 +9,10 @@ import continuum_vs_network as cvn
 from continuum_vs_network.network.dynamics import (
     relaxation_time,
     simulate,
+    simulate_viscous,
     stability_limit,
 )
+from continuum_vs_network.network.viscous import Viscosity
 
 
 def _lattice(n: int, rng: np.random.Generator | None = None, *, random_rest: bool = False):
@@ -185,6 +187,17 @@ def test_relaxation_time_of_a_single_spring():
     assert relaxation_time(tr, 1e-2) == pytest.approx(np.log(100) * c / k, rel=2e-3)
     with pytest.raises(ValueError, match="run longer"):
         relaxation_time(tr, 1e-9)
+
+
+@pytest.mark.parametrize("inertia", [False, True])
+def test_node_drag_is_the_viscous_step_without_dashpots_or_arms(inertia):
+    """simulate and simulate_viscous take the same backward-Euler step (one Stepper)."""
+    net = _lattice(5, np.random.default_rng(3), random_rest=True)
+    kw = {"pinned": np.arange(5), "dt": 0.5, "t_end": 5.0, "inertia": inertia}
+    plain = simulate(net, damping=0.7, jacobian="frozen", max_newton=100, **kw)
+    viscous = simulate_viscous(net, Viscosity(drag=0.7), **kw)
+    np.testing.assert_array_equal(plain.positions, viscous.positions)
+    assert plain.factorisations == viscous.factorisations
 
 
 def test_bad_input_is_named():

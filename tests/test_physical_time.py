@@ -21,7 +21,8 @@ from continuum_vs_network.learning.physical_time import (
     network_relaxation_time,
     settling_time,
 )
-from continuum_vs_network.network.viscous import Viscosity, simulate_viscous
+from continuum_vs_network.network.dynamics import simulate_viscous
+from continuum_vs_network.network.viscous import Viscosity
 from continuum_vs_network.scenes.units_time import critical_bracket, crossing_time, rebound
 
 BULK = {"strain_reference": "initial", "learn_sources": False, "learn_targets": False}

@@ -19,8 +19,8 @@ import continuum_vs_network as cvn
 from continuum_vs_network.learning import stern_task
 from continuum_vs_network.learning.physical_time import network_relaxation_time
 from continuum_vs_network.network.builders import triangular_lattice
-from continuum_vs_network.network.dynamics import settling_time
-from continuum_vs_network.network.viscous import Viscosity, simulate_viscous
+from continuum_vs_network.network.dynamics import settling_time, simulate_viscous
+from continuum_vs_network.network.viscous import Viscosity
 
 DRAG = Viscosity(drag=1.0)
 K_CLAMP = 1e6  # a source as a spring this stiff: its length within 1e-7 (relative) of the clamp

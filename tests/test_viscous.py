@@ -8,12 +8,12 @@ import pytest
 import scipy.linalg as sla
 
 import continuum_vs_network as cvn
+from continuum_vs_network.network.dynamics import simulate_viscous
 from continuum_vs_network.network.viscous import (
     Viscosity,
     dashpot_force,
     dashpot_matrix,
     linear_system,
-    simulate_viscous,
 )
 
 PINNED = np.array([[True, True], [False, True]])  # node 0 pinned, node 1 moves along x
@@ -307,8 +307,7 @@ def test_stiff_rod_is_stable_at_any_step():
 def test_a_first_iterate_changes_the_cost_of_a_step_not_its_result():
     """Backward Euler has one solution per step: a predictor ``2 x1 - x0`` (or a poor guess)
     gives the same state to the tolerance, and the predictor needs fewer iterations."""
-    from continuum_vs_network.network.dynamics import _boundary
-    from continuum_vs_network.network.viscous import Stepper
+    from continuum_vs_network.network.dynamics import Stepper, _boundary
 
     net = cvn.triangular_lattice(6, 6)
     rng = np.random.default_rng(1)

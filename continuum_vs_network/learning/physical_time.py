@@ -81,9 +81,9 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from ..network.dynamics import relaxation_time, settling_time
+from ..network.dynamics import relaxation_time, settling_time, simulate_viscous
 from ..network.model import SpringNetwork
-from ..network.viscous import Viscosity, simulate_viscous
+from ..network.viscous import Viscosity
 from .medium import is_medium
 from .rules import CoupledLearning, ExactGradient, ProspectiveConfiguration, Rule
 from .tasks import AllosteryTask
@@ -155,7 +155,7 @@ def network_relaxation_time(
     """Relaxation time of ``net`` after the task's source step (time units).
 
     The sources are stepped to their clamp lengths with the task's pins held and the
-    response integrated (:func:`~continuum_vs_network.network.viscous.simulate_viscous`,
+    response integrated (:func:`~continuum_vs_network.network.dynamics.simulate_viscous`,
     200 steps per run), from a run at least 3 times longer (doubled until it is).
 
     ``measure="target"`` (default): the time after which the target strains (what
@@ -217,11 +217,11 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
     chord-strain rows).
     """
     from ..network.constraints import strain_jacobian
-    from ..network.dynamics import _boundary
+    from ..network.dynamics import Stepper, _boundary
     from ..network.energy import spring_gradient
     from ..network.kkt import factor_kkt
     from ..network.strain_clamp import ROD_FACTOR, rod_clamped
-    from ..network.viscous import Stepper, dashpot_matrix
+    from ..network.viscous import dashpot_matrix
 
     clamps = task.source_clamps(net, reference)
     rods = rod_clamped(net, clamps)

@@ -1,15 +1,14 @@
-"""Damped dynamics of a spring network: Eq. 10 and its overdamped limit, Eq. 12.
+"""Damped dynamics of a spring network: Eq. 10, its overdamped limit (Eq. 12), and the
+visco-elastic network of :mod:`.viscous` (spring dashpots, Maxwell arms).
 
-Inertial (unit masses, ``inertia=True``)::
+Inertial (unit masses, ``inertia=True``) and overdamped (``inertia=False``)::
 
-    x'' = -c x' - grad E(x)                                   (Eq. 10)
+    x'' = -c x' - D_kv(x) x' - grad E(x, l)        c x' + D_kv(x) x' = -grad E(x, l)
 
-Overdamped (``inertia=False``)::
-
-    c x' = -grad E(x)                                         (Eq. 12 with c = 1)
-
-``c`` is ``damping`` (drag per unit velocity against the lab frame, so rigid-body motion
-decays and no pins are needed). Boundary conditions:
+``c`` is the node drag (against the lab frame, so rigid-body motion decays and no pins are
+needed); ``D_kv`` the Kelvin-Voigt dashpots and ``l`` the Maxwell arms of a
+:class:`~.viscous.Viscosity` (:func:`simulate_viscous`; :func:`simulate` has drag only).
+Boundary conditions:
 
 * ``pinned``: coordinates held at their starting values;
 * ``prescribed``: ``{node: (x, y)}``, nodes moved to a position at ``t = 0`` (a step) and
@@ -22,36 +21,45 @@ decays and no pins are needed). Boundary conditions:
   or translate. An exact length constraint would need a differential-algebraic
   integrator; rods would need a step ~ 1/sqrt(1e10) in explicit schemes.
 
-Schemes (``scheme``):
+Schemes of :class:`Stepper` (``scheme``):
 
 ``"implicit"``
     Backward Euler on the first-order system (L-stable: stiff modes are damped in one
-    step, whatever ``dt``). First order in ``dt``.
+    step, whatever ``dt``). First order in ``dt``. The dashpot matrix is taken at the start
+    of each step (linearly implicit in the dashpots, exact for small displacements); the
+    arms are eliminated in closed form: over a step an arm acts as a spring of stiffness
+    ``k2 g / (k2 + g)`` (``g = gamma2 / dt``) and rest length ``l0``, joined with the main
+    spring, and ``l1 = (g l0 + k2 r1) / (g + k2)``.
 ``"newmark"``
     Newmark's average acceleration (the trapezoidal rule; Crank–Nicolson when overdamped).
     Second order, no numerical damping of oscillations (stiff modes ring, undamped by the
-    scheme, but do not grow).
+    scheme, but do not grow). Node drag only.
 ``"explicit"``
     Semi-implicit (symplectic) Euler with explicit damping, or forward Euler when
-    overdamped. Stable only for ``dt`` below :func:`stability_limit`; a larger ``dt`` is
-    refused with a ``ValueError``.
+    overdamped. Stable only for ``dt`` below :func:`stability_limit`; :func:`simulate`
+    refuses a larger ``dt`` with a ``ValueError``. Node drag only.
 
-Every implicit step is the minimisation of ``Phi(x) = E(x) + a/2 |x - x_hat|^2`` over the
-free coordinates (``a`` and ``x_hat`` depend on the scheme; see ``_implicit_coefficient``
-and ``_implicit_target``), solved by Newton iterations with the sparse Hessian ``H + a I``
+Every implicit step minimises ``Phi(x) = E_step(x) + s^T A s / 2 - b.s`` over the free
+coordinates (``s = x - x0`` the step, ``A = (c I + D_kv) / dt (+ I / dt^2)`` for backward
+Euler, ``(2 c / dt + 4 / dt^2) I`` for Newmark; ``b`` the momentum, the dashpot impulse of
+held nodes that move, Newmark's explicit half), by Newton with the sparse Hessian ``H + A``
 (the tangentially clipped Hessian where that is indefinite) and an Armijo line search on
-``Phi`` (energy differences computed without cancellation). For backward Euler overdamped
-``x_hat`` is the previous state, so ``E(x1) + a/2 |x1 - x0|^2 <= E(x0)``: the energy never
-increases.
+``Phi`` (energy differences computed without cancellation). Overdamped backward Euler
+therefore never increases the energy: ``E(x1) + s^T A s / 2 <= E(x0)``.
 
-Factorisations: ``jacobian="update"`` factorises ``H + a I`` once at the start of each
-step and reuses it for the step's corrections (chord iterations) while they cut the
-residual at least 4-fold; ``"frozen"`` reuses one factorisation across steps as well
-(exact for a linear network, i.e. small displacements, so a linear run factorises once).
-A step that proves nonlinear (a reused factor gives a poor correction) switches to full
-Newton, one factorisation per iteration. Very stiff springs (rods of k = 1e10 among
-k ~ 1) that must rotate during a step make Newton zig-zag along a curved valley
-(~60 iterations for a step; hence ``max_newton=200``).
+Factorisations: ``jacobian="frozen"`` keeps the last factorisation of ``H + A`` across
+iterations and steps while a correction with it (a chord iteration) cuts the net force at
+least 4-fold, and refactorises at the current state otherwise (exact for a linear network,
+i.e. small displacements, so a linear run factorises once); ``"update"`` refactorises at
+the first correction of every step. The converged state is the same, only the cost
+changes. Very stiff springs (rods of k = 1e10 among k ~ 1) that must rotate during a step
+make Newton zig-zag along a curved valley (~60 iterations for a step; hence
+``max_newton=200`` in :func:`simulate`).
+
+A displacement step of held nodes at ``t = 0`` in :func:`simulate_viscous` drives the
+dashpots by an impulse: the free nodes jump by ``-D_ff^{-1} D_fb Delta_b`` (overdamped;
+inertial: the velocity jumps by ``-D_fb Delta_b``) with the arm dashpots still. A pure
+Kelvin-Voigt network (``c = 0``) then sits at its elastic equilibrium at every ``t > 0``.
 """
 
 from __future__ import annotations
@@ -63,6 +71,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
@@ -70,12 +79,24 @@ from .constraints import Pins, pin_mask
 from .energy import (
     hessian_norm_bound,
     spring_energy,
+    spring_energy_change,
     spring_gradient,
+    spring_hessian_blocks,
 )
-from .model import SpringNetwork
-from .proximal import ProximalSolver
+from .lagrangian import pattern_for
+from .model import SpringNetwork, spring_vectors, vector_lengths
+from .spd import factor_spd
+from .viscous import Viscosity, dashpot_blocks, dashpot_force, dashpot_matrix
 
-__all__ = ["Trajectory", "relaxation_time", "settling_time", "simulate", "stability_limit"]
+__all__ = [
+    "Stepper",
+    "Trajectory",
+    "relaxation_time",
+    "settling_time",
+    "simulate",
+    "simulate_viscous",
+    "stability_limit",
+]
 
 Scheme = Literal["implicit", "newmark", "explicit"]
 _SCHEMES = ("implicit", "newmark", "explicit")
@@ -84,7 +105,7 @@ _JACOBIANS = ("update", "frozen")
 
 @dataclass(frozen=True, eq=False)
 class Trajectory:
-    """A recorded run of :func:`simulate`.
+    """A recorded run of :func:`simulate` or :func:`simulate_viscous`.
 
     Attributes
     ----------
@@ -108,7 +129,7 @@ class Trajectory:
     factorisations : int
         Sparse factorisations made (implicit schemes).
     arm : (T, n_springs) float array or None
-        Maxwell-arm lengths (:func:`~.viscous.simulate_viscous` with arms), else None.
+        Maxwell-arm lengths (:func:`simulate_viscous` with arms), else None.
     """
 
     times: NDArray[np.float64]
@@ -215,9 +236,345 @@ def stability_limit(
     return 2.0 * c / lam
 
 
-# -- the run ----------------------------------------------------------------------------------
-def _check_number(name: str, value: float, *, positive: bool = False) -> float:
-    return check.real(name, value, low=0, low_open=positive)
+# -- the stepper ------------------------------------------------------------------------------
+class _Scaled:
+    """``a I`` as a matrix for ``@``."""
+
+    def __init__(self, a: float) -> None:
+        self.a = a
+
+    def __matmul__(self, v: NDArray) -> NDArray:
+        return self.a * v
+
+
+class Stepper:
+    """Steps of a damped network (module docstring).
+
+    Built once per topology, free mask, ``dt``, dissipation and scheme; :meth:`step` takes
+    the network each time (rest lengths and stiffnesses may change between steps, as in
+    learning).
+
+    Parameters
+    ----------
+    net : SpringNetwork
+        Any network with the topology (for the sparsity pattern).
+    viscosity : Viscosity or float
+        The dissipation; a number is a node drag ``c`` alone (0 allowed with inertia).
+    free : (n_nodes, 2) bool array
+        Coordinates that move; the others follow what the caller puts in ``x_held``.
+    dt : float
+        Time step (> 0).
+    inertia : bool
+        Unit masses (True) or overdamped (False).
+    scheme : {"implicit", "newmark", "explicit"}
+        Newmark and explicit steps take node drag only.
+    tol : float
+        Each implicit step is solved to a net force ``<= tol * net.force_scale`` (or a
+        Newton correction ``<= tol * mean(L)``).
+    max_newton : int
+        Newton iterations allowed per implicit step.
+    jacobian : {"frozen", "update"}
+        Keep a factorisation across steps while it serves, or refactorise every step.
+
+    Attributes
+    ----------
+    factorisations, newton_iterations : int
+        Sparse factorisations made and Newton corrections taken, over all steps.
+    """
+
+    def __init__(
+        self,
+        net: SpringNetwork,
+        viscosity: Viscosity | float,
+        free: NDArray,
+        dt: float,
+        *,
+        inertia: bool = False,
+        scheme: Scheme = "implicit",
+        tol: float = 1e-10,
+        max_newton: int = 100,
+        jacobian: Literal["update", "frozen"] = "frozen",
+    ) -> None:
+        if scheme not in _SCHEMES:
+            raise ValueError(f"scheme must be one of {_SCHEMES}, got {scheme!r}")
+        if jacobian not in _JACOBIANS:
+            raise ValueError(f"jacobian must be one of {_JACOBIANS}, got {jacobian!r}")
+        vis = viscosity if isinstance(viscosity, Viscosity) else None
+        self.viscosity = vis
+        self.drag = vis.drag if vis else check.real("damping", viscosity, low=0)
+        self.dashpot = vis.dashpot if vis else 0.0
+        self.has_arm = vis is not None and vis.has_arm
+        if scheme != "implicit" and (self.dashpot or self.has_arm):
+            raise ValueError(f"the {scheme} scheme takes node drag only (no dashpots or arms)")
+        if not inertia and self.drag == 0 and self.dashpot == 0:
+            raise ValueError("damping must be > 0 when overdamped")
+        self.dt = dt = check.real("dt", dt, low=0, low_open=True)
+        self.free = np.asarray(free, dtype=bool)
+        self.inertia = bool(inertia)
+        self.scheme = scheme
+        self.tol = float(tol)
+        self.max_newton = int(max_newton)
+        self.jacobian = jacobian
+        mass = (4.0 if scheme == "newmark" else 1.0) / dt**2 if self.inertia else 0.0
+        self.shift = (2.0 if scheme == "newmark" else 1.0) * self.drag / dt + mass
+        self._held = ~self.free.ravel()
+        if scheme != "explicit":
+            self.pattern = pattern_for(net.springs, net.n_nodes, self.free, net.positions)
+            self.rows = self.pattern.coords
+        self._stored = None
+        self.factorisations = 0
+        self.newton_iterations = 0
+
+    # -- forces and energy, arms included -------------------------------------------------
+    def _arm_k(self, net: SpringNetwork) -> NDArray:
+        return np.full(net.n_springs, self.viscosity.arm_stiffness)
+
+    def gradient(self, net: SpringNetwork, x: NDArray, arm: NDArray | None = None) -> NDArray:
+        """``grad E`` at ``x`` (n_nodes, 2), arms included, zero on held coordinates."""
+        g = spring_gradient(x, net.springs, net.stiffness, net.rest_length)
+        if arm is not None:
+            g = g + spring_gradient(x, net.springs, self._arm_k(net), arm)
+        g.ravel()[self._held] = 0.0
+        return g
+
+    def energy(self, net: SpringNetwork, x: NDArray, arm: NDArray | None = None) -> float:
+        """Elastic energy of the springs and arms at ``x``."""
+        e = spring_energy(x, net.springs, net.stiffness, net.rest_length)
+        if arm is not None:
+            e += spring_energy(x, net.springs, self._arm_k(net), arm)
+        return e
+
+    def _step_springs(self, net: SpringNetwork, arm: NDArray | None) -> tuple[NDArray, NDArray]:
+        """Stiffness and rest length of the main spring joined with the eliminated arm."""
+        k, L = net.stiffness, net.rest_length
+        vis = self.viscosity
+        if not self.has_arm:
+            return k, L
+        g = vis.arm_dashpot / self.dt
+        k_eff = vis.arm_stiffness * g / (vis.arm_stiffness + g)
+        kc = k + k_eff
+        return kc, (k * L + k_eff * arm) / kc
+
+    def arm_update(self, arm: NDArray, lengths: NDArray) -> NDArray:
+        """``l1 = (g l0 + k2 r1) / (g + k2)``, the backward-Euler arm after a step."""
+        vis = self.viscosity
+        g = vis.arm_dashpot / self.dt
+        return (g * arm + vis.arm_stiffness * lengths) / (g + vis.arm_stiffness)
+
+    # -- one step --------------------------------------------------------------------------
+    def step(
+        self,
+        net: SpringNetwork,
+        x: NDArray,
+        *,
+        v: NDArray | None = None,
+        arm: NDArray | None = None,
+        x_held: NDArray | None = None,
+        guess: NDArray | None = None,
+        gradient: NDArray | None = None,
+        t: float | None = None,
+    ) -> tuple[NDArray, NDArray, NDArray | None]:
+        """One step from positions ``x`` (n_nodes, 2).
+
+        ``v``: velocities (inertial; default zero). ``arm``: (n_springs,) arm lengths (with
+        arms). ``x_held``: positions at the end of the step whose held coordinates are
+        imposed (default: held coordinates stay); their motion drives the dashpots.
+        ``guess``: (n_nodes, 2) first Newton iterate for the free coordinates (default
+        ``x``, inertial ``x + dt v``; a predictor such as ``2 x - x_previous`` saves
+        iterations, the converged step is the same). ``gradient``: :meth:`gradient` at
+        ``x`` if at hand (Newmark and explicit steps need it). ``t``: the step's end time,
+        for error messages.
+
+        Returns the new positions, velocities and arms. The velocities are ``(x1 - x) / dt``
+        (Newmark inertial: ``2 (x1 - x) / dt - v``; explicit: the update's velocity).
+        """
+        dt, scheme = self.dt, self.scheme
+        if self.has_arm and arm is None:
+            raise ValueError("this viscosity has Maxwell arms: pass arm (n_springs,)")
+        v0 = v if self.inertia and v is not None else np.zeros_like(x)
+        if scheme != "implicit" and gradient is None:
+            gradient = self.gradient(net, x)
+        if scheme == "explicit":
+            c = self.drag
+            v1 = v0 + dt * (-c * v0 - gradient) if self.inertia else -gradient / c
+            v1.ravel()[self._held] = 0.0
+            return x + dt * v1, v1, None
+        rows = self.rows
+        x1 = x.copy() if x_held is None else np.where(self.free, x, x_held)
+        if scheme == "newmark":  # b = a (x_hat - x), x_hat the explicit half of the step
+            b = (4.0 / dt * v0 - gradient if self.inertia else -gradient).ravel()[rows]
+        else:
+            gamma = self.dashpot
+            b = dashpot_force(x, net, gamma, (x1 - x) / dt).ravel()[rows] if gamma else 0.0
+            if self.inertia:
+                b = b + v0.ravel()[rows] / dt
+        if guess is None and self.inertia:
+            guess = x1 + dt * v0
+        y = x1 if guess is None else np.where(self.free, guess, x1)
+        kc, Lc = self._step_springs(net, arm)
+        if self.dashpot:
+            blocks = dashpot_blocks(x, net.springs, self.dashpot / dt)
+            D = self.pattern.assemble(blocks, self.shift)
+        else:  # drag (and mass) only: D = shift I, no assembly
+            D = _Scaled(self.shift)
+        where = "implicit step" if t is None else f"implicit step at t={t:g}"
+        y = self._solve(net, kc, Lc, D, x, b, y, where)
+        v1 = (y - x) / dt
+        if scheme == "newmark" and self.inertia:
+            v1 = 2.0 * v1 - v0
+        new_arm = self.arm_update(arm, net.lengths(y)) if self.has_arm else None
+        return y, v1, new_arm
+
+    def _solve(self, net, kc, Lc, D, x0, b, y, where: str) -> NDArray:
+        """Minimise ``Phi(y) = E_step(y) + s^T D s / 2 - b.s``, ``s = y - x0``, over the free
+        coordinates from ``y``: Newton with an Armijo line search; a kept factorisation
+        serves (chord iterations) while its correction cuts the net force 4-fold."""
+        springs, rows = net.springs, self.rows
+        x0_rows = x0.ravel()[rows]
+
+        def grad(z: NDArray) -> NDArray:
+            g = spring_gradient(z, springs, kc, Lc).ravel()[rows]
+            return g + D @ (z.ravel()[rows] - x0_rows) - b
+
+        force_tol = self.tol * net.force_scale
+        length_tol = self.tol * (float(np.mean(net.rest_length)) if net.n_springs else 1.0)
+        if self.jacobian == "update":
+            self._stored = None
+        g = grad(y)
+        gnorm = float(np.max(np.abs(g))) if g.size else 0.0
+        fresh = False  # self._stored was factorised at the current y
+        for _ in range(self.max_newton):
+            if gnorm <= force_tol:
+                break
+            if self._stored is None:
+                self._stored = self._factor(y, springs, kc, Lc, D, where)
+                fresh = True
+            d = -self._stored.solve(g)
+            s0 = y.ravel()[rows] - x0_rows
+            slope = float(g @ d)
+            alpha = 1.0
+            while True:
+                z = y.copy()
+                z.ravel()[rows] += alpha * d
+                gz = grad(z)
+                gnz = float(np.max(np.abs(gz)))
+                if not fresh:  # a kept factor: keep the step only if it cuts 4-fold
+                    ok = np.isfinite(gnz) and gnz <= 0.25 * gnorm
+                    break
+                s = alpha * d
+                dphi = (
+                    spring_energy_change(z, y, springs, kc, Lc)
+                    + 0.5 * float(s @ (D @ (s + 2.0 * s0)))
+                    - float(np.sum(b * s))
+                )
+                ok = np.isfinite(gnz) and (dphi <= 1e-4 * alpha * slope or gnz <= 0.5 * gnorm)
+                if ok:
+                    break
+                alpha *= 0.5
+                if alpha < 1e-12:
+                    raise RuntimeError(
+                        f"{where}: line search failed (residual {gnorm:.3e}); reduce dt"
+                    )
+            if not ok:  # refactorise here and take a Newton step
+                self._stored = self._factor(y, springs, kc, Lc, D, where)
+                fresh = True
+                continue
+            self.newton_iterations += 1
+            y, g, gnorm = z, gz, gnz
+            fresh = False
+            if alpha == 1.0 and float(np.max(np.abs(d))) <= length_tol:
+                break
+        else:
+            if gnorm > force_tol:
+                raise RuntimeError(
+                    f"{where} did not converge in {self.max_newton} Newton iterations "
+                    f"(residual {gnorm:.3e} > {force_tol:.3e}); reduce dt"
+                )
+        return y
+
+    def _factor(self, y, springs, kc, Lc, D, where: str):
+        """Factorise ``H + D`` at ``y``; if indefinite, with the tangentially clipped Hessian.
+
+        A spring compressed below its rest length has negative tangential stiffness
+        ``k (1 - L/r)`` (buckling). When that makes ``H + D`` indefinite (large ``dt``,
+        strong compression), the step uses ``k max(0, 1 - L/r)``, positive semi-definite,
+        so the correction is a descent direction of ``Phi``; the line search does the rest.
+        """
+        for clip in (False, True):
+            L = Lc
+            if clip:
+                L = np.minimum(Lc, vector_lengths(spring_vectors(y, springs)))
+            blocks = spring_hessian_blocks(y, springs, kc, L)
+            if isinstance(D, _Scaled):
+                W = self.pattern.assemble(blocks, shift=D.a)
+            else:
+                W = self.pattern.assemble(blocks) + D
+            factor = factor_spd(W, ordered=self.pattern.ordered)
+            self.factorisations += 1
+            if factor is not None:
+                return factor
+        raise RuntimeError(f"{where}: the step matrix could not be factorised")
+
+
+# -- runs -------------------------------------------------------------------------------------
+class _Frames:
+    """Recorded frames of a run (every ``record_every`` steps, the first and last)."""
+
+    def __init__(self, stepper: Stepper, net: SpringNetwork, record_every: int, n_steps: int):
+        self.stepper, self.net = stepper, net
+        self.every, self.n_steps = record_every, n_steps
+        self.t0 = time.perf_counter()
+        self.rows: list[tuple] = []
+
+    def due(self, step: int) -> bool:
+        return step % self.every == 0 or step == self.n_steps
+
+    def record(self, step, x, v, arm=None, gradient=None) -> None:
+        st = self.stepper
+        g = st.gradient(self.net, x, arm) if gradient is None else gradient
+        self.rows.append(
+            (
+                step * st.dt,
+                x.copy(),
+                v.copy(),
+                st.energy(self.net, x, arm),
+                0.5 * float(np.sum(v * v)),
+                float(np.max(np.abs(g))) if st.free.any() else 0.0,
+                time.perf_counter() - self.t0,
+                None if arm is None else arm.copy(),
+            )
+        )
+
+    def trajectory(self, scheme: str) -> Trajectory:
+        st = self.stepper
+        cols = list(zip(*self.rows))
+        arrays = [np.asarray(c) for c in cols[:7]]
+        arms = None if cols[7][0] is None else np.asarray(cols[7])
+        free = st.free.copy()
+        for a in [*arrays, arms, free]:
+            if a is not None:
+                a.setflags(write=False)
+        times, pos, vel, energy, kinetic, residual, seconds = arrays
+        return Trajectory(
+            times=times,
+            positions=pos,
+            velocities=vel,
+            energy=energy,
+            kinetic=kinetic,
+            residual=residual,
+            seconds=seconds,
+            free=free,
+            scheme=scheme,
+            dt=st.dt,
+            damping=st.drag,
+            inertia=st.inertia,
+            factorisations=st.factorisations,
+            arm=arms,
+        )
+
+
+def _n_steps(t_end: float, dt: float) -> int:
+    return max(1, int(np.ceil(t_end / dt - 1e-9)))
 
 
 def simulate(
@@ -238,7 +595,7 @@ def simulate(
     jacobian: Literal["update", "frozen"] = "update",
     max_newton: int = 200,
 ) -> Trajectory:
-    """Integrate the damped dynamics of ``net`` from ``t = 0`` to ``t_end``.
+    """Integrate the damped dynamics of ``net`` (node drag only) from ``t = 0`` to ``t_end``.
 
     Parameters
     ----------
@@ -268,17 +625,13 @@ def simulate(
         See the module docstring.
     record_every : int
         Record every this many steps (the first and last states are always recorded).
-    tol : float
-        Implicit steps: each step's equation is solved to a residual force
-        ``<= tol * net.force_scale`` (or a Newton correction ``<= tol * mean(L)``).
-    jacobian : {"update", "frozen"}
-        Implicit steps: refactorise ``H + a I`` every step, or only when needed.
-    max_newton : int
-        Newton iterations allowed per implicit step.
+    tol, jacobian, max_newton
+        Implicit steps: see :class:`Stepper`.
 
     Returns
     -------
     Trajectory
+        Overdamped runs record the drift velocity ``-grad E / c`` at each frame.
 
     Raises
     ------
@@ -288,10 +641,6 @@ def simulate(
         An implicit step that does not converge, or an explicit run that leaves its
         stability limit (springs compressed below half their rest length) or blows up.
     """
-    if scheme not in _SCHEMES:
-        raise ValueError(f"scheme must be one of {_SCHEMES}, got {scheme!r}")
-    if jacobian not in _JACOBIANS:
-        raise ValueError(f"jacobian must be one of {_JACOBIANS}, got {jacobian!r}")
     dt = _check_number("dt", dt, positive=True)
     t_end = _check_number("t_end", t_end, positive=True)
     c = _check_number("damping", damping, positive=not inertia)
@@ -304,10 +653,7 @@ def simulate(
     # every frame keeps positions, velocities and forces, (n_nodes, 2) each, and 4 scalars
     check.memory("t_end", t_end, frames * (48 * net.n_nodes + 32), f"{frames} recorded frames")
     inertia = bool(inertia)
-    t0 = time.perf_counter()
-
     x, free = _boundary(net, pinned, prescribed, clamped, x0)
-    fixed_flat = ~free.ravel()
     v = np.zeros_like(x)
     if v0 is not None:
         if not inertia:
@@ -315,20 +661,9 @@ def simulate(
         v = np.array(v0, dtype=np.float64, copy=True)
         if v.shape != x.shape or not np.all(np.isfinite(v)):
             raise ValueError(f"v0 must be a finite array of shape {x.shape}")
-        v.ravel()[fixed_flat] = 0.0
-    springs, k, L = net.springs, net.stiffness, net.rest_length
-
-    def grad(y: NDArray) -> NDArray:
-        g = spring_gradient(y, springs, k, L)
-        g.ravel()[fixed_flat] = 0.0
-        return g
-
-    G = grad(x)
-    if not inertia:
-        v = -G / c
-    acc = -c * v - G  # inertial acceleration (Newmark needs it)
-
-    if scheme == "explicit":
+        v.ravel()[~free.ravel()] = 0.0
+    explicit = scheme == "explicit"
+    if explicit:
         limit = stability_limit(net, x, damping=c, inertia=inertia)
         if dt >= limit:
             raise ValueError(
@@ -337,116 +672,110 @@ def simulate(
                 "Gershgorin bound on the stiffest node); use a smaller dt or "
                 "scheme='implicit'"
             )
-
-    solver = None
-    if scheme != "explicit":
-        a = _implicit_coefficient(scheme, inertia, dt, c)
-        solver = ProximalSolver(net, free, a, tol=tol, jacobian=jacobian, max_newton=max_newton)
-
-    n_steps = max(1, int(np.ceil(t_end / dt - 1e-9)))
-    frames: list[tuple] = []
-
-    def record(step: int, x: NDArray, v: NDArray, G: NDArray) -> None:
-        residual = float(np.max(np.abs(G))) if free.any() else 0.0
-        frames.append(
-            (
-                step * dt,
-                x.copy(),
-                v.copy(),
-                spring_energy(x, springs, k, L),
-                0.5 * float(np.sum(v * v)),
-                residual,
-                time.perf_counter() - t0,
-            )
-        )
-
-    record(0, x, v, G)
+    stepper = Stepper(
+        net, c, free, dt, inertia=inertia, scheme=scheme, tol=tol, max_newton=max_newton,
+        jacobian=jacobian,
+    )  # fmt: skip
+    G = stepper.gradient(net, x)
+    if not inertia:
+        v = -G / c
+    n_steps = _n_steps(t_end, dt)
+    run = _Frames(stepper, net, record_every, n_steps)
+    run.record(0, x, v, gradient=G)
     for step in range(1, n_steps + 1):
-        t = step * dt
-        if scheme == "explicit":
-            if inertia:
-                v = v + dt * (-c * v - G)
-            else:
-                v = -G / c
-            v.ravel()[fixed_flat] = 0.0
-            x = x + dt * v
-            G = grad(x)
-            if not np.all(np.isfinite(G)):
-                raise RuntimeError(f"explicit run blew up at t={t:g} (dt={dt:g})")
-        else:
-            x_hat = _implicit_target(scheme, inertia, x, v, acc, G, dt, c, solver.a)
-            x_new = solver.step(x + dt * v if inertia else x, x_hat, t)
-            G_new = grad(x_new)
-            if scheme == "implicit":
-                v_new = (x_new - x) / dt if inertia else -G_new / c
-            elif inertia:  # Newmark average acceleration
-                v_new = 2.0 * (x_new - x) / dt - v
-            else:
-                v_new = -G_new / c
-            v_new.ravel()[fixed_flat] = 0.0
-            acc = -c * v_new - G_new
-            x, v, G = x_new, v_new, G_new
-        if step % record_every == 0 or step == n_steps:
-            if scheme == "explicit":
+        x, v1, _ = stepper.step(net, x, v=v, gradient=G, t=step * dt)
+        G = stepper.gradient(net, x)
+        if explicit and not np.all(np.isfinite(G)):
+            raise RuntimeError(f"explicit run blew up at t={step * dt:g} (dt={dt:g})")
+        v = v1 if inertia or explicit else -G / c
+        if run.due(step):
+            if explicit:
                 limit = stability_limit(net, x, damping=c, inertia=inertia)
                 if dt >= limit:
                     raise RuntimeError(
-                        f"explicit run left its stability limit at t={t:g}: dt = {dt:g} >= "
-                        f"{limit:.4g} (springs compressed below half their rest length)"
+                        f"explicit run left its stability limit at t={step * dt:g}: dt = "
+                        f"{dt:g} >= {limit:.4g} (springs compressed below half their rest "
+                        "length)"
                     )
-            record(step, x, v, G)
-
-    times, pos, vel, energy, kinetic, residual, seconds = (np.asarray(z) for z in zip(*frames))
-    for arr in (times, pos, vel, energy, kinetic, residual, seconds):
-        arr.setflags(write=False)
-    free = free.copy()
-    free.setflags(write=False)
-    return Trajectory(
-        times=times,
-        positions=pos,
-        velocities=vel,
-        energy=energy,
-        kinetic=kinetic,
-        residual=residual,
-        seconds=seconds,
-        free=free,
-        scheme=scheme,
-        dt=dt,
-        damping=c,
-        inertia=inertia,
-        factorisations=solver.factorisations if solver is not None else 0,
-    )
+            run.record(step, x, v, gradient=G)
+    return run.trajectory(scheme)
 
 
-def _implicit_coefficient(scheme: str, inertia: bool, dt: float, c: float) -> float:
-    """``a`` in ``Phi = E + a/2 |x - x_hat|^2`` (force per length)."""
-    if scheme == "implicit":
-        return (1.0 + c * dt) / dt**2 if inertia else c / dt
-    return 4.0 / dt**2 + 2.0 * c / dt if inertia else 2.0 * c / dt
+def _check_number(name: str, value: float, *, positive: bool = False) -> float:
+    return check.real(name, value, low=0, low_open=positive)
 
 
-def _implicit_target(
-    scheme: str,
-    inertia: bool,
-    x: NDArray,
-    v: NDArray,
-    acc: NDArray,
-    G: NDArray,
-    dt: float,
-    c: float,
-    a: float,
+def _impulse(
+    net: SpringNetwork, vis: Viscosity, free: NDArray, x_before: NDArray, x_after: NDArray
 ) -> NDArray:
-    """``x_hat`` of the step from ``(x, v, acc)``; ``grad E(x1) + a (x1 - x_hat) = 0``.
+    """Free-node jump ``-D_ff^{-1} D_fb Delta_b`` of a step ``Delta_b`` of held nodes."""
+    delta = (x_after - x_before).ravel()
+    if vis.dashpot == 0 or not np.any(delta):
+        return np.zeros_like(delta)
+    D = dashpot_matrix(x_before, net, vis.dashpot) + vis.drag * sp.identity(2 * net.n_nodes)
+    D = D.tocsr()
+    f = np.flatnonzero(free.ravel())
+    h = np.flatnonzero(~free.ravel())
+    rhs = -(D[f][:, h] @ delta[h])
+    out = np.zeros_like(delta)
+    factor = factor_spd(D[f][:, f].tocsr())
+    if factor is None:
+        raise ValueError("the dashpots and drag do not hold every free coordinate (add drag)")
+    out[f] = factor.solve(rhs)
+    return out
 
-    Backward Euler: ``x_hat = x + dt v / (1 + c dt)`` (inertial), ``x`` (overdamped).
-    Newmark: ``x_hat = x + (4 v / dt + acc + c v) / a`` (inertial), ``x - grad E / a``
-    (overdamped, trapezoidal).
+
+def simulate_viscous(
+    net: SpringNetwork,
+    viscosity: Viscosity,
+    *,
+    dt: float,
+    t_end: float,
+    pinned: Pins = None,
+    prescribed: Mapping[int, ArrayLike] | None = None,
+    clamped: Mapping[int, float] | None = None,
+    x0: ArrayLike | None = None,
+    arm0: ArrayLike | None = None,
+    inertia: bool = False,
+    record_every: int = 1,
+    tol: float = 1e-10,
+) -> Trajectory:
+    """Integrate a visco-elastic network from ``t = 0`` to ``t_end`` (backward Euler).
+
+    Boundary conditions as in :func:`simulate` (held nodes stepped at ``t = 0`` with the
+    dashpot impulse, module docstring). ``arm0``: starting arm lengths (default: the
+    spring lengths at ``x0``, arms relaxed). Returns a :class:`Trajectory` whose ``arm``
+    holds the arm lengths (T, n_springs) and whose ``residual`` is the net force (springs
+    and arms) on the free coordinates.
     """
-    if scheme == "implicit":
-        return x + (dt / (1.0 + c * dt)) * v if inertia else x
+    if not isinstance(viscosity, Viscosity):
+        raise ValueError(f"viscosity must be a Viscosity, got {type(viscosity).__name__}")
+    t_end = _check_number("t_end", t_end, positive=True)
+    record_every = check.integer("record_every", record_every, low=1)
+    start = net.positions if x0 is None else np.asarray(x0, dtype=np.float64)
+    x, free = _boundary(net, pinned, prescribed, clamped, x0)
+    arm = None
+    if viscosity.has_arm:
+        arm = net.lengths(start) if arm0 is None else np.array(arm0, dtype=np.float64)
+        if arm.shape != (net.n_springs,) or not np.all(np.isfinite(arm)):
+            raise ValueError(f"arm0 must be {net.n_springs} finite lengths")
+    elif arm0 is not None:
+        raise ValueError("arm0 needs Maxwell arms (arm_stiffness > 0)")
+    stepper = Stepper(net, viscosity, free, dt, inertia=inertia, tol=tol)
+    jump = _impulse(net, viscosity, free, start, x).reshape(x.shape)
+    v = np.zeros_like(x)
     if inertia:
-        return x + (4.0 * v / dt + acc + c * v) / a
-    return x - G / a
+        v = jump  # unit masses: the impulse sets the velocity
+    else:
+        x = x + jump
+    n_steps = _n_steps(t_end, stepper.dt)
+    run = _Frames(stepper, net, record_every, n_steps)
+    run.record(0, x, v, arm)
+    for step in range(1, n_steps + 1):
+        x, v, arm = stepper.step(net, x, v=v, arm=arm, t=step * stepper.dt)
+        if run.due(step):
+            run.record(step, x, v, arm)
+    return run.trajectory("implicit")
 
 
 # -- relaxation time --------------------------------------------------------------------------

@@ -225,7 +225,7 @@ def network_modes(
     clamp; the run's rods), the pins held; the ``C``-weighted jump onto the constraint
     relaxes to the constrained equilibrium, as :func:`body_modes`. ``clamp="nodes"``: the
     source springs' end nodes are held and stepped half each way along the spring to the
-    clamp length (as :func:`~continuum_vs_network.network.viscous.simulate_viscous` holds a
+    clamp length (as :func:`~continuum_vs_network.network.dynamics.simulate_viscous` holds a
     clamp), the pins held; the free nodes jump by ``-C_ff^-1 C_fh u_h`` (none with drag
     only) and relax to ``-K_ff^-1 K_fh u_h``. The targets' strains are read.
     :func:`modal_response`'s keys (for ``clamp``), the slowest-mode times with the source

@@ -233,9 +233,9 @@ def _findings_learning(doc: Document, m, units, opt) -> None:
 
 def _unit_text(m, units, keys) -> str:
     """The eigenstrain unit the dof runs used, and where it comes from."""
-    unit = units[next(iter(keys.values()))].meta["eigenstrain_unit"]
     if m.eigenstrain_unit > 0:
-        return f"{unit:.3g} (set in the scene file)"
+        return f"{m.eigenstrain_unit:.3g} (set in the scene file)"
+    unit = units[next(iter(keys.values()))].meta["eigenstrain_unit"]
     return (
         f"{unit:.3g}, its susceptibility relative to the modulus, computed by a rule: on the "
         "coarsest mesh the first GCL step on both fields moves the eigenstrain design by the "
