@@ -157,7 +157,7 @@ def main() -> None:
         grad(warm.position).block_until_ready()
         return run, exact
 
-    from continuum_vs_network.network.kkt import sparse_solver
+    from continuum_vs_network.linalg.kkt import sparse_solver
 
     print(
         f"# bench_jaxmd: {' '.join(sys.argv[1:])}; jax-md={have_jax}; one BLAS thread; "

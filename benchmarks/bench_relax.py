@@ -28,7 +28,7 @@ symbolic analysis is dropped before the limit and before every timed run, so eac
     python benchmarks/bench_relax.py --random-rest --methods newton \
         --sparse-solvers superlu,pardiso --side /work/side/pardiso   # solvers side by side
 
-``--sparse-solvers``: the sparse factorisations (:func:`~continuum_vs_network.network.kkt.
+``--sparse-solvers``: the sparse factorisations (:func:`~continuum_vs_network.linalg.kkt.
 set_sparse_solver`) to time Newton and the limit with, each against its own limit; the
 other methods run with the first. ``--side DIR`` appends a folder holding optional
 packages (pypardiso) to ``sys.path``.
@@ -89,12 +89,12 @@ def main() -> None:
     import scipy.linalg as sla
 
     import continuum_vs_network as cvn
+    from continuum_vs_network.linalg.kkt import set_sparse_solver, sparse_solver
+    from continuum_vs_network.linalg.spd import factor_spd, sparse_lu
     from continuum_vs_network.network.builders import paper_network, triangular_lattice
     from continuum_vs_network.network.constraints import Problem
     from continuum_vs_network.network.energy import HessianPattern, spring_hessian_blocks
-    from continuum_vs_network.network.kkt import set_sparse_solver, sparse_solver
     from continuum_vs_network.network.lagrangian import pattern_for
-    from continuum_vs_network.network.spd import factor_spd, sparse_lu
 
     sizes = [int(s) for s in args.sizes.split(",") if s]
     if args.big and 100_000 not in sizes:
@@ -129,14 +129,14 @@ def main() -> None:
     def forget() -> None:
         """Drop PARDISO's kept analyses: the limit and each timed run pay their own."""
         if sparse_solver() == "pardiso":
-            from continuum_vs_network.network import pardiso
+            from continuum_vs_network.linalg import pardiso
 
             pardiso.forget()
 
     def limit(net: cvn.SpringNetwork, clamp: dict) -> tuple[dict[str, float], str]:
         """Best of --repeat seconds: ``assembly``, ``factor`` (the limit's factorisation,
         float64), ``rough`` (the factorisation Newton itself makes: float32 where accurate,
-        :func:`~continuum_vs_network.network.spd.factor_spd`) and, where the limit is the
+        :func:`~continuum_vs_network.linalg.spd.factor_spd`) and, where the limit is the
         banded Cholesky, ``superlu`` (SuperLU in nested-dissection order, the package's
         factorisation above the band sizes and the issue's limit when it was written);
         and the name of the factorisation used.

@@ -15,7 +15,7 @@ Solvers (each one must also say whether the matrix is positive definite: Newton 
 * ``superlu-<spec>``: SuperLU on the unordered rows with its own ``permc_spec``.
 * ``pardiso-chol``: MKL PARDISO through ``pypardiso``, ``mtype=2`` (Cholesky: fails unless
   ``W > 0``), METIS ordering, analysis and factorisation; optional.
-* ``pardiso-kept``: the package's PARDISO path (``network/pardiso.py``): the analysis of the
+* ``pardiso-kept``: the package's PARDISO path (``linalg/pardiso.py``): the analysis of the
   structure is kept, so a refactorisation (Newton iterations, learning steps) is numerical
   only; the first factorisation's time is printed above the table.
 * ``amg-cg``: pyamg smoothed aggregation (rigid modes as near-null space) preconditioning
@@ -57,17 +57,17 @@ def main() -> None:
     import scipy.sparse as sp
 
     import continuum_vs_network as cvn
+    from continuum_vs_network.linalg.kkt import factor_spd, set_sparse_solver, sparse_lu
     from continuum_vs_network.network.builders import triangular_lattice
     from continuum_vs_network.network.constraints import Problem
     from continuum_vs_network.network.energy import spring_hessian_blocks
-    from continuum_vs_network.network.kkt import factor_spd, set_sparse_solver, sparse_lu
     from continuum_vs_network.network.lagrangian import pattern_for
 
     set_sparse_solver("superlu")
     try:
         import pypardiso
 
-        from continuum_vs_network.network import pardiso
+        from continuum_vs_network.linalg import pardiso
     except (ImportError, OSError) as err:
         pypardiso = None
         print(f"# pypardiso not importable ({err}): skipped")

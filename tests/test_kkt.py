@@ -7,9 +7,9 @@ import pytest
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from continuum_vs_network.network import kkt as kkt_module
-from continuum_vs_network.network import spd as spd_module
-from continuum_vs_network.network.kkt import (
+from continuum_vs_network.linalg import kkt as kkt_module
+from continuum_vs_network.linalg import spd as spd_module
+from continuum_vs_network.linalg.kkt import (
     Factor,
     Inertia,
     factor_kkt,
@@ -229,7 +229,7 @@ def test_pardiso_agrees_with_superlu_and_refuses_indefinite_matrices(solver_choi
     """Solutions of both backends agree; both refuse a matrix with one negative eigenvalue;
     more live factorisations of one structure than PARDISO keeps slots still solve right."""
     pytest.importorskip("pypardiso")
-    from continuum_vs_network.network import pardiso
+    from continuum_vs_network.linalg import pardiso
 
     rng = np.random.default_rng(3)
     W = _laplacian_2d(30)

@@ -148,7 +148,7 @@ def test_learning_steps_with_float32_factorisations_match_float64_relax(monkeypa
     those of relax with float64 factorisations to its tolerance, and the chord still
     finds the states (no relax after the first step)."""
     from continuum_vs_network.learning.tasks import stern_task
-    from continuum_vs_network.network import spd
+    from continuum_vs_network.linalg import spd
     from continuum_vs_network.scenes.stern import stern_network, stern_rules
 
     monkeypatch.setattr(spd, "BAND_MAX_WORK", 0)  # SuperLU, not the banded Cholesky

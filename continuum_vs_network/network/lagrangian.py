@@ -5,7 +5,7 @@ One implementation serves every solver of the package: :func:`~.newton.newton` (
 gradients) and source sweeps.
 
 * :class:`Frame`: the order of the free coordinates in assembled matrices for one topology
-  and pin mask (fill-reducing above :data:`~.kkt.DENSE_MAX` rows), shared so that
+  and pin mask (fill-reducing above :data:`~..linalg.kkt.DENSE_MAX` rows), shared so that
   factorisations made anywhere match.
 * :func:`lagrangian_blocks` / :func:`lagrangian_hessian`: ``W = H_E + sum_c mu_c d^2 r_c +
   rho A^T A`` per spring block and assembled.
@@ -22,10 +22,10 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from ..linalg.kkt import DENSE_MAX, banded_pays, factor_spd, sparse_solver
+from ..linalg.memo import per_array
 from .constraints import Problem, dense_jacobian_pays, length_jacobian
 from .energy import HessianPattern
-from .kkt import DENSE_MAX, banded_pays, factor_spd, sparse_solver
-from .memo import per_array
 from .model import SpringNetwork, spring_vectors, vector_lengths
 from .ordering import band_order, coordinate_order, nested_dissection
 
@@ -39,11 +39,11 @@ def pattern_for(
 
     Above ``DENSE_MAX`` free coordinates the rows follow a narrow-band order
     (:func:`~.ordering.band_order`) where its band is narrow enough for the banded
-    Cholesky (:func:`~.kkt.banded_pays`, up to ~1e4 nodes on a lattice), else a
+    Cholesky (:func:`~..linalg.kkt.banded_pays`, up to ~1e4 nodes on a lattice), else a
     nested-dissection elimination order; both are computed from ``positions`` (n_nodes,
     2); ``pattern.ordered`` says so, and a band-ordered pattern keeps ``positions`` for
     its nested-dissection rows (:meth:`~.energy.HessianPattern.nested_rows`). Not with
-    PARDISO (:func:`~.kkt.sparse_solver`), which orders by METIS itself (the nested
+    PARDISO (:func:`~..linalg.kkt.sparse_solver`), which orders by METIS itself (the nested
     dissection would cost seconds at 1e5 nodes for nothing). Networks
     made with ``with_*`` share their read-only springs array, so a learning loop builds the
     pattern once.
@@ -188,7 +188,7 @@ class Frame:
 
     def factor(self, W: sp.csr_matrix, *, rough: bool = False):
         """Positive-definite factorisation of ``W`` (None when it is not); ``rough``: an
-        approximate one may serve (:func:`~.spd.factor_spd`)."""
+        approximate one may serve (:func:`~..linalg.spd.factor_spd`)."""
         return factor_spd(W, ordered=self.ordered, rough=rough)
 
 

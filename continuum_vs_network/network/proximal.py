@@ -12,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..linalg.spd import factor_spd
 from .energy import spring_energy_change, spring_gradient, spring_hessian_blocks
 from .lagrangian import pattern_for
 from .model import SpringNetwork, spring_vectors
-from .spd import factor_spd
 
 __all__ = ["ProximalSolver"]
 

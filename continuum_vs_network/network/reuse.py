@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from .kkt import Factor, range_space_solve, sparse_solver
+from ..linalg.kkt import Factor, range_space_solve, sparse_solver
 
 __all__ = ["NegativeCurvature", "SolveFailed", "pcg", "projected_pcg", "reuse_budget"]
 

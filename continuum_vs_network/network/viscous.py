@@ -43,6 +43,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from ..linalg.spd import factor_spd
 from .constraints import Pins
 from .dynamics import Trajectory, _boundary
 from .energy import (
@@ -54,7 +55,6 @@ from .energy import (
 )
 from .lagrangian import pattern_for
 from .model import SpringNetwork, spring_vectors, unit_vectors, vector_lengths
-from .spd import factor_spd
 
 __all__ = [
     "Stepper",

@@ -11,8 +11,8 @@ importable (faster than SuperLU on spring-network Hessians, with half the memory
 certifies ``W > 0`` by completing. Otherwise, or with :func:`set_sparse_solver`
 ``("superlu")`` or the environment variable ``CVN_SPARSE_SOLVER=superlu``, SuperLU; or, for
 a matrix whose rows are in a narrow-band order (:func:`banded_pays`, e.g.
-:func:`~.ordering.band_order` on a network of up to ~1e4 nodes), LAPACK's banded Cholesky,
-which is faster there. A
+:func:`~continuum_vs_network.network.ordering.band_order` on a network of up to ~1e4
+nodes), LAPACK's banded Cholesky, which is faster there. A
 ``rough`` factorisation (an approximate ``W^-1`` serves: a Newton step judged by the true
 residual, a preconditioner) is made in float32 where that is accurate: the banded Cholesky
 at any size, SuperLU from ``ROUGH_MIN`` rows. The measurements behind these choices and
@@ -329,11 +329,12 @@ def factor_spd(
     ``ROUGH_MIN`` rows SuperLU, then factorise ``W`` rounded to float32 where it solves to
     ``ROUGH_RESIDUAL`` (:func:`_banded_float32`, :func:`factor_spd_or_curvature`).
     ``rung``: ``W`` is a rung of the Levenberg-Marquardt ladder
-    (:func:`~.hessian_ladder.factor_positive_model`), whose failure sends the caller to a
-    10x larger shift: a non-positive pivot of the float32 banded Cholesky is then final,
-    without the float64 factorisation (``W`` is indefinite, or within float32's rounding
-    of singular, where the step along its near-null direction is one a line search cuts;
-    the same iterations and equilibria, less time: ``docs/solver-notes.md#spd-rung``).
+    (:func:`~continuum_vs_network.network.hessian_ladder.factor_positive_model`), whose
+    failure sends the caller to a 10x larger shift: a non-positive pivot of the float32
+    banded Cholesky is then final, without the float64 factorisation (``W`` is indefinite,
+    or within float32's rounding of singular, where the step along its near-null direction
+    is one a line search cuts; the same iterations and equilibria, less time:
+    ``docs/solver-notes.md#spd-rung``).
     """
     n = W.shape[0]
     if n <= DENSE_MAX:
