@@ -10,7 +10,8 @@ diagonal pivots in symmetric mode, natural order on the nested-dissection rows).
 
 Solvers (each one must also say whether the matrix is positive definite: Newton needs it):
 
-* ``superlu-nd``: the package's path (``kkt.factor_spd(W, ordered=True)``): the positive
+* ``superlu-nd``: the package's path (``kkt.factor_spd(W, ordered=True,
+  sparse_solver="superlu")``): the positive
   ``U`` diagonal with symmetric pivots proves ``W > 0``.
 * ``superlu-<spec>``: SuperLU on the unordered rows with its own ``permc_spec``.
 * ``pardiso-chol``: MKL PARDISO through ``pypardiso``, ``mtype=2`` (Cholesky: fails unless
@@ -57,13 +58,12 @@ def main() -> None:
     import scipy.sparse as sp
 
     import continuum_vs_network as cvn
-    from continuum_vs_network.linalg.kkt import factor_spd, set_sparse_solver, sparse_lu
+    from continuum_vs_network.linalg.kkt import factor_spd, sparse_lu
     from continuum_vs_network.network.builders import triangular_lattice
     from continuum_vs_network.network.constraints import Problem
     from continuum_vs_network.network.energy import spring_hessian_blocks
     from continuum_vs_network.network.lagrangian import pattern_for
 
-    set_sparse_solver("superlu")
     try:
         import pypardiso
 
@@ -113,7 +113,7 @@ def main() -> None:
         def err_of(sol) -> float:
             return float(np.linalg.norm(W @ sol - b) / np.linalg.norm(b))
 
-        f, tf = best(lambda: factor_spd(W, ordered=True), repeat)
+        f, tf = best(lambda: factor_spd(W, ordered=True, sparse_solver="superlu"), repeat)
         lu = sparse_lu(W, ordering="NATURAL")
         mb = (lu.L.nnz + lu.U.nnz) * 12 / 1e6
         sol, ts = best(lambda: f.solve(b), repeat)
@@ -145,17 +145,17 @@ def main() -> None:
             rows.append(("pardiso-chol", tf, ts, mb, True, err_of(sol)))
             solver.free_memory(everything=True)
             # the package's path: METIS analysis kept per structure, refactorisations numeric
-            set_sparse_solver("pardiso")
             pardiso.forget()
-            f, t_first = best(lambda: (pardiso.forget(), factor_spd(W))[1], 1)
-            f, tf = best(lambda: factor_spd(W), repeat)
+            f, t_first = best(
+                lambda: (pardiso.forget(), factor_spd(W, sparse_solver="pardiso"))[1], 1
+            )
+            f, tf = best(lambda: factor_spd(W, sparse_solver="pardiso"), repeat)
             sol, ts = best(lambda: f.solve(b), repeat)
             rows.append(("pardiso-kept", tf, ts, float("nan"), f is not None, err_of(sol)))
             print(
                 f"# N={net.n_nodes}: package PARDISO first factorisation (with analysis) "
                 f"{t_first:.4f} s, refactorisation {tf:.4f} s"
             )
-            set_sparse_solver("superlu")
         if pyamg is not None:
             coords = pattern.coords
             xs = x.ravel()[coords]
