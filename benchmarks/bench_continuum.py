@@ -36,7 +36,7 @@ from continuum_vs_network.continuum.materials import Material
 from continuum_vs_network.continuum.mesh import annulus_mesh, rectangle_mesh
 from continuum_vs_network.continuum.static import factorise, fix
 from continuum_vs_network.continuum.viscoelastic import Damping, simulate_body
-from continuum_vs_network.network.spd import fixed_vector
+from continuum_vs_network.linalg.spd import fixed_vector
 
 
 def _best(fn, repeat: int):

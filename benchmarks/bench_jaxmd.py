@@ -157,12 +157,12 @@ def main() -> None:
         grad(warm.position).block_until_ready()
         return run, exact
 
-    from continuum_vs_network.network.kkt import sparse_solver
+    from continuum_vs_network.linalg.kkt import sparse_backend
 
     print(
         f"# bench_jaxmd: {' '.join(sys.argv[1:])}; jax-md={have_jax}; one BLAS thread; "
         f"CPUs {sorted(os.sched_getaffinity(0)) if cpus else 'not pinned'}; "
-        f"median of {args.repeat}; sparse solver {sparse_solver()}"
+        f"median of {args.repeat}; sparse solver {sparse_backend()}"
     )
     print(
         f"{'N':>6} {'S':>5} {'method':>8} {'seconds':>9} {'iters':>7} {'us/iter':>8} {'exact':>7}"

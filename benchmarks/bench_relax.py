@@ -28,9 +28,11 @@ symbolic analysis is dropped before the limit and before every timed run, so eac
     python benchmarks/bench_relax.py --random-rest --methods newton \
         --sparse-solvers superlu,pardiso --side /work/side/pardiso   # solvers side by side
 
-``--sparse-solvers``: the sparse factorisations (:func:`~continuum_vs_network.network.kkt.
-set_sparse_solver`) to time Newton and the limit with, each against its own limit; the
-other methods run with the first. ``--side DIR`` appends a folder holding optional
+``--sparse-solvers``: the sparse factorisations (``sparse_solver``,
+:data:`~continuum_vs_network.linalg.kkt.SPARSE_SOLVERS`) to time Newton and the limit with,
+each against its own limit; the other methods run with the first. ``relax`` takes no
+``sparse_solver`` argument yet, so for SuperLU this benchmark hides pypardiso from
+``"auto"`` (its ``use``). ``--side DIR`` appends a folder holding optional
 packages (pypardiso) to ``sys.path``.
 
 BLAS is pinned to one thread (``--blas-threads``) before numpy is imported: on a shared
@@ -89,12 +91,13 @@ def main() -> None:
     import scipy.linalg as sla
 
     import continuum_vs_network as cvn
+    from continuum_vs_network.linalg import spd
+    from continuum_vs_network.linalg.kkt import sparse_backend
+    from continuum_vs_network.linalg.spd import factor_spd, sparse_lu
     from continuum_vs_network.network.builders import paper_network, triangular_lattice
     from continuum_vs_network.network.constraints import Problem
     from continuum_vs_network.network.energy import HessianPattern, spring_hessian_blocks
-    from continuum_vs_network.network.kkt import set_sparse_solver, sparse_solver
     from continuum_vs_network.network.lagrangian import pattern_for
-    from continuum_vs_network.network.spd import factor_spd, sparse_lu
 
     sizes = [int(s) for s in args.sizes.split(",") if s]
     if args.big and 100_000 not in sizes:
@@ -126,17 +129,26 @@ def main() -> None:
             net = net.with_rest_length(net.rest_length * rng.uniform(0.9, 1.1, net.n_springs))
         return net
 
+    def use(solver: str) -> None:
+        """Make ``sparse_solver="auto"`` (relax's, everywhere) mean ``solver``: SuperLU by
+        hiding pypardiso; PARDISO only where it imports (else ImportError)."""
+        spd._PARDISO.clear()
+        if solver == "superlu":
+            spd._PARDISO["module"] = False
+        elif sparse_backend(solver) != sparse_backend():
+            raise ImportError(f"sparse solver {solver!r} is not what 'auto' chooses here")
+
     def forget() -> None:
         """Drop PARDISO's kept analyses: the limit and each timed run pay their own."""
-        if sparse_solver() == "pardiso":
-            from continuum_vs_network.network import pardiso
+        if sparse_backend() == "pardiso":
+            from continuum_vs_network.linalg import pardiso
 
             pardiso.forget()
 
     def limit(net: cvn.SpringNetwork, clamp: dict) -> tuple[dict[str, float], str]:
         """Best of --repeat seconds: ``assembly``, ``factor`` (the limit's factorisation,
         float64), ``rough`` (the factorisation Newton itself makes: float32 where accurate,
-        :func:`~continuum_vs_network.network.spd.factor_spd`) and, where the limit is the
+        :func:`~continuum_vs_network.linalg.spd.factor_spd`) and, where the limit is the
         banded Cholesky, ``superlu`` (SuperLU in nested-dissection order, the package's
         factorisation above the band sizes and the issue's limit when it was written);
         and the name of the factorisation used.
@@ -176,11 +188,11 @@ def main() -> None:
             if rows is not None:
                 nested = W[rows][:, rows]
                 timed("superlu", lambda M=nested: sparse_lu(M, ordering="NATURAL"))
-            if rows is not None and sparse_solver() != "pardiso":  # banded: the floor's parts
+            if rows is not None and sparse_backend() != "pardiso":  # banded: the floor's parts
                 f.precondition(b)  # its float32 copy is made at the first use, not timed
                 timed("dpbtrs", lambda f=f: f.solve(b))
                 timed("spbtrs", lambda f=f: f.precondition(b))
-        used = ("banded Cholesky" if rows is not None else sparse_solver()) + ", " + where
+        used = ("banded Cholesky" if rows is not None else sparse_backend()) + ", " + where
         return best, used
 
     def floor(net, clamp: dict, best: dict[str, float]) -> tuple[float, str]:
@@ -289,7 +301,7 @@ def main() -> None:
                 clamp[second] = float(net.clamp_length(second, -strain / 4))
             times: dict[str, float] = {}
             for which, (solver, tag) in enumerate(zip(solvers, tags, strict=True)):
-                set_sparse_solver(solver)
+                use(solver)
                 best, factorisation = limit(net, clamp)
                 for name in ("factor", "rough", "superlu"):
                     if name in best:
@@ -311,7 +323,7 @@ def main() -> None:
                         f"{times['floor' + tag]:>9.4f} {'':>7} {'':>11}  {parts}, each at "
                         "the limit's time"
                     )
-            set_sparse_solver(solvers[0])
+            use(solvers[0])
             summary.append((net.n_nodes, strain, times))
 
     print(

@@ -10,14 +10,21 @@ diagonal pivots in symmetric mode, natural order on the nested-dissection rows).
 
 Solvers (each one must also say whether the matrix is positive definite: Newton needs it):
 
-* ``superlu-nd``: the package's path (``kkt.factor_spd(W, ordered=True)``): the positive
+* ``superlu-nd``: the package's path (``kkt.factor_spd(W, ordered=True,
+  sparse_solver="superlu")``): the positive
   ``U`` diagonal with symmetric pivots proves ``W > 0``.
 * ``superlu-<spec>``: SuperLU on the unordered rows with its own ``permc_spec``.
 * ``pardiso-chol``: MKL PARDISO through ``pypardiso``, ``mtype=2`` (Cholesky: fails unless
   ``W > 0``), METIS ordering, analysis and factorisation; optional.
-* ``pardiso-kept``: the package's PARDISO path (``network/pardiso.py``): the analysis of the
+* ``pardiso-kept``: the package's PARDISO path (``linalg/pardiso.py``): the analysis of the
   structure is kept, so a refactorisation (Newton iterations, learning steps) is numerical
   only; the first factorisation's time is printed above the table.
+* ``cholmod-kept``: CHOLMOD's supernodal Cholesky through ``scikit-sparse`` (fails unless
+  ``W > 0``; its simplicial mode is an LDL^T that does not), ordering by its default (AMD
+  or METIS, the better), the analysis kept: a refactorisation is numerical only; the first
+  factorisation's time is printed above the table; optional (it needs SuiteSparse's
+  CHOLMOD; scikit-sparse 0.5 needs SuiteSparse 7, 0.4.16 builds on SuiteSparse 5). Its
+  supernodal speed depends on the BLAS that CHOLMOD links (reference BLAS is slow).
 * ``amg-cg``: pyamg smoothed aggregation (rigid modes as near-null space) preconditioning
   CG to a relative residual ``--rtol``; optional. Set-up is its "factorisation", the CG
   solve its solve. No positive-definiteness proof (CG only detects negative curvature it
@@ -57,20 +64,24 @@ def main() -> None:
     import scipy.sparse as sp
 
     import continuum_vs_network as cvn
+    from continuum_vs_network.linalg.kkt import factor_spd, sparse_lu
     from continuum_vs_network.network.builders import triangular_lattice
     from continuum_vs_network.network.constraints import Problem
     from continuum_vs_network.network.energy import spring_hessian_blocks
-    from continuum_vs_network.network.kkt import factor_spd, set_sparse_solver, sparse_lu
     from continuum_vs_network.network.lagrangian import pattern_for
 
-    set_sparse_solver("superlu")
     try:
         import pypardiso
 
-        from continuum_vs_network.network import pardiso
+        from continuum_vs_network.linalg import pardiso
     except (ImportError, OSError) as err:
         pypardiso = None
         print(f"# pypardiso not importable ({err}): skipped")
+    try:
+        from sksparse import cholmod
+    except ImportError:
+        cholmod = None
+        print("# scikit-sparse (CHOLMOD) not importable: skipped")
     try:
         import pyamg
     except ImportError:
@@ -113,7 +124,7 @@ def main() -> None:
         def err_of(sol) -> float:
             return float(np.linalg.norm(W @ sol - b) / np.linalg.norm(b))
 
-        f, tf = best(lambda: factor_spd(W, ordered=True), repeat)
+        f, tf = best(lambda: factor_spd(W, ordered=True, sparse_solver="superlu"), repeat)
         lu = sparse_lu(W, ordering="NATURAL")
         mb = (lu.L.nnz + lu.U.nnz) * 12 / 1e6
         sol, ts = best(lambda: f.solve(b), repeat)
@@ -145,17 +156,29 @@ def main() -> None:
             rows.append(("pardiso-chol", tf, ts, mb, True, err_of(sol)))
             solver.free_memory(everything=True)
             # the package's path: METIS analysis kept per structure, refactorisations numeric
-            set_sparse_solver("pardiso")
             pardiso.forget()
-            f, t_first = best(lambda: (pardiso.forget(), factor_spd(W))[1], 1)
-            f, tf = best(lambda: factor_spd(W), repeat)
+            f, t_first = best(
+                lambda: (pardiso.forget(), factor_spd(W, sparse_solver="pardiso"))[1], 1
+            )
+            f, tf = best(lambda: factor_spd(W, sparse_solver="pardiso"), repeat)
             sol, ts = best(lambda: f.solve(b), repeat)
             rows.append(("pardiso-kept", tf, ts, float("nan"), f is not None, err_of(sol)))
             print(
                 f"# N={net.n_nodes}: package PARDISO first factorisation (with analysis) "
                 f"{t_first:.4f} s, refactorisation {tf:.4f} s"
             )
-            set_sparse_solver("superlu")
+        if cholmod is not None:
+            Wc = sp.csc_matrix(W)
+            f, t_first = best(lambda: cholmod.cholesky(Wc, mode="supernodal"), 1)
+            analysis = cholmod.analyze(Wc, mode="supernodal")
+            f, tf = best(lambda: analysis.cholesky(Wc), repeat)
+            sol, ts = best(lambda: f(b), repeat)
+            mb = f.L().nnz * 12 / 1e6
+            rows.append(("cholmod-kept", tf, ts, mb, True, err_of(sol)))
+            print(
+                f"# N={net.n_nodes}: CHOLMOD first factorisation (with analysis) "
+                f"{t_first:.4f} s, refactorisation {tf:.4f} s"
+            )
         if pyamg is not None:
             coords = pattern.coords
             xs = x.ravel()[coords]

@@ -33,7 +33,8 @@ class _TrackedLU:
 def superlu_lifetimes(monkeypatch):
     """SuperLU everywhere (no banded Cholesky), its factorisations followed: ``made``, the
     number made, and ``most``, the most alive at once (reachable, counted as each is made)."""
-    from continuum_vs_network.network import lagrangian, spd
+    from continuum_vs_network.linalg import spd
+    from continuum_vs_network.network import lagrangian
 
     monkeypatch.setattr(spd, "banded_pays", lambda n, width: False)
     monkeypatch.setattr(lagrangian, "banded_pays", lambda n, width: False)

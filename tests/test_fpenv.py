@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from continuum_vs_network.network import fpenv
+from continuum_vs_network.linalg import fpenv
 
 
 def _subnormal_product() -> np.float32:

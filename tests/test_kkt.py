@@ -7,27 +7,17 @@ import pytest
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from continuum_vs_network.network import kkt as kkt_module
-from continuum_vs_network.network import spd as spd_module
-from continuum_vs_network.network.kkt import (
+from continuum_vs_network.linalg import kkt as kkt_module
+from continuum_vs_network.linalg import spd as spd_module
+from continuum_vs_network.linalg.kkt import (
     Factor,
     Inertia,
     factor_kkt,
     factor_spd,
     factor_spd_or_curvature,
     schur_solve,
-    set_sparse_solver,
-    sparse_solver,
+    sparse_backend,
 )
-
-
-@pytest.fixture
-def solver_choice():
-    """Restores the sparse solver choice after a test that changes it."""
-    previous = set_sparse_solver("auto")
-    set_sparse_solver(previous)
-    yield
-    set_sparse_solver(previous)
 
 
 def _laplacian_2d(side: int) -> sp.csr_matrix:
@@ -131,43 +121,45 @@ def test_schur_reuse_for_a_subset_of_rows_matches_a_fresh_factorisation():
     np.testing.assert_allclose(A[rows] @ x, c, atol=1e-10)
 
 
-def test_uncertified_factor_solves_the_same_but_does_not_detect_indefiniteness(solver_choice):
-    set_sparse_solver("superlu")  # PARDISO's Cholesky always certifies
+def test_uncertified_factor_solves_the_same_but_does_not_detect_indefiniteness():
     W = _laplacian_2d(22).tolil()
     b = np.arange(W.shape[0], dtype=float)
-    spd = factor_spd(W.tocsr(), certify=False)
-    np.testing.assert_allclose(spd.solve(b), factor_spd(W.tocsr()).solve(b), rtol=1e-12)
+    spd = factor_spd(W.tocsr(), certify=False, sparse_solver="superlu")
+    np.testing.assert_allclose(
+        spd.solve(b), factor_spd(W.tocsr(), sparse_solver="superlu").solve(b), rtol=1e-12
+    )
     W[0, 0] = -5.0  # one negative eigenvalue
-    assert factor_spd(W.tocsr()) is None
-    assert factor_spd(W.tocsr(), certify=False) is not None
+    assert factor_spd(W.tocsr(), sparse_solver="superlu") is None
+    assert factor_spd(W.tocsr(), certify=False, sparse_solver="superlu") is not None
 
 
-def test_a_rough_factor_is_float32_from_its_size_and_still_refuses_indefinite_w(
-    solver_choice, monkeypatch
-):
+def test_a_rough_factor_is_float32_from_its_size_and_still_refuses_indefinite_w(monkeypatch):
     """``rough=True`` from ROUGH_MIN rows: SuperLU in float32, whose solution is off by
     float32 round-off times the condition number (not float64's); below, the float64
     factor. Like the float64 one it refuses a W with a negative eigenvalue."""
-    set_sparse_solver("superlu")
     side = 40
     rng = np.random.default_rng(0)
     order = rng.permutation(side * side)
     W = _laplacian_2d(side)[order][:, order].tocsr()  # a wide band: SuperLU, not banded
     b = rng.standard_normal(W.shape[0])
-    exact = factor_spd(W).solve(b)
+    exact = factor_spd(W, sparse_solver="superlu").solve(b)
     monkeypatch.setattr(spd_module, "ROUGH_MIN", W.shape[0] + 1)
-    np.testing.assert_array_equal(factor_spd(W, rough=True).solve(b), exact)
+    np.testing.assert_array_equal(
+        factor_spd(W, rough=True, sparse_solver="superlu").solve(b), exact
+    )
     monkeypatch.setattr(spd_module, "ROUGH_MIN", W.shape[0])
-    _assert_float32_solution(factor_spd(W, rough=True).solve(b), exact, side)
+    _assert_float32_solution(
+        factor_spd(W, rough=True, sparse_solver="superlu").solve(b), exact, side
+    )
     bad = _with_a_negative_pivot(W)
-    assert factor_spd(bad, rough=True) is None
+    assert factor_spd(bad, rough=True, sparse_solver="superlu") is None
     # a direction of negative curvature off the float32 factor proves it: no float64 one
     dtypes = []
     superlu = spd_module.sparse_lu
     monkeypatch.setattr(
         spd_module, "sparse_lu", lambda M, **kw: dtypes.append(M.dtype) or superlu(M, **kw)
     )
-    factor, directions = factor_spd_or_curvature(bad, rough=True)
+    factor, directions = factor_spd_or_curvature(bad, rough=True, sparse_solver="superlu")
     assert factor is None and dtypes == [np.float32]
     assert np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
     # float64 only: a diagonal over eight decades (not tried in float32); a nearly floating
@@ -176,9 +168,11 @@ def test_a_rough_factor_is_float32_from_its_size_and_still_refuses_indefinite_w(
     for weights, ground in ((decades, 1.0), (np.ones_like(decades), 1e-9)):
         M = _weighted_grid_laplacian(side, weights, ground)[order][:, order].tocsr()
         dtypes.clear()
-        factor = factor_spd(M, rough=True)
+        factor = factor_spd(M, rough=True, sparse_solver="superlu")
         assert dtypes[-1] == np.float64 and len(dtypes) == (1 if ground == 1.0 else 2)
-        np.testing.assert_array_equal(factor.solve(b), factor_spd(M).solve(b))
+        np.testing.assert_array_equal(
+            factor.solve(b), factor_spd(M, sparse_solver="superlu").solve(b)
+        )
 
 
 def _assert_float32_solution(solution: NDArray, exact: NDArray, side: int) -> None:
@@ -214,49 +208,54 @@ def _weighted_grid_laplacian(side: int, weights: NDArray, ground: float) -> sp.c
     return (D.T @ sp.diags(weights) @ D + tie).tocsr()
 
 
-def test_sparse_solver_choice_is_checked(solver_choice):
-    with pytest.raises(ValueError, match="name must be one of"):
-        set_sparse_solver("umfpack")
-    assert set_sparse_solver("superlu") in spd_module.SPARSE_SOLVERS
-    assert sparse_solver() == "superlu"
-    set_sparse_solver("pardiso")
-    if spd_module._pardiso() is None:
+def test_sparse_solver_choice_is_checked():
+    """The ``sparse_solver`` argument: a name of SPARSE_SOLVERS (checked at every size),
+    "auto" meaning PARDISO where pypardiso imports and SuperLU elsewhere."""
+    with pytest.raises(ValueError, match="sparse_solver must be one of"):
+        sparse_backend("umfpack")
+    with pytest.raises(ValueError, match="sparse_solver must be one of"):
+        factor_spd(np.eye(3), sparse_solver="umfpack")
+    with pytest.raises(ValueError, match="sparse_solver must be one of"):
+        factor_kkt(_laplacian_2d(22), sparse_solver="umfpack")
+    assert sparse_backend("superlu") == "superlu"
+    have_pardiso = spd_module._pardiso() is not None
+    assert sparse_backend() == sparse_backend("auto") == ("pardiso" if have_pardiso else "superlu")
+    if not have_pardiso:
         with pytest.raises(ImportError, match="pypardiso"):
-            factor_spd(_laplacian_2d(22))
+            factor_spd(_laplacian_2d(22), sparse_solver="pardiso")
 
 
-def test_pardiso_agrees_with_superlu_and_refuses_indefinite_matrices(solver_choice):
+def test_pardiso_agrees_with_superlu_and_refuses_indefinite_matrices():
     """Solutions of both backends agree; both refuse a matrix with one negative eigenvalue;
     more live factorisations of one structure than PARDISO keeps slots still solve right."""
     pytest.importorskip("pypardiso")
-    from continuum_vs_network.network import pardiso
+    from continuum_vs_network.linalg import pardiso
 
     rng = np.random.default_rng(3)
     W = _laplacian_2d(30)
     B = rng.standard_normal((W.shape[0], 2))
-    set_sparse_solver("superlu")
-    reference = factor_spd(W).solve(B)
-    set_sparse_solver("pardiso")
-    np.testing.assert_allclose(factor_spd(W).solve(B), reference, rtol=1e-10)
+    reference = factor_spd(W, sparse_solver="superlu").solve(B)
+    np.testing.assert_allclose(
+        factor_spd(W, sparse_solver="pardiso").solve(B), reference, rtol=1e-10
+    )
     bad = W.tolil()
     bad[7, 7] = -1.0
-    assert factor_spd(bad.tocsr()) is None
+    assert factor_spd(bad.tocsr(), sparse_solver="pardiso") is None
     shifted = [W + s * sp.identity(W.shape[0], format="csr") for s in range(pardiso.MAXFCT + 3)]
-    factors = [factor_spd(M) for M in shifted]
+    factors = [factor_spd(M, sparse_solver="pardiso") for M in shifted]
     for M, f in zip(shifted, factors, strict=True):
         np.testing.assert_allclose(M @ f.solve(B), B, atol=1e-9)
 
 
-def test_failed_factorisation_returns_directions_of_negative_curvature(solver_choice):
-    set_sparse_solver("superlu")
+def test_failed_factorisation_returns_directions_of_negative_curvature():
     W = _laplacian_2d(22).tolil()
-    factor, directions = factor_spd_or_curvature(W.tocsr())
+    factor, directions = factor_spd_or_curvature(W.tocsr(), sparse_solver="superlu")
     assert factor is not None and directions is None
     b = np.arange(W.shape[0], dtype=float)
     np.testing.assert_allclose(W.tocsr() @ factor.solve(b), b, rtol=1e-9, atol=1e-9)
     W[100, 100] = -3.0  # indefinite: Rayleigh quotient of e_100 is negative
     W = W.tocsr()
-    factor, directions = factor_spd_or_curvature(W)
+    factor, directions = factor_spd_or_curvature(W, sparse_solver="superlu")
     assert factor is None
     assert directions is not None and directions.shape[0] == W.shape[0]
     curvature = np.einsum("ij,ij->j", directions, W @ directions)
@@ -267,34 +266,34 @@ def test_failed_factorisation_returns_directions_of_negative_curvature(solver_ch
     assert np.all(lowest <= curvature / norms + 1e-12)
 
 
-def test_banded_cholesky_matches_superlu_and_refuses_an_indefinite_band(solver_choice):
+def test_banded_cholesky_matches_superlu_and_refuses_an_indefinite_band():
     """A narrow-band W (a grid Laplacian in natural order, bandwidth = side) goes to the
     banded Cholesky: same solution as SuperLU to round-off; one negative eigenvalue and
     it returns None, and factor_spd_or_curvature still finds the negative direction."""
-    set_sparse_solver("superlu")
     W = _laplacian_2d(24)  # 576 unknowns, lower bandwidth 24
     assert kkt_module.banded_pays(W.shape[0], 24)
     assert not kkt_module.banded_pays(W.shape[0], W.shape[0] - 1)  # an unordered matrix
     b = np.sin(np.arange(W.shape[0], dtype=float))
     lu = kkt_module.sparse_lu(W, ordering="NATURAL")
-    np.testing.assert_allclose(factor_spd(W).solve(b), lu.solve(b), rtol=1e-11)
+    np.testing.assert_allclose(
+        factor_spd(W, sparse_solver="superlu").solve(b), lu.solve(b), rtol=1e-11
+    )
     bad = W.tolil()
     bad[300, 300] = -3.0
     bad = bad.tocsr()
-    assert factor_spd(bad) is None
+    assert factor_spd(bad, sparse_solver="superlu") is None
     assert np.linalg.eigvalsh(bad.toarray())[0] < 0
-    factor, directions = factor_spd_or_curvature(bad)
+    factor, directions = factor_spd_or_curvature(bad, sparse_solver="superlu")
     assert factor is None and directions is not None
     assert np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
 
 
-def test_the_kept_band_layout_follows_each_matrix_structure(solver_choice):
+def test_the_kept_band_layout_follows_each_matrix_structure():
     """The banded Cholesky keeps where a structure's entries go in the band, per
     ``indptr``. A grid whose vertical edges are twisted by one column has the grid's row
     counts (the same ``indptr``) but other columns; it, the grid again and a copy of the
     grid with every entry stored twice (not canonical) each solve their own system, to
     float64 and float32 round-off, against dense solves."""
-    set_sparse_solver("superlu")
     side = 24
     n = side * side
     ids = np.arange(n).reshape(side, side)
@@ -318,33 +317,32 @@ def test_the_kept_band_layout_follows_each_matrix_structure(solver_choice):
     assert not doubled.has_canonical_format
     b = np.sin(np.arange(n, dtype=float))
     for matrix in (grid, twisted, grid, doubled, twisted):
-        assert factor_spd(matrix, certify=True) is not None
+        assert factor_spd(matrix, certify=True, sparse_solver="superlu") is not None
         exact = np.linalg.solve(matrix.toarray(), b)
-        np.testing.assert_allclose(factor_spd(matrix).solve(b), exact, rtol=1e-10)
-        rough = factor_spd(matrix, rough=True)
+        np.testing.assert_allclose(
+            factor_spd(matrix, sparse_solver="superlu").solve(b), exact, rtol=1e-10
+        )
+        rough = factor_spd(matrix, rough=True, sparse_solver="superlu")
         assert rough.approximate
         error = np.linalg.norm(rough.solve(b) - exact) / np.linalg.norm(exact)
         assert 1e-12 < error < 1e-5
 
 
-def test_a_rough_banded_factor_is_float32_and_still_refuses_indefinite_w(
-    solver_choice, monkeypatch
-):
+def test_a_rough_banded_factor_is_float32_and_still_refuses_indefinite_w(monkeypatch):
     """``rough=True`` on a narrow band: LAPACK's Cholesky in float32, its solution off by
     float32 round-off times the condition number; a negative eigenvalue is refused and its
     direction still found. A diagonal over eight decades, or a condition number float32
     cannot solve to ROUGH_RESIDUAL (a grid grounded by 1e-9), gets the float64 factor."""
-    set_sparse_solver("superlu")
     side = 24
     W = _laplacian_2d(side)  # natural order: lower bandwidth 24
     b = np.sin(np.arange(W.shape[0], dtype=float))
-    exact = factor_spd(W).solve(b)
-    rough = factor_spd(W, rough=True)
+    exact = factor_spd(W, sparse_solver="superlu").solve(b)
+    rough = factor_spd(W, rough=True, sparse_solver="superlu")
     _assert_float32_solution(rough.solve(b), exact, side)
     np.testing.assert_array_equal(rough.precondition(b), rough.solve(b))
     bad = _with_a_negative_pivot(W)
-    assert factor_spd(bad, rough=True) is None
-    factor, directions = factor_spd_or_curvature(bad, rough=True)
+    assert factor_spd(bad, rough=True, sparse_solver="superlu") is None
+    factor, directions = factor_spd_or_curvature(bad, rough=True, sparse_solver="superlu")
     assert factor is None and np.all(np.einsum("ij,ij->j", directions, bad @ directions) < 0)
     calls = []
     float32 = spd_module._banded_float32
@@ -355,12 +353,14 @@ def test_a_rough_banded_factor_is_float32_and_still_refuses_indefinite_w(
     for weights, ground, tried in ((decades, 1.0, 0), (np.ones_like(decades), 1e-9, 1)):
         calls.clear()
         M = _weighted_grid_laplacian(side, weights, ground)
-        factor = factor_spd(M, rough=True)
+        factor = factor_spd(M, rough=True, sparse_solver="superlu")
         assert len(calls) == tried and not any(calls)  # not tried, or tried and refused
-        np.testing.assert_array_equal(factor.solve(b), factor_spd(M).solve(b))
+        np.testing.assert_array_equal(
+            factor.solve(b), factor_spd(M, sparse_solver="superlu").solve(b)
+        )
 
 
-def test_a_ladder_rung_takes_a_failed_float32_pivot_as_final(monkeypatch, solver_choice):
+def test_a_ladder_rung_takes_a_failed_float32_pivot_as_final(monkeypatch):
     """2x2 blocks [[1, 1 - 1e-9], [1 - 1e-9, 1]] are positive definite (eigenvalue 1e-9)
     but singular in float32 (1 - 1e-9 rounds to 1: a zero pivot). A rough factorisation
     falls back to float64 and succeeds; as a rung of the Levenberg-Marquardt ladder
@@ -368,24 +368,25 @@ def test_a_ladder_rung_takes_a_failed_float32_pivot_as_final(monkeypatch, solver
     gets its float32 factor, and an inaccurate float32 factor (a pivot that passed) still
     gets the float64 one (forced: whether a given float32 factor passes its pivots but
     solves inaccurately depends on the machine's BLAS)."""
-    set_sparse_solver("superlu")
     blocks = 300  # 600 rows: above DENSE_MAX, lower bandwidth 1
     near = sp.block_diag([np.array([[1.0, 1.0 - 1e-9], [1.0 - 1e-9, 1.0]])] * blocks, "csr")
-    assert isinstance(factor_spd(near, rough=True), Factor)
+    assert isinstance(factor_spd(near, rough=True, sparse_solver="superlu"), Factor)
     calls = []
     cholesky = spd_module.sla.cholesky_banded
     monkeypatch.setattr(
         spd_module.sla, "cholesky_banded", lambda *a, **k: calls.append(1) or cholesky(*a, **k)
     )
-    assert factor_spd(near, rough=True, rung=True) is None and not calls
-    well = factor_spd(_laplacian_2d(24), rough=True, rung=True)
+    assert factor_spd(near, rough=True, rung=True, sparse_solver="superlu") is None and not calls
+    well = factor_spd(_laplacian_2d(24), rough=True, rung=True, sparse_solver="superlu")
     assert isinstance(well, Factor) and well.approximate and not calls
     monkeypatch.setattr(spd_module, "_banded_float32", lambda W, band: False)  # inaccurate
     side = 24
     grounded = _weighted_grid_laplacian(side, np.ones(2 * side * (side - 1)), 1e-9)
     b = np.sin(np.arange(side * side, dtype=float))
-    fallback = factor_spd(grounded, rough=True, rung=True)
-    assert calls and np.allclose(fallback.solve(b), factor_spd(grounded).solve(b), rtol=1e-12)
+    fallback = factor_spd(grounded, rough=True, rung=True, sparse_solver="superlu")
+    assert calls and np.allclose(
+        fallback.solve(b), factor_spd(grounded, sparse_solver="superlu").solve(b), rtol=1e-12
+    )
 
 
 def test_band_order_reports_the_assembled_bandwidth():

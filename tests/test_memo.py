@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import continuum_vs_network as cvn
-from continuum_vs_network.network import memo
+from continuum_vs_network.linalg import memo
 from continuum_vs_network.network.builders import paper_network, triangular_lattice
 
 

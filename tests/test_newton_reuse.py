@@ -7,13 +7,13 @@ import pytest
 import scipy.sparse as sp
 from pulled_lattices import pulled_apart
 
+from continuum_vs_network.linalg.kkt import Factor, factor_spd, range_space, range_space_solve
 from continuum_vs_network.network import hessian_ladder as ladder
 from continuum_vs_network.network import newton as nw
 from continuum_vs_network.network import reuse
 from continuum_vs_network.network.builders import triangular_lattice
 from continuum_vs_network.network.checks import lowest_curvature
 from continuum_vs_network.network.constraints import Problem
-from continuum_vs_network.network.kkt import Factor, factor_spd, range_space, range_space_solve
 from continuum_vs_network.network.lagrangian import lagrangian_blocks, pattern_for
 from continuum_vs_network.network.stopping import Trace
 
@@ -191,7 +191,8 @@ def test_band_order_and_banded_cholesky_follow_superlus_path(monkeypatch):
     many iterations give or take one (the directions conjugate gradients meet, and the
     shifts estimated from them, depend on the preconditioner: 9 and 8 here)."""
     import continuum_vs_network as cvn
-    from continuum_vs_network.network import lagrangian, spd
+    from continuum_vs_network.linalg import spd
+    from continuum_vs_network.network import lagrangian
 
     def build():  # a new springs array each time: a pattern of its own
         rng = np.random.default_rng(0)

@@ -110,7 +110,7 @@ class DampedStepper:
 
     def _factorise(self, medium):
         """``(factor, Z, S)`` of ``A = K + C / dt (+ arm)`` on the free DOFs."""
-        from ..network.kkt import factor_spd
+        from ..linalg.kkt import factor_spd
 
         A = medium.stiffness()[self.free][:, self.free]
         if self.C_dt is not None:
@@ -224,8 +224,8 @@ def body_relaxation_time(
     """
     import dataclasses
 
+    from ..linalg.kkt import factor_kkt
     from ..network.dynamics import settling_time
-    from ..network.kkt import factor_kkt
     from .damping import damping_matrix
 
     if measure not in ("target", "force"):

@@ -12,8 +12,8 @@ solve), and then any clamp set costs one solve for ``u0 = K^-1 f`` plus a dense 
 the size of the clamp set: ``lambda = (G_c Z_c)^-1 (G_c u0 - v)``, ``u = u0 - Z_c lambda``.
 The free state (sources clamped), the nudged and the fully clamped states and the adjoint
 all reuse the one factorisation; with eigenstrain learning ``K`` never changes, so a whole
-training run factorises once. The factorisation (:func:`~..network.kkt.factor_spd`) and the
-Schur-complement solve (:func:`~..network.kkt.schur_solve`) are the network engine's.
+training run factorises once. The factorisation (:func:`~..linalg.kkt.factor_spd`) and the
+Schur-complement solve (:func:`~..linalg.kkt.schur_solve`) are the network engine's.
 
 Adjoint: a cost ``C = d^T W d / 2`` of the free target strains ``d = G_t u^F - S_T``
 has ``dC/dtheta = p . (df/dtheta - dK/dtheta u^F)`` with
@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..network.kkt import schur_solve
+from ..linalg.kkt import schur_solve
 
 __all__ = [
     "MaterialState",
@@ -82,7 +82,7 @@ class _System:
     """Factorised stiffness of one modulus field and one task's clamps (cached)."""
 
     def __init__(self, medium, task, tracker) -> None:
-        from ..network.kkt import factor_spd
+        from ..linalg.kkt import factor_spd
         from .probes import material_spring_probe
 
         n = medium.n_dofs

@@ -25,9 +25,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
+from ..linalg.spd import sparse_lu
 from ..network.model import SpringNetwork
 
 __all__ = [
@@ -341,7 +341,8 @@ def network_moduli(
             H_ii = H[ii][:, ii].tocsc()
             H_ib = H[ii][:, bb]
             try:
-                lu = spla.splu(H_ii, permc_spec="MMD_AT_PLUS_A")
+                # partial pivoting: with pre-stress H_ii need not be positive definite
+                lu = sparse_lu(H_ii, symmetric=False)
             except RuntimeError as err:
                 raise ValueError(
                     "the interior of the network is floppy (singular Hessian); its relaxed "

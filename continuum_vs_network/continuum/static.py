@@ -25,7 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from ..network.kkt import sparse_lu
+from ..linalg.kkt import sparse_lu
 from .body import ElasticBody, dofs_where, stiffness_matrix
 
 __all__ = [

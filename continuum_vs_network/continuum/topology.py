@@ -281,7 +281,7 @@ def inverter_response(
 ) -> tuple[float, float, NDArray | None]:
     """Input and output displacements ``(u_in, u_out)`` of the inverter with ``modulus``
     (n_elements,), and ``d u_out / d s`` (n_elements,) when ``adjoint`` (else None)."""
-    from ..network.kkt import factor_spd
+    from ..linalg.kkt import factor_spd
 
     m = body.with_modulus(modulus)
     n = body.n_dofs

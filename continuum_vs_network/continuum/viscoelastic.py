@@ -49,7 +49,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
-from ..network.spd import fixed_vector
+from ..linalg.spd import fixed_vector
 from .body import ElasticBody, mass_matrix, stiffness_matrix
 from .damping import Damping, damping_matrix, lattice_damping
 from .maxwell import damping_arm

@@ -216,10 +216,10 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
     0] [v; mu] = [f; 0]`` (``f`` the original springs' and arms' force, ``G`` the rods'
     chord-strain rows).
     """
+    from ..linalg.kkt import factor_kkt
     from ..network.constraints import strain_jacobian
     from ..network.dynamics import Stepper, _boundary
     from ..network.energy import spring_gradient
-    from ..network.kkt import factor_kkt
     from ..network.strain_clamp import ROD_FACTOR, rod_clamped
     from ..network.viscous import dashpot_matrix
 

@@ -27,9 +27,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
+from ..linalg.kkt import schur_solve
 from ..network.constraints import Problem
 from ..network.equilibrium import Equilibrium
-from ..network.kkt import schur_solve
 from ..network.lagrangian import Frame, lagrangian_hessian
 from ..network.model import SpringNetwork, spring_vectors
 from .tasks import AllosteryTask, StrainReference

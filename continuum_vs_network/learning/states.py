@@ -13,7 +13,7 @@ a *chord* (modified Newton) SQP iteration on the equilibrium equations::
 with a factorisation of the augmented Lagrangian Hessian ``W = H_E + sum mu_c d2r_c +
 rho A^T A`` taken at an earlier *linearisation point* and the clamp directions
 ``Z_c = W^{-1} a_c`` cached per clamped spring (an approximate ``W^-1`` serves: ``rough``,
-float32 where accurate: :func:`~..network.spd.factor_spd`; one alive per key). One iteration costs
+float32 where accurate: :func:`~..linalg.spd.factor_spd`; one alive per key). One iteration costs
 one pair of triangular solves. Because learning changes the network little per step, the
 same factorisation serves the free state, the nudged state (its extra target clamps need
 one cached column each: the Schur-complement reuse) and many following learning steps; it
@@ -46,10 +46,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ..linalg.kkt import schur_solve
 from ..network.arguments import solver_arguments
 from ..network.constraints import Problem, clamp_tensions
 from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
-from ..network.kkt import schur_solve
 from ..network.lagrangian import Frame, lagrangian_hessian, trust_region
 from ..network.model import SpringNetwork
 

@@ -24,12 +24,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..linalg.kkt import factor_spd
+from ..linalg.memo import per_array, per_network
 from .arguments import lone_nodes
 from .constraints import Problem, clamp_tensions, length_jacobian
 from .hessian_ladder import shifted
-from .kkt import factor_spd
 from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
-from .memo import per_array, per_network
 from .model import SpringNetwork
 from .rigidity import count_zero_modes
 from .trust_model import null_basis, rigid_motions

@@ -20,11 +20,11 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .._validate import choice, index_array, real
+from ..linalg.memo import per_network
+from ..linalg.spd import DENSE_MAX
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
-from .memo import per_network
 from .model import SpringNetwork, spring_vectors, unit_vectors, vector_lengths
-from .spd import DENSE_MAX
 from .stopping import StopRule, coordinate_scale
 
 __all__ = ["Problem", "Residual", "clamp_tensions", "default_pins", "pin_mask"]
@@ -76,7 +76,7 @@ def _far_pins(net: SpringNetwork, avoid: NDArray[np.int64]) -> NDArray[np.bool_]
 
 
 def _known(net: SpringNetwork, key: object, make: Callable[[SpringNetwork], NDArray]) -> NDArray:
-    """``make(net)`` (read-only), computed once per network and ``key`` (:mod:`.memo`):
+    """``make(net)`` (read-only), computed once per network and ``key`` (:mod:`..linalg.memo`):
     repeated solves of one network (sweeps over clamps or starts) build their problem fast."""
     per = per_network(net, "problem")
     value = per.get(key)

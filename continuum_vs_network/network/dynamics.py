@@ -75,6 +75,7 @@ import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
+from ..linalg.spd import factor_spd
 from .constraints import Pins, pin_mask
 from .energy import (
     hessian_norm_bound,
@@ -85,7 +86,6 @@ from .energy import (
 )
 from .lagrangian import pattern_for
 from .model import SpringNetwork, spring_vectors, vector_lengths
-from .spd import factor_spd
 from .viscous import Viscosity, dashpot_blocks, dashpot_force, dashpot_matrix
 
 __all__ = [

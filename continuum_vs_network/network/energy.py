@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from .. import _validate as check
-from .memo import per_array
+from ..linalg.memo import per_array
 from .model import SpringNetwork, spring_vectors, vector_lengths
 from .ordering import coordinate_order, nested_dissection
 
@@ -155,7 +155,7 @@ class HessianPattern:
         chosen elimination order; overrides ``free``. ``self.coords`` holds the order used.
     ordered : bool
         The rows are in a fill-reducing order, which factorisations keep
-        (:func:`~.kkt.factor_spd`'s ``ordered``).
+        (:func:`~..linalg.kkt.factor_spd`'s ``ordered``).
     band_positions : (n_nodes, 2) float array, optional
         The positions a narrow-band row order was computed from: :meth:`nested_rows`
         orders the rows by nested dissection of them (None: the rows are not in band order).

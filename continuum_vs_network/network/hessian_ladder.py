@@ -13,9 +13,9 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from ..linalg.kkt import DENSE_MAX, Factor, factor_spd, factor_spd_or_curvature
 from .constraints import Problem
 from .energy import HessianPattern
-from .kkt import DENSE_MAX, Factor, factor_spd, factor_spd_or_curvature
 from .lagrangian import lagrangian_blocks
 
 __all__ = [
@@ -69,9 +69,9 @@ def factor_positive_model(
     when there are clamps (at a stable constrained minimum a large enough ``rho`` makes it
     positive definite, Finsler's lemma, and the step does not depend on ``rho``; that second
     factorisation is skipped when a direction of negative curvature read off the first,
-    :func:`~.kkt.factor_spd_or_curvature`, stays negative under the larger ``rho``); then the
-    exact Hessian plus a Levenberg-Marquardt shift ``mu diag(W)`` that starts at the ``mu``
-    passed in (at least 1e-6; after a failed exact factorisation at least
+    :func:`~..linalg.kkt.factor_spd_or_curvature`, stays negative under the larger ``rho``);
+    then the exact Hessian plus a Levenberg-Marquardt shift ``mu diag(W)`` that starts at
+    the ``mu`` passed in (at least 1e-6; after a failed exact factorisation at least
     :func:`_shift_estimate`) and grows (100-fold from ``DAMP_MIN``, 10-fold from an estimate
     or from a shift carried over from the last iterations) until the
     factorisation is positive definite (the shift, not clipping each spring's negative

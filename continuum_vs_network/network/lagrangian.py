@@ -5,7 +5,7 @@ One implementation serves every solver of the package: :func:`~.newton.newton` (
 gradients) and source sweeps.
 
 * :class:`Frame`: the order of the free coordinates in assembled matrices for one topology
-  and pin mask (fill-reducing above :data:`~.kkt.DENSE_MAX` rows), shared so that
+  and pin mask (fill-reducing above :data:`~..linalg.kkt.DENSE_MAX` rows), shared so that
   factorisations made anywhere match.
 * :func:`lagrangian_blocks` / :func:`lagrangian_hessian`: ``W = H_E + sum_c mu_c d^2 r_c +
   rho A^T A`` per spring block and assembled.
@@ -22,10 +22,10 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from ..linalg.kkt import DENSE_MAX, banded_pays, factor_spd, sparse_backend
+from ..linalg.memo import per_array
 from .constraints import Problem, dense_jacobian_pays, length_jacobian
 from .energy import HessianPattern
-from .kkt import DENSE_MAX, banded_pays, factor_spd, sparse_solver
-from .memo import per_array
 from .model import SpringNetwork, spring_vectors, vector_lengths
 from .ordering import band_order, coordinate_order, nested_dissection
 
@@ -33,30 +33,36 @@ __all__ = ["Frame", "lagrangian_blocks", "lagrangian_hessian", "pattern_for", "t
 
 
 def pattern_for(
-    springs: NDArray, n_nodes: int, free: NDArray, positions: NDArray
+    springs: NDArray,
+    n_nodes: int,
+    free: NDArray,
+    positions: NDArray,
+    *,
+    sparse_solver: str = "auto",
 ) -> HessianPattern:
     """The Hessian pattern of a topology and pin mask, cached while the springs array lives.
 
     Above ``DENSE_MAX`` free coordinates the rows follow a narrow-band order
     (:func:`~.ordering.band_order`) where its band is narrow enough for the banded
-    Cholesky (:func:`~.kkt.banded_pays`, up to ~1e4 nodes on a lattice), else a
+    Cholesky (:func:`~..linalg.kkt.banded_pays`, up to ~1e4 nodes on a lattice), else a
     nested-dissection elimination order; both are computed from ``positions`` (n_nodes,
     2); ``pattern.ordered`` says so, and a band-ordered pattern keeps ``positions`` for
     its nested-dissection rows (:meth:`~.energy.HessianPattern.nested_rows`). Not with
-    PARDISO (:func:`~.kkt.sparse_solver`), which orders by METIS itself (the nested
-    dissection would cost seconds at 1e5 nodes for nothing). Networks
+    PARDISO (``sparse_solver``, :func:`~..linalg.kkt.sparse_backend`; "auto": PARDISO when
+    ``pypardiso`` imports), which orders by METIS itself (the nested dissection would cost
+    seconds at 1e5 nodes for nothing). Networks
     made with ``with_*`` share their read-only springs array, so a learning loop builds the
     pattern once.
     """
     # shared by networks of equal small springs arrays (memo.per_array): the order depends
     # on positions only above DENSE_MAX free coordinates, which 256 springs cannot hold rigid
     per_topology = per_array(springs, "hessian_pattern")
-    order = sparse_solver() != "pardiso"
+    order = sparse_backend(sparse_solver) != "pardiso"
     key = (n_nodes, free.tobytes(), order)
     if key not in per_topology:
         coords = None
         banded = False
-        if _reordered(free):
+        if _reordered(free, sparse_solver):
             coords, width = band_order(springs, n_nodes, free, positions)
             banded = banded_pays(coords.size, width)
             if not banded:
@@ -69,10 +75,12 @@ def pattern_for(
     return per_topology[key]
 
 
-def _reordered(free: NDArray) -> bool:
+def _reordered(free: NDArray, sparse_solver: str = "auto") -> bool:
     """True when :func:`pattern_for` puts the rows of pin mask ``free`` in a fill-reducing
     order; otherwise they are the free coordinates in natural order."""
-    return sparse_solver() != "pardiso" and int(np.count_nonzero(free)) > DENSE_MAX
+    if int(np.count_nonzero(free)) <= DENSE_MAX:
+        return False
+    return sparse_backend(sparse_solver) != "pardiso"
 
 
 def lagrangian_blocks(problem: Problem, x: NDArray, lam: NDArray, rho: float) -> NDArray:
@@ -120,12 +128,16 @@ class Frame:
         Row of each flat coordinate, -1 for pinned ones.
     ordered : bool
         Rows are already in a fill-reducing order.
+    sparse_solver : str
+        The sparse factorisation of :meth:`factor` and the order it suits
+        (:func:`pattern_for`).
     """
 
-    def __init__(self, net: SpringNetwork, free: NDArray) -> None:
+    def __init__(self, net: SpringNetwork, free: NDArray, *, sparse_solver: str = "auto") -> None:
         free = np.asarray(free, dtype=bool)
         self._pattern_args = (net.springs, net.n_nodes, free, net.positions)
-        if _reordered(free):
+        self.sparse_solver = sparse_solver
+        if _reordered(free, sparse_solver):
             self.coords = np.asarray(self.pattern.coords)
             self.ordered = bool(self.pattern.ordered)
         else:  # natural order: the pattern is built only when a matrix is assembled
@@ -140,7 +152,7 @@ class Frame:
     @functools.cached_property
     def pattern(self) -> HessianPattern:
         """The Hessian pattern of the topology and pins (:func:`pattern_for`), in row order."""
-        return pattern_for(*self._pattern_args)
+        return pattern_for(*self._pattern_args, sparse_solver=self.sparse_solver)
 
     def take(self, full: NDArray) -> NDArray:
         """Free entries of a (n_nodes, 2) array, in row order, (n,)."""
@@ -188,8 +200,8 @@ class Frame:
 
     def factor(self, W: sp.csr_matrix, *, rough: bool = False):
         """Positive-definite factorisation of ``W`` (None when it is not); ``rough``: an
-        approximate one may serve (:func:`~.spd.factor_spd`)."""
-        return factor_spd(W, ordered=self.ordered, rough=rough)
+        approximate one may serve (:func:`~..linalg.spd.factor_spd`)."""
+        return factor_spd(W, ordered=self.ordered, rough=rough, sparse_solver=self.sparse_solver)
 
 
 def lagrangian_hessian(

@@ -17,9 +17,9 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from ..linalg.kkt import Factor, range_space_solve
 from .constraints import Problem
 from .energy import spring_bending_on, spring_energy_change
-from .kkt import Factor, range_space_solve
 from .stiff_springs import StiffSprings
 from .trust import ACCEL_MAX
 

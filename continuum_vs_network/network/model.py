@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
-from .memo import per_array
+from ..linalg.memo import per_array
 
 __all__ = ["SpringNetwork", "spring_vectors"]
 

@@ -55,12 +55,12 @@ the dense trust region bends every step): a long strip curling far from its star
 lattice far from the origin, follows rotations that a straight step overshoots
 (``docs/solver-notes.md#newton-geodesic``).
 
-Factorisations are :func:`~.kkt.factor_spd`'s (:mod:`.spd`): each completes only for
+Factorisations are :func:`~..linalg.kkt.factor_spd`'s (:mod:`..linalg.spd`): each completes only for
 ``W > 0``, which is how positive definiteness is checked (dense Cholesky up to
 ``DENSE_MAX`` free coordinates; above, PARDISO, LAPACK's banded Cholesky in a narrow-band
 order, or SuperLU with diagonal pivots, whose ``U`` diagonal carries the inertia). A
 ``rough`` factor is ``W`` rounded to float32 where that solves to
-:data:`~.spd.ROUGH_RESIDUAL`; Newton's step from such a factor is projected CG on the
+:data:`~..linalg.spd.ROUGH_RESIDUAL`; Newton's step from such a factor is projected CG on the
 matrix factorised, preconditioned by it, to the forcing tolerance (:func:`_fresh_step`);
 the clamp predictor's step is taken as it is.
 """
@@ -73,6 +73,12 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+from ..linalg.kkt import (
+    DENSE_MAX,
+    Factor,
+    factor_spd,
+    range_space_solve,
+)
 from .checks import dependent_clamps, roundoff_floor
 from .constraints import Problem, clamp_tensions, dense_jacobian_pays
 from .energy import HessianPattern, _scatter_nodes, spring_energy_change, spring_gradient
@@ -82,12 +88,6 @@ from .hessian_ladder import (
     factor_positive_model,
     marquardt_scale,
     shifted,
-)
-from .kkt import (
-    DENSE_MAX,
-    Factor,
-    factor_spd,
-    range_space_solve,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
 from .line_search import follow_curvature, geodesic_path, line_search
@@ -473,7 +473,7 @@ def _fresh_step(
 def _kkt_step(
     solver: Factor, grad: NDArray, A: sp.csr_matrix | None, viol: NDArray, m: int
 ) -> tuple[NDArray, NDArray]:
-    """Newton step of the KKT system (:func:`~.kkt.range_space`): ``(step, multipliers)``
+    """Newton step of the KKT system (:func:`~..linalg.kkt.range_space`): ``(step, multipliers)``
     with ``W step + A^T lam = -grad`` and ``A step = -viol``."""
     if not m:
         return -np.asarray(solver.solve(grad)), np.empty(0)

@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from .kkt import Factor, range_space_solve, sparse_solver
+from ..linalg.kkt import Factor, range_space_solve, sparse_backend
 
 __all__ = ["NegativeCurvature", "SolveFailed", "pcg", "projected_pcg", "reuse_budget"]
 
@@ -31,15 +31,16 @@ class NegativeCurvature(SolveFailed):
         self.direction = direction
 
 
-def reuse_budget(size: int) -> int:
+def reuse_budget(size: int, sparse_solver: str = "auto") -> int:
     """Preconditioned CG iterations allowed before a new factorisation of (size, size).
 
     ``0.3 sqrt(size)`` (at least 2): twice the triangular solves that one SuperLU
     nested-dissection factorisation costs on 2D networks; with PARDISO (its analysis
-    kept), 16, twice its cost in solves (``docs/solver-notes.md#reuse-budget``). A count,
+    kept; ``sparse_solver``, :func:`~..linalg.kkt.sparse_backend`), 16, twice its cost in
+    solves (``docs/solver-notes.md#reuse-budget``). A count,
     not a timing, so that runs are reproducible bit for bit.
     """
-    if sparse_solver() == "pardiso":
+    if sparse_backend(sparse_solver) == "pardiso":
         return 16
     return max(2, int(0.3 * np.sqrt(size)))
 

@@ -35,9 +35,9 @@ import scipy.sparse.linalg as spla
 from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
+from ..linalg.spd import factor_spd, sparse_lu
 from .constraints import default_pins, pin_mask
 from .model import SpringNetwork, spring_vectors, vector_lengths
-from .spd import factor_spd, sparse_lu
 
 __all__ = [
     "DENSE_LIMIT",
@@ -128,7 +128,7 @@ def _sparse_rigidity(net: SpringNetwork, x: NDArray, rows: NDArray, cols: NDArra
 def _full_rank(R: sp.csr_matrix, rtol: float) -> bool:
     """True when every singular value of ``R`` (m, n) is certainly above ``rtol`` times the
     largest: ``R^T R - (CERTIFY_MARGIN rtol)^2 lam I`` is positive definite (it has a
-    Cholesky factor, :func:`~.spd.factor_spd`), with ``lam`` Gershgorin's bound on the
+    Cholesky factor, :func:`~..linalg.spd.factor_spd`), with ``lam`` Gershgorin's bound on the
     largest eigenvalue of ``R^T R``. One sparse factorisation, against the dense SVD's
     O(n^3) or the shift-invert iteration; False (count the modes) when it fails, within
     the margin of the threshold or of round-off, or with fewer rows than columns."""

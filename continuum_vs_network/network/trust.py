@@ -71,9 +71,9 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack
 
+from ..linalg.memo import per_network
 from .constraints import Problem, clamp_tensions
 from .lagrangian import Frame
-from .memo import per_network
 from .stiff_springs import StiffSprings, median
 from .stopping import Outcome, StopRule, Trace
 from .trust_kernels import kernels

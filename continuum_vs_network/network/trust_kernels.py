@@ -25,10 +25,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..linalg.memo import per_array
 from .constraints import Problem
 from .energy import spring_bending_on, spring_energy_change, spring_gradient
 from .lagrangian import Frame, lagrangian_blocks
-from .memo import per_array
 from .model import vector_lengths
 
 __all__ = ["DENSE_NODES", "DenseKernels", "SparseKernels", "kernels"]

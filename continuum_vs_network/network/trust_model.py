@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import lapack
 
-from .memo import per_array
+from ..linalg.memo import per_array
 from .trust_kernels import SparseKernels
 
 __all__ = ["CURVATURE", "Model", "RigidBasis", "Spectrum", "null_basis", "rigid_motions"]

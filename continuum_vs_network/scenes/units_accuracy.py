@@ -243,7 +243,7 @@ def _continuum_problem(problem: str) -> dict[str, Any]:
     from ..continuum.materials import Material
     from ..continuum.mesh import rectangle_mesh
     from ..continuum.static import fix
-    from ..network.spd import fixed_vector
+    from ..linalg.spd import fixed_vector
 
     body = elastic_body(rectangle_mesh(2.0, 1.0, h=0.125), Material(1.0, 1.0), order=2)
     fixed = fix(body, lambda x, y: x < 1e-9)

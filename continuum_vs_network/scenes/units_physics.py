@@ -244,7 +244,7 @@ def _decay_rate(lam_min: float, damping: float, inertia: bool) -> float:
 def _smallest_eigenvalue(K, M=None) -> float:
     import scipy.sparse.linalg as spla
 
-    from ..network.spd import fixed_vector
+    from ..linalg.spd import fixed_vector
 
     vals = spla.eigsh(
         K.tocsc(),

@@ -79,7 +79,7 @@ def slowest_mode(
     ``S C phi = phi / lambda``; dense ``eigh`` below 4 DOFs."""
     from scipy.sparse.linalg import LinearOperator, eigsh
 
-    from ..network.spd import fixed_vector
+    from ..linalg.spd import fixed_vector
 
     K, C = sp.csc_matrix(K), sp.csc_matrix(C)
     n = K.shape[0]
@@ -237,7 +237,7 @@ def network_modes(
         raise ValueError(f"clamp must be 'strain' or 'nodes', got {clamp!r}")
     from scipy.sparse.linalg import splu
 
-    from ..network.kkt import factor_kkt
+    from ..linalg.kkt import factor_kkt
 
     held = task.pinned.copy()
     u = np.zeros((net.n_nodes, 2))
@@ -294,7 +294,7 @@ def body_modes(body, task, damping, *, fraction: float = 1e-2) -> dict[str, floa
 
     from ..continuum.damped_states import DampedStepper
     from ..continuum.damping import damping_matrix
-    from ..network.kkt import factor_kkt
+    from ..linalg.kkt import factor_kkt
 
     if damping.has_arm:
         raise ValueError("body_modes: a Maxwell arm adds internal modes; drag and viscosity only")

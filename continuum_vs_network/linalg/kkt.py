@@ -52,20 +52,21 @@ from numpy.typing import NDArray
 from .spd import (
     BAND_MAX_WORK,
     DENSE_MAX,
+    SPARSE_SOLVERS,
     Factor,
     _dense,
     banded_pays,
     factor_spd,
     factor_spd_or_curvature,
-    set_sparse_solver,
+    sparse_backend,
     sparse_lu,
-    sparse_solver,
 )
 
 __all__ = [
     "BAND_MAX_WORK",
     "DENSE_MAX",
     "KKT",
+    "SPARSE_SOLVERS",
     "Factor",
     "Inertia",
     "banded_pays",
@@ -73,9 +74,8 @@ __all__ = [
     "factor_spd",
     "factor_spd_or_curvature",
     "schur_solve",
-    "set_sparse_solver",
+    "sparse_backend",
     "sparse_lu",
-    "sparse_solver",
 ]
 
 
@@ -219,7 +219,11 @@ def range_space_solve(
 
 
 def factor_kkt(
-    W: sp.spmatrix | NDArray, A: sp.spmatrix | NDArray | None = None, *, ordered: bool = False
+    W: sp.spmatrix | NDArray,
+    A: sp.spmatrix | NDArray | None = None,
+    *,
+    ordered: bool = False,
+    sparse_solver: str = "auto",
 ) -> KKT:
     """Factorise ``[[W, A^T], [A, 0]]``: range space when ``W > 0``, else the full matrix.
 
@@ -229,6 +233,10 @@ def factor_kkt(
     A : (m, n) sparse matrix or array, or None
     ordered : bool
         ``W``'s rows are already in a fill-reducing order.
+    sparse_solver : {"auto", "pardiso", "superlu"}
+        The factorisation of ``W`` (:func:`~.spd.factor_spd`; "auto": PARDISO when
+        ``pypardiso`` imports, else SuperLU or the banded Cholesky). The full matrix, when
+        ``W`` is not positive definite, is always SuperLU's.
 
     Raises ``numpy.linalg.LinAlgError`` when the KKT matrix is singular.
     """
@@ -236,7 +244,7 @@ def factor_kkt(
     m = 0 if A is None else A.shape[0]
     if A is not None and A.shape[1] != n:
         raise ValueError(f"A must have {n} columns, got shape {A.shape}")
-    factor = factor_spd(W, ordered=ordered)
+    factor = factor_spd(W, ordered=ordered, sparse_solver=sparse_solver)
     if factor is not None:
         try:
             return range_space(factor, A)

@@ -1,6 +1,7 @@
-"""What a network, or its read-only springs array, alone decides: kept while it lives.
+"""What a read-only array, or an immutable object, alone decides: kept while it lives.
 
-Networks are immutable (their arrays are read-only) and ``with_*`` copies share the springs
+Nothing here depends on what the array or object is. The network engine is the main user:
+networks are immutable (their arrays are read-only) and ``with_*`` copies share the springs
 array, so results that depend only on the topology (Hessian patterns, incidence matrices,
 scatter indices, validation) or only on one network (its scale, pins, rigidity checks,
 solver setup) are computed once. Two stores, each a dict per ``(object, name)``:
@@ -10,10 +11,11 @@ solver setup) are computed once. Two stores, each a dict per ``(object, name)``:
   entry, at most :data:`CONTENT_KEPT` topologies per name, least recently used dropped
   first; a larger array on its identity, dropping the entry when the array is collected
   (an id is not reused before that);
-- :func:`per_network` keys weakly on the network object.
+- :func:`per_network` keys weakly on the object (a network).
 
 Callers use a ``name`` of their own, so the stores of different modules never mix, and keep
-only what the array's content and the rest of their key decide.
+only what the array's content and the rest of their key decide. The banded Cholesky
+(:mod:`.spd`) keeps its band layout per matrix structure (``W.indptr``) this way.
 """
 
 from __future__ import annotations
@@ -60,7 +62,8 @@ def per_array(array: np.ndarray, name: str) -> dict:
 
 
 def per_network(net: Any, name: str) -> dict:
-    """The ``name`` store of the network object ``net``, kept while it lives."""
+    """The ``name`` store of the object ``net`` (a network; any object a weak reference
+    can follow), kept while it lives."""
     stores = _NETWORKS.setdefault(name, weakref.WeakKeyDictionary())
     store = stores.get(net)
     if store is None:

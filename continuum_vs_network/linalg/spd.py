@@ -8,11 +8,11 @@ built on these factors.
 Sparse positive-definite factorisations (:func:`factor_spd`) use MKL PARDISO's Cholesky
 (``pypardiso``, the optional extra ``continuum_vs_network[pardiso]``) when it is
 importable (faster than SuperLU on spring-network Hessians, with half the memory); it
-certifies ``W > 0`` by completing. Otherwise, or with :func:`set_sparse_solver`
-``("superlu")`` or the environment variable ``CVN_SPARSE_SOLVER=superlu``, SuperLU; or, for
-a matrix whose rows are in a narrow-band order (:func:`banded_pays`, e.g.
-:func:`~.ordering.band_order` on a network of up to ~1e4 nodes), LAPACK's banded Cholesky,
-which is faster there. A
+certifies ``W > 0`` by completing. Otherwise, or with the argument
+``sparse_solver="superlu"`` (:data:`SPARSE_SOLVERS`, :func:`sparse_backend`), SuperLU;
+or, for a matrix whose rows are in a narrow-band order (:func:`banded_pays`, e.g.
+:func:`~continuum_vs_network.network.ordering.band_order` on a network of up to ~1e4
+nodes), LAPACK's banded Cholesky, which is faster there. A
 ``rough`` factorisation (an approximate ``W^-1`` serves: a Newton step judged by the true
 residual, a preconditioner) is made in float32 where that is accurate: the banded Cholesky
 at any size, SuperLU from ``ROUGH_MIN`` rows. The measurements behind these choices and
@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import os
 from collections.abc import Callable
 
 import numpy as np
@@ -47,9 +46,8 @@ __all__ = [
     "factor_spd",
     "factor_spd_or_curvature",
     "fixed_vector",
-    "set_sparse_solver",
+    "sparse_backend",
     "sparse_lu",
-    "sparse_solver",
 ]
 
 DENSE_MAX = 400  # below this many unknowns dense LAPACK beats scipy.sparse's overhead
@@ -57,6 +55,7 @@ DENSE_MAX = 400  # below this many unknowns dense LAPACK beats scipy.sparse's ov
 # which the banded Cholesky beats SuperLU with nested dissection; the work, not n, sets
 # the crossover (docs/solver-notes.md#spd-banded)
 BAND_MAX_WORK = 1e9
+# the choices of a ``sparse_solver`` argument (:func:`sparse_backend`)
 SPARSE_SOLVERS = ("auto", "pardiso", "superlu")
 # From this many rows a ``rough`` factorisation (factor_spd) is SuperLU in float32: faster,
 # and half the memory for values, which coupled learning on a million-node lattice needs
@@ -67,43 +66,36 @@ ROUGH_RESIDUAL = 1e-2  # a float32 factor must solve a random right-hand side to
 # there float32 factorisations often miss ROUGH_RESIDUAL and are made again in float64
 ROUGH_SPREAD = 1e6
 _EMPTY_INDEX = np.empty(0, dtype=np.int64)
-_SOLVER = {"name": os.environ.get("CVN_SPARSE_SOLVER", "auto"), "pardiso": None}
-
-
-def set_sparse_solver(name: str) -> str:
-    """Choose the sparse positive-definite factorisation; returns the previous choice.
-
-    ``"auto"``: PARDISO when ``pypardiso`` imports, else SuperLU; ``"pardiso"``: PARDISO
-    (ImportError at the next factorisation when missing); ``"superlu"``: SuperLU.
-    """
-    if name not in SPARSE_SOLVERS:
-        raise ValueError(f"name must be one of {SPARSE_SOLVERS}, got {name!r}")
-    previous, _SOLVER["name"] = _SOLVER["name"], name
-    return previous
+_PARDISO: dict = {}  # the pypardiso module, or False when it does not import (looked up once)
 
 
 def _pardiso():
     """The ``pypardiso`` module, or None (imported once, lazily)."""
-    if _SOLVER["pardiso"] is None:
+    if "module" not in _PARDISO:
         try:
             import pypardiso  # optional and heavy (MKL): imported on first use
 
-            _SOLVER["pardiso"] = pypardiso
+            _PARDISO["module"] = pypardiso
         except (ImportError, OSError):
-            _SOLVER["pardiso"] = False
-    return _SOLVER["pardiso"] or None
+            _PARDISO["module"] = False
+    return _PARDISO["module"] or None
 
 
-def sparse_solver() -> str:
-    """The sparse factorisation :func:`factor_spd` uses now: "pardiso" or "superlu"."""
-    name = _SOLVER["name"]
-    if name not in SPARSE_SOLVERS:
-        raise ValueError(f"CVN_SPARSE_SOLVER must be one of {SPARSE_SOLVERS}, got {name!r}")
-    if name == "pardiso" and _pardiso() is None:
+def sparse_backend(sparse_solver: str = "auto") -> str:
+    """The sparse positive-definite factorisation that the choice ``sparse_solver`` means:
+    "pardiso" or "superlu" (SuperLU, or the banded Cholesky where :func:`banded_pays`).
+
+    ``"auto"``: PARDISO when ``pypardiso`` imports, else SuperLU; ``"pardiso"``: PARDISO
+    (ImportError when ``pypardiso`` is missing); ``"superlu"``: SuperLU. ValueError for
+    any other name.
+    """
+    if sparse_solver not in SPARSE_SOLVERS:
+        raise ValueError(f"sparse_solver must be one of {SPARSE_SOLVERS}, got {sparse_solver!r}")
+    if sparse_solver == "pardiso" and _pardiso() is None:
         raise ImportError("sparse solver 'pardiso' needs pypardiso (pip install pypardiso)")
-    if name == "auto":
+    if sparse_solver == "auto":
         return "pardiso" if _pardiso() is not None else "superlu"
-    return name
+    return sparse_solver
 
 
 def _pardiso_spd(W: sp.spmatrix) -> Factor | None:
@@ -311,6 +303,7 @@ def factor_spd(
     certify: bool = True,
     rough: bool = False,
     rung: bool = False,
+    sparse_solver: str = "auto",
 ) -> Factor | None:
     """Factorise symmetric ``W`` (n, n); None when it is not positive definite.
 
@@ -319,7 +312,8 @@ def factor_spd(
     calls only), else SuperLU
     with diagonal pivots in symmetric mode, whose ``U`` diagonal carries the inertia (a
     positive diagonal with symmetric pivots proves ``W > 0``), or PARDISO's Cholesky
-    (:func:`sparse_solver`; it orders by METIS and ignores ``ordered``). ``ordered``: the
+    (``sparse_solver``, :func:`sparse_backend`: "auto" takes PARDISO when ``pypardiso``
+    imports; it orders by METIS and ignores ``ordered``). ``ordered``: the
     rows are already in a fill-reducing order (natural order is kept); otherwise minimum
     degree on ``W``. ``certify=False`` skips reading SuperLU's ``U`` diagonal (a copy of
     ``U``) for a ``W`` positive definite by
@@ -329,12 +323,15 @@ def factor_spd(
     ``ROUGH_MIN`` rows SuperLU, then factorise ``W`` rounded to float32 where it solves to
     ``ROUGH_RESIDUAL`` (:func:`_banded_float32`, :func:`factor_spd_or_curvature`).
     ``rung``: ``W`` is a rung of the Levenberg-Marquardt ladder
-    (:func:`~.hessian_ladder.factor_positive_model`), whose failure sends the caller to a
-    10x larger shift: a non-positive pivot of the float32 banded Cholesky is then final,
-    without the float64 factorisation (``W`` is indefinite, or within float32's rounding
-    of singular, where the step along its near-null direction is one a line search cuts;
-    the same iterations and equilibria, less time: ``docs/solver-notes.md#spd-rung``).
+    (:func:`~continuum_vs_network.network.hessian_ladder.factor_positive_model`), whose
+    failure sends the caller to a 10x larger shift: a non-positive pivot of the float32
+    banded Cholesky is then final, without the float64 factorisation (``W`` is indefinite,
+    or within float32's rounding of singular, where the step along its near-null direction
+    is one a line search cuts; the same iterations and equilibria, less time:
+    ``docs/solver-notes.md#spd-rung``).
     """
+    if sparse_solver not in SPARSE_SOLVERS:  # checked at every size, not only sparse ones
+        raise ValueError(f"sparse_solver must be one of {SPARSE_SOLVERS}, got {sparse_solver!r}")
     n = W.shape[0]
     if n <= DENSE_MAX:
         try:
@@ -342,14 +339,16 @@ def factor_spd(
         except (sla.LinAlgError, ValueError):
             return None
         return Factor(lambda b: sla.cho_solve(c, b, check_finite=False), n)
-    if sparse_solver() == "pardiso":
+    if sparse_backend(sparse_solver) == "pardiso":
         return _pardiso_spd(W)
     if certify:
         # a failed one needs no SuperLU: W is not > 0
         banded = _banded_cholesky(W, rough=rough, rung=rung)
         if banded is not False:
             return banded
-        return factor_spd_or_curvature(W, ordered=ordered, rough=rough)[0]
+        return factor_spd_or_curvature(
+            W, ordered=ordered, rough=rough, sparse_solver=sparse_solver
+        )[0]
     try:
         lu = sparse_lu(W, ordering="NATURAL" if ordered else "MMD_AT_PLUS_A")
     except RuntimeError:  # exactly singular
@@ -358,7 +357,12 @@ def factor_spd(
 
 
 def factor_spd_or_curvature(
-    W: sp.spmatrix, *, ordered: bool = False, count: int = 2, rough: bool = False
+    W: sp.spmatrix,
+    *,
+    ordered: bool = False,
+    count: int = 2,
+    rough: bool = False,
+    sparse_solver: str = "auto",
 ) -> tuple[Factor | None, NDArray | None]:
     """:func:`factor_spd` of sparse symmetric ``W`` (n, n), and when ``W`` is indefinite
     up to ``count`` directions of negative curvature read off the same factorisation.
@@ -381,8 +385,8 @@ def factor_spd_or_curvature(
     float64) proves ``W`` indefinite. Otherwise the float64 factorisation decides.
     """
     n = W.shape[0]
-    if n <= DENSE_MAX or sparse_solver() == "pardiso":
-        return factor_spd(W, ordered=ordered), None
+    if n <= DENSE_MAX or sparse_backend(sparse_solver) == "pardiso":
+        return factor_spd(W, ordered=ordered, sparse_solver=sparse_solver), None
     banded = _banded_cholesky(W, rough=rough)
     if isinstance(banded, Factor):
         return banded, None
