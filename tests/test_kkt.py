@@ -7,6 +7,7 @@ import pytest
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
+import continuum_vs_network as cvn
 from continuum_vs_network.linalg import kkt as kkt_module
 from continuum_vs_network.linalg import spd as spd_module
 from continuum_vs_network.linalg.kkt import (
@@ -414,3 +415,26 @@ def test_band_order_reports_the_assembled_bandwidth():
     ).tocsr()
     rcm = coordinate_order(reverse_cuthill_mckee(adj, symmetric_mode=True), free)
     assert _bandwidth(rcm, net.springs, net.n_nodes) > 1.3 * width
+
+
+def test_relax_passes_its_sparse_solver_to_every_factorisation(monkeypatch):
+    """``relax(sparse_solver=...)`` reaches every sparse factorisation of the solve (no
+    process-global choice): besides the floppiness check's certificate, nothing asks for
+    "auto"; a name outside SPARSE_SOLVERS is refused naming the argument."""
+    from continuum_vs_network.linalg import spd
+
+    net = cvn.triangular_lattice(40, 40, noise=0.05, rng=np.random.default_rng(1))
+    mid = net.n_springs // 2
+    asked = []
+    backend = spd.sparse_backend
+
+    def spy(name="auto"):
+        asked.append(name)
+        return backend(name)
+
+    monkeypatch.setattr(spd, "sparse_backend", spy)
+    eq = cvn.relax(net, clamped={mid: 1.3 * net.rest_length[mid]}, sparse_solver="superlu")
+    assert eq.converged
+    assert asked.count("superlu") >= 2 and asked.count("auto") <= 1
+    with pytest.raises(ValueError, match="sparse_solver"):
+        cvn.relax(net, sparse_solver="umfpack")

@@ -304,9 +304,9 @@ def test_no_factorisation_is_tried_that_a_known_direction_proves_indefinite(
             witness.clear()
         return out
 
-    def spy_factor_or_curvature(M, pattern):
+    def spy_factor_or_curvature(M, pattern, sparse_solver="auto"):
         checked(M)
-        return factor_or_curvature(M, pattern)
+        return factor_or_curvature(M, pattern, sparse_solver)
 
     monkeypatch.setattr(nw, "projected_pcg", spy_pcg)
     monkeypatch.setattr(nw, "factor_spd", spy_factor)  # the clamp predictor's

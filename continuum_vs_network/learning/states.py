@@ -399,7 +399,11 @@ class Tracker:
         lin = self._lin.get(key)
         if lin is not None and lin.frame.n != int(problem.free_flat.size):
             lin = None
-        frame = lin.frame if lin is not None else Frame(net, problem.free)
+        frame = (
+            lin.frame
+            if lin is not None
+            else Frame(net, problem.free, sparse_solver=problem.sparse_solver)
+        )
         clamps = problem.clamp_springs
         stop = problem.stop_rule(s.tol, max_iter=30, max_seconds=s.max_seconds)
         trace_r: list[float] = []

@@ -113,7 +113,7 @@ def _node_scale(problem: Problem) -> NDArray:
 def _reduced(problem: Problem, x: NDArray) -> tuple[NDArray, NDArray, Frame, NDArray]:
     """Scaled reduced Hessian ``H`` (dense), the basis ``Q``, the frame and ``D^-1/2``."""
     net = problem.net
-    frame = Frame(net, problem.free)
+    frame = Frame(net, problem.free, sparse_solver=problem.sparse_solver)
     coords = frame.coords
     inv_root = 1.0 / np.sqrt(_node_scale(problem)[coords])
     m = problem.n_clamps if problem.exact else 0
@@ -164,7 +164,7 @@ def _above(problem: Problem, x: NDArray, threshold: float) -> bool:
     """True when ``W + rho A^T A + threshold K`` at ``x`` is positive definite (see
     :func:`lowest_curvature`)."""
     net = problem.net
-    frame = Frame(net, problem.free)
+    frame = Frame(net, problem.free, sparse_solver=problem.sparse_solver)
     coords = frame.coords
     mu = np.empty(0)
     if problem.exact:
@@ -175,7 +175,7 @@ def _above(problem: Problem, x: NDArray, threshold: float) -> bool:
     W = lagrangian_hessian(problem, x, mu, rho=rho, frame=frame)
     if threshold > 0.0:
         W = shifted(W, threshold, _node_scale(problem)[coords])
-    return factor_spd(W, ordered=frame.ordered) is not None
+    return factor_spd(W, ordered=frame.ordered, sparse_solver=frame.sparse_solver) is not None
 
 
 def escape_direction(problem: Problem, x: NDArray) -> NDArray | None:

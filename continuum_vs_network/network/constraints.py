@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._validate import choice, index_array, real
 from ..linalg.memo import per_network
-from ..linalg.spd import DENSE_MAX
+from ..linalg.spd import DENSE_MAX, SPARSE_SOLVERS
 from .arguments import clamp_arrays, pin_mask_or_indices
 from .energy import spring_energy, spring_gradient
 from .model import SpringNetwork, spring_vectors, unit_vectors, vector_lengths
@@ -219,6 +219,9 @@ class Problem:
     clamp : "exact" or "rod"
     rod_stiffness : float
         Stiffness of the paper's rods, used when ``clamp == "rod"``.
+    sparse_solver : {"auto", "pardiso", "superlu"}
+        The sparse factorisation every solve of this problem uses
+        (:func:`~continuum_vs_network.linalg.spd.sparse_backend`).
     """
 
     net: SpringNetwork
@@ -227,6 +230,7 @@ class Problem:
     clamp_lengths: NDArray[np.float64]
     clamp: ClampMode = "exact"
     rod_stiffness: float = 1e10
+    sparse_solver: str = "auto"
     free_flat: NDArray[np.int64] = field(init=False)
     scale: NDArray[np.float64] = field(init=False, repr=False)
 
@@ -256,7 +260,7 @@ class Problem:
         fields = {
             "net": self.net, "free": free, "clamp_springs": self.clamp_springs,
             "clamp_lengths": lengths, "clamp": clamp, "rod_stiffness": self.rod_stiffness,
-            "free_flat": free_flat, "scale": self.scale,
+            "sparse_solver": self.sparse_solver, "free_flat": free_flat, "scale": self.scale,
         }  # fmt: skip
         for name, value in fields.items():
             object.__setattr__(new, name, value)
@@ -281,15 +285,17 @@ class Problem:
         clamped: Mapping[int, float] | None = None,
         clamp: ClampMode = "exact",
         rod_stiffness: float = 1e10,
+        sparse_solver: str = "auto",
     ) -> Problem:
         choice("clamp", clamp, ("exact", "rod"))
+        choice("sparse_solver", sparse_solver, SPARSE_SOLVERS)
         rod_stiffness = real("rod_stiffness", rod_stiffness, low=0, low_open=True)
         idx, length = _clamp_arrays(net, clamped)
         if pinned is None:
             free = _known(net, ("free", idx.tobytes()), lambda net: ~_far_pins(net, idx))
         else:
             free = ~pin_mask(net, pinned)
-        return cls(net, free, idx, length, clamp, float(rod_stiffness))
+        return cls(net, free, idx, length, clamp, float(rod_stiffness), sparse_solver)
 
     # -- the energy that is minimised -----------------------------------------------
     @property

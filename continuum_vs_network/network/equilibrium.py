@@ -151,6 +151,7 @@ def relax(
     ramp: int = 1,
     max_iter: int | None = None,
     max_seconds: float = 600.0,
+    sparse_solver: str = "auto",
 ) -> Equilibrium:
     """Find the mechanical equilibrium of ``net`` with pinned nodes and clamped springs.
 
@@ -211,6 +212,9 @@ def relax(
         ``max_iter`` bounds each solve (a ramp stage, an escape, a solve with pins chosen
         anew), so the reported iterations, their sum, can exceed it; ``max_seconds`` bounds
         the whole call.
+    sparse_solver : {"auto", "pardiso", "superlu"}
+        The sparse factorisation of every solve (:data:`~..linalg.spd.SPARSE_SOLVERS`;
+        "auto": PARDISO when ``pypardiso`` imports, else SuperLU or the banded Cholesky).
 
     A converged state is also checked to second order: a saddle (the reduced Hessian of
     the Lagrangian, scaled by node stiffness, with an eigenvalue below ``-max(1e-8,
@@ -242,8 +246,9 @@ def relax(
     if method == "paper":
         clamp = "rod"
     problem = Problem.build(
-        net, pinned=pinned, clamped=clamped, clamp=clamp, rod_stiffness=rod_stiffness
-    )
+        net, pinned=pinned, clamped=clamped, clamp=clamp, rod_stiffness=rod_stiffness,
+        sparse_solver=sparse_solver,
+    )  # fmt: skip
     refuse_floppy(problem)
     stop = problem.stop_rule(
         tol, max_iter=int(max_iter or _DEFAULT_MAX_ITER[method]), max_seconds=max_seconds

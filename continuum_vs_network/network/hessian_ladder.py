@@ -101,7 +101,7 @@ def factor_positive_model(
         shift, directions = indefinite[0], indefinite[1][:, None]
     if shift == 0.0:
         if directions is None:
-            factor, directions = _factor_or_curvature(W, pattern)
+            factor, directions = _factor_or_curvature(W, pattern, problem.sparse_solver)
             if factor is not None:
                 return PositiveModel(factor, rho, 0.0, True, W, None)
         if lam.size:
@@ -115,7 +115,13 @@ def factor_positive_model(
             )
             rho = new_rho
             W = assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho))
-            factor = None if futile else factor_spd(W, ordered=pattern.ordered, rough=True)
+            factor = (
+                None
+                if futile
+                else factor_spd(
+                    W, ordered=pattern.ordered, rough=True, sparse_solver=problem.sparse_solver
+                )
+            )
             if factor is not None:
                 return PositiveModel(factor, rho, 0.0, True, W, None)
     # Marquardt's scaling: shift each coordinate by its own stiffness, so that stiff rods do
@@ -147,7 +153,13 @@ def factor_positive_model(
     while shift <= 1e8:
         if bound is None or shift >= bound:
             model = shifted(W, shift, scale)
-            factor = factor_spd(model, ordered=pattern.ordered, rough=True, rung=True)
+            factor = factor_spd(
+                model,
+                ordered=pattern.ordered,
+                rough=True,
+                rung=True,
+                sparse_solver=problem.sparse_solver,
+            )
             if factor is not None:
                 return PositiveModel(factor, rho, shift, False, model, negative)
             if bound is None:
@@ -186,7 +198,9 @@ def shifted(W: sp.csr_matrix | NDArray, shift: float, scale: NDArray) -> sp.csr_
     return model
 
 
-def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDArray | None]:
+def _factor_or_curvature(
+    W, pattern: HessianPattern, sparse_solver: str = "auto"
+) -> tuple[Factor | None, NDArray | None]:
     """``factor_spd`` of ``W``, with directions of negative curvature when it fails (sparse).
 
     The directions come from SuperLU in nested-dissection order also where the rows are in
@@ -195,14 +209,16 @@ def _factor_or_curvature(W, pattern: HessianPattern) -> tuple[Factor | None, NDA
     iterations.
     """
     if isinstance(W, np.ndarray):
-        return factor_spd(W, ordered=pattern.ordered), None
+        return factor_spd(W, ordered=pattern.ordered, sparse_solver=sparse_solver), None
     rows = pattern.nested_rows()
     if rows is None:
-        return factor_spd_or_curvature(W, ordered=pattern.ordered, rough=True)
-    factor = factor_spd(W, ordered=True, rough=True)
+        return factor_spd_or_curvature(
+            W, ordered=pattern.ordered, rough=True, sparse_solver=sparse_solver
+        )
+    factor = factor_spd(W, ordered=True, rough=True, sparse_solver=sparse_solver)
     if factor is not None:
         return factor, None
-    _, nested = factor_spd_or_curvature(W[rows][:, rows], ordered=True)
+    _, nested = factor_spd_or_curvature(W[rows][:, rows], ordered=True, sparse_solver=sparse_solver)
     if nested is None:
         return None, None
     directions = np.empty_like(nested)

@@ -221,7 +221,7 @@ def lagrangian_hessian(
     positive definite at a stable constrained minimum. Rows in ``frame`` order (default:
     the frame of ``problem``). Exact clamps only.
     """
-    frame = frame or Frame(problem.net, problem.free)
+    frame = frame or Frame(problem.net, problem.free, sparse_solver=problem.sparse_solver)
     if rho is None:
         rho = float(np.max(problem.net.stiffness)) if problem.n_clamps else 0.0
     blocks = lagrangian_blocks(problem, x, np.asarray(multipliers, float), float(rho))
@@ -250,7 +250,7 @@ def trust_region(
     Returns ``(x, reached)``.
     """
     net = problem.net
-    frame = Frame(net, problem.free)
+    frame = Frame(net, problem.free, sparse_solver=problem.sparse_solver)
     clamps = problem.clamp_springs
     m = problem.n_clamps
     x = _restore(problem, np.array(x, dtype=np.float64))

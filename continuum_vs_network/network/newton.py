@@ -159,7 +159,9 @@ def newton(
     net = problem.net
     springs, k = net.springs, net.stiffness
     all_springs = problem.all_springs()
-    pattern = pattern_for(springs, net.n_nodes, problem.free, net.positions)
+    pattern = pattern_for(
+        springs, net.n_nodes, problem.free, net.positions, sparse_solver=problem.sparse_solver
+    )
     coords = pattern.coords
     m = problem.n_clamps if problem.exact else 0
     rho = rho_base = float(np.max(k)) if m else 0.0
@@ -240,7 +242,7 @@ def newton(
         )
         certifying = False
         if reusable is not None and not (shift == 0.0 and not exact_ok) and not near:
-            budget = reuse_budget(pattern.size)
+            budget = reuse_budget(pattern.size, problem.sparse_solver)
             W = assemble_hessian(pattern, lagrangian_blocks(problem, x, lam_ls[:m], rho))
             # the damped model a refactorisation would solve now; when that (a shift decayed
             # after full steps) is indefinite, the model the factor was made for, before
@@ -277,7 +279,9 @@ def newton(
             # preconditions the exact Hessian (negative curvature makes CG fail: refactorise)
             reuse = pattern.size > DENSE_MAX and problem.clamp == "exact"
             try:
-                step, lam = _fresh_step(factor, model, grad, A if m else None, viol, eta, reuse)
+                step, lam = _fresh_step(
+                    factor, model, grad, A if m else None, viol, eta, reuse, problem.sparse_solver
+                )
             except np.linalg.LinAlgError:
                 return Outcome(
                     x,
@@ -372,6 +376,7 @@ def _clamp_predictor(
         assemble_hessian(pattern, lagrangian_blocks(problem, x, lam, rho)),
         ordered=pattern.ordered,
         rough=True,
+        sparse_solver=problem.sparse_solver,
     )
     if factor is None:
         return x, None
@@ -422,7 +427,12 @@ def _pin_predictor(
     # gradient at the geometry plus the Hessian times the displacement (spring by spring)
     stretch = np.einsum("sij,sj->si", blocks, spring_vectors(load, net.springs))
     rhs = spring_gradient(reference, *springs) + _scatter_nodes(stretch, net.springs, net.n_nodes)
-    factor = factor_spd(assemble_hessian(pattern, blocks), ordered=pattern.ordered, rough=True)
+    factor = factor_spd(
+        assemble_hessian(pattern, blocks),
+        ordered=pattern.ordered,
+        rough=True,
+        sparse_solver=problem.sparse_solver,
+    )
     if factor is None:
         return x, None
     y = x.copy()
@@ -451,6 +461,7 @@ def _fresh_step(
     viol: NDArray,
     eta: float,
     refine: bool,
+    sparse_solver: str = "auto",
 ) -> tuple[NDArray, NDArray]:
     """The Newton step of ``model`` (the matrix just factorised) from its ``factor``.
 
@@ -463,8 +474,9 @@ def _fresh_step(
     if refine and factor.approximate:
         try:
             return projected_pcg(
-                model, factor, grad, A, viol, rtol=eta, max_iter=reuse_budget(model.shape[0])
-            )
+                model, factor, grad, A, viol, rtol=eta,
+                max_iter=reuse_budget(model.shape[0], sparse_solver),
+            )  # fmt: skip
         except (SolveFailed, NegativeCurvature, np.linalg.LinAlgError):
             pass  # float32 round-off beyond CG's reach: the direct step
     return _kkt_step(factor, grad, A, viol, 0 if A is None else A.shape[0])

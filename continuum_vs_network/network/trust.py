@@ -122,7 +122,7 @@ def _setup(problem: Problem) -> tuple:
     hit = per.get(key)
     if hit is not None:
         return hit
-    frame = Frame(net, problem.free)
+    frame = Frame(net, problem.free, sparse_solver=problem.sparse_solver)
     coords = frame.coords
     stiff = StiffSprings.find(problem, coords)
     kappa = _node_stiffness(problem)
