@@ -163,16 +163,22 @@ def test_field_optimum_reaches_the_task():
     assert o.evaluations == o.errors.size
 
 
-def test_field_optimum_in_log_modulus_reaches_the_task_on_a_finer_mesh():
-    # in the modulus itself L-BFGS-B crawls on h/2 (dC/ds ~ 1/s over the 1e4 range)
+def test_field_optimum_takes_as_many_evaluations_on_every_mesh():
+    """Weighted by sqrt(element area), L-BFGS-B's steps and gradient do not shrink with the
+    elements: the optimum reaches C/C0 <= 1e-6 in about as many evaluations on h, h/2 and
+    h/4 (7, 8, 8 measured; unweighted 22, 98, 314), in log modulus and in the modulus."""
     from continuum_vs_network.learning.field_optimum import field_optimum
 
-    _, task, fm = _setup(refine=1)
-    o = field_optimum(fm, task, max_iter=150)
-    assert o.ratio <= 1e-6
-    assert o.medium.modulus.min() >= 1e-2 - 1e-12 and o.medium.modulus.max() <= 1e2 + 1e-9
-    lin = field_optimum(fm, task, max_iter=20, log=False)
-    assert lin.ratio > 0.5
+    counts = []
+    for refine in (0, 1, 2):
+        _, task, fm = _setup(refine=refine)
+        o = field_optimum(fm, task, max_iter=150)
+        assert o.ratio <= 1e-6
+        assert o.medium.modulus.min() >= 1e-2 - 1e-12 and o.medium.modulus.max() <= 1e2 + 1e-9
+        counts.append(o.evaluations)
+        if refine == 2:
+            assert field_optimum(fm, task, max_iter=60, log=False).ratio <= 1e-6
+    assert max(counts) <= 15 and max(counts) <= 2 * min(counts), counts
 
 
 def test_simp_mma_over_the_learning_range_meets_the_task():
@@ -182,13 +188,18 @@ def test_simp_mma_over_the_learning_range_meets_the_task():
     body, task, _ = _setup()
     r = simp_allosteric(body, task, radius=0.2, iterations=60, e_min=1e-2, e_max=1e2, method="mma")
     assert r.method == "mma"
-    assert min(r.objective) <= 1e-6
+    assert min(r.objective) <= 1e-6 and r.final <= 1e-6
     assert r.volume <= 0.5 + 1e-6
     frozen = ~body.learning_mask(task, learn_sources=False, learn_targets=False)
     assert np.all(r.modulus[frozen] == 1.0)  # the task's own material stays
     # the textbook's SIMP, capped at the solid (the task's material), does not
     capped = simp_allosteric(body, task, radius=0.2, iterations=30, method="mma")
     assert min(capped.objective) > 0.5
+    # from a feasible start (the solid task material adds volume) also on h/2, where the
+    # start x = volfrac left MMA at C/C0 1.17 after 200 evaluations
+    fine, fine_task, _ = _setup(h=0.0625)
+    r = simp_allosteric(fine, fine_task, radius=0.2, iterations=60, e_min=1e-2, e_max=1e2)
+    assert r.final <= 1e-6 and r.volume <= 0.5 + 1e-6
 
 
 def test_simp_inverter_agrees_with_the_independent_textbook_code():

@@ -105,6 +105,9 @@ class SimpResult:
         Cumulative seconds at each objective.
     method : str
         ``"oc"`` or ``"mma"``.
+    final : float
+        The objective of the returned design (OC: the last evaluation; MMA: the best
+        feasible evaluation, which need not be the last).
     """
 
     density: NDArray[np.float64]
@@ -116,6 +119,7 @@ class SimpResult:
     seconds: float
     times: NDArray[np.float64]
     method: str = "oc"
+    final: float = np.nan
 
 
 def _check(volfrac: float, iterations: int) -> None:
@@ -161,7 +165,7 @@ class _AllostericSimp:
         g = m.task_gradient(self.task, free, "modulus") * self.area * ds / self.c0
         return c, self.H.T @ g
 
-    def result(self, x: NDArray, objective: list, times: list, t0: float, method: str):
+    def result(self, x: NDArray, objective: list, times: list, t0: float, method: str, final=None):
         xt = self.H @ x
         return SimpResult(
             density=xt,
@@ -171,7 +175,7 @@ class _AllostericSimp:
             objective=np.array(objective),
             volume=float(self.area @ xt / self.area.sum()), iterations=len(objective) - 1,
             solves=len(objective), seconds=time.perf_counter() - t0, times=np.array(times),
-            method=method,
+            method=method, final=float(objective[-1] if final is None else final),
         )  # fmt: skip
 
 
@@ -227,7 +231,12 @@ def _simp_allosteric_mma(
     problem: _AllostericSimp, *, volfrac: float, iterations: int, rtol: float
 ) -> SimpResult:
     """:func:`simp_allosteric` by nlopt's MMA: ``iterations`` evaluations at most, the
-    volume as an inequality constraint, bounds ``0 <= x <= 1`` on the active elements."""
+    volume as an inequality constraint, bounds ``0 <= x <= 1`` on the active elements.
+
+    It starts from a feasible design: the active elements at the uniform density whose
+    filtered volume, with the solid task material, is ``volfrac`` (the volume is linear in
+    it). From the infeasible ``x = volfrac`` (the solid discs add volume) MMA spent its
+    evaluations regaining feasibility on finer meshes and never improved the objective."""
     import nlopt
 
     frozen, H, area = problem.frozen, problem.H, problem.area
@@ -238,12 +247,15 @@ def _simp_allosteric_mma(
     t0 = time.perf_counter()
     objective: list[float] = []
     times: list[float] = []
-    best = [np.inf, np.where(frozen, 1.0, volfrac)]
 
     def full(y: NDArray) -> NDArray:
         x = base.copy()
         x[active] = y
         return x
+
+    solid = float(area @ (H @ base)) / total  # volume at y = 0; each unit of y adds dv.sum()
+    start = np.full(active.size, float(np.clip((volfrac - solid) / dv.sum(), 0.0, volfrac)))
+    best = [np.inf, full(start)]
 
     def f(y: NDArray, grad: NDArray) -> float:
         x = full(y)
@@ -270,10 +282,12 @@ def _simp_allosteric_mma(
     opt.set_stopval(float(rtol))
     opt.set_initial_step(0.1)  # asymptotes: about the textbook's move limit
     try:
-        opt.optimize(np.full(active.size, float(volfrac)))
+        opt.optimize(start)
     except nlopt.RoundoffLimited:  # keep the best design found
         pass
-    return problem.result(best[1], objective, times, t0, "mma")
+    if not np.isfinite(best[0]):  # no feasible evaluation: report the start's objective
+        best[0] = problem.evaluate(best[1], gradient=False)[0]
+    return problem.result(best[1], objective, times, t0, "mma", final=best[0])
 
 
 def inverter_response(

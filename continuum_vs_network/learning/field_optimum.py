@@ -8,11 +8,11 @@ same masks), within the physical range of the stiffnesses relative to the untrai
 (:data:`~continuum_vs_network.learning.ranges.STIFFNESS_RANGE`).
 
 The search runs in ``y = log(design)`` (gradient ``design * dC/d design``; the bounds become
-``log`` of the range). An elastic response depends on modulus *ratios* (it is homogeneous of
-degree 0 in the modulus field), so ``dC/ds`` scales as ``1/s``: in the design itself the
-elements near the floor of the range carry gradients up to 1e4 times those near its ceiling,
-and L-BFGS-B crawls (C/C0 0.75 after 200 iterations on h/2 and 0.86 on h/4 of the mechanism
-scene, against 1e-25 in log variables within about 100 to 300 evaluations). It is the continuum's
+``log`` of the range; an elastic response depends on modulus *ratios*, so ``dC/ds`` scales
+as ``1/s``), each variable weighted by ``sqrt(area / total area)`` of its element: the
+gradient of an element's value scales with its area, and weighted, the steps and the
+gradient's norm do not change with the element size, nor does the number of evaluations
+(``docs/solver-notes.md#field-optimum``). It is the continuum's
 :func:`~continuum_vs_network.learning.optimum.exact_optimum`, and its result has the same
 shape (:class:`FieldOptimum`). Each evaluation is one factorisation, one free state and one
 adjoint (no further solve, :mod:`~continuum_vs_network.continuum.learning_states`).
@@ -165,10 +165,14 @@ def field_optimum(
     def as_param(x: NDArray) -> NDArray:
         return x.reshape(shape)
 
+    # the search runs in z = w y, w = sqrt(area / total area): the Euclidean metric of z is
+    # the field's area-weighted mean square, so neither the steps nor the gradient's norm
+    # change with the element size (in y, the gradient scales with the area)
+    w = np.sqrt(area / area.sum())[:, None] * np.ones((1, ncol))
     bounds = [
-        (None if not np.isfinite(lo) else lo, None if not np.isfinite(hi) else hi) if m
-        else (v, v)
-        for lo, hi, v, m in zip(low.ravel(), high.ravel(), y0.ravel(), mask.ravel())
+        (None if not np.isfinite(lo) else lo * s, None if not np.isfinite(hi) else hi * s) if m
+        else (v * s, v * s)
+        for lo, hi, v, m, s in zip(low.ravel(), high.ravel(), y0.ravel(), mask.ravel(), w.ravel())
     ]  # fmt: skip
     a = area[:, None]
     errors: list[float] = []
@@ -179,8 +183,8 @@ def field_optimum(
     class _Done(Exception):
         pass
 
-    def fun(y: NDArray) -> tuple[float, NDArray]:
-        x = to_x(y)
+    def fun(z: NDArray) -> tuple[float, NDArray]:
+        x = to_x(z / w.ravel())
         m = medium.with_parameters(d, as_param(x))
         free = m.free_state(task)
         c = task.error(free.target_strain)
@@ -193,11 +197,11 @@ def field_optimum(
             best[0], best[1] = c, np.array(x)
         if c <= rtol * e0:
             raise _Done
-        return c / e0, g.ravel() / e0
+        return c / e0, (g / w).ravel() / e0
 
     try:
         res = minimize(
-            fun, y0.ravel(), jac=True, method="L-BFGS-B", bounds=bounds,
+            fun, (y0 * w).ravel(), jac=True, method="L-BFGS-B", bounds=bounds,
             options={"maxiter": int(max_iter), "ftol": 1e-15, "gtol": 1e-14},
         )  # fmt: skip
         nit, converged, message = int(res.nit), bool(res.success), str(res.message)

@@ -353,7 +353,7 @@ def simp_unit(scene: Scene, params: dict, ctx: UnitContext):
         **_mesh_arrays(body, r.modulus, body),
     }
     meta = {
-        "ratio": float(r.objective[-1]), "solves": r.solves, "seconds": r.seconds,
+        "ratio": r.final, "solves": r.solves, "seconds": r.seconds,
         "iterations": r.iterations, "volume": r.volume, "method": r.method,
         "e_min": e_min, "e_max": e_max,
         "response": _response(body.with_modulus(r.modulus), task),
