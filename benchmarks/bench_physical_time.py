@@ -38,7 +38,7 @@ def main() -> None:
         network_relaxation_time,
     )
     from continuum_vs_network.learning.rules import CoupledLearning
-    from continuum_vs_network.network.dynamics import Stepper
+    from continuum_vs_network.network.stepper import Stepper
     from continuum_vs_network.network.viscous import Viscosity
     from continuum_vs_network.scenes.schema.builtin import load_scene
     from continuum_vs_network.scenes.units_time import _lattice_task

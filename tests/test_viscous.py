@@ -307,7 +307,8 @@ def test_stiff_rod_is_stable_at_any_step():
 def test_a_first_iterate_changes_the_cost_of_a_step_not_its_result():
     """Backward Euler has one solution per step: a predictor ``2 x1 - x0`` (or a poor guess)
     gives the same state to the tolerance, and the predictor needs fewer iterations."""
-    from continuum_vs_network.network.dynamics import Stepper, _boundary
+    from continuum_vs_network.network.dynamics import _boundary
+    from continuum_vs_network.network.stepper import Stepper
 
     net = cvn.triangular_lattice(6, 6)
     rng = np.random.default_rng(1)

@@ -23,7 +23,7 @@ taking ``dt_learn / step_time`` of a step (with ``dt_learn = step_time`` it is
 history, as in :mod:`.rates`.
 
 :class:`NetworkTime` steps a :class:`~..network.model.SpringNetwork` with
-:class:`~..network.dynamics.Stepper` (drag, dashpots, Maxwell arms), its clamps held by
+:class:`~..network.stepper.Stepper` (drag, dashpots, Maxwell arms), its clamps held by
 default as the continuum holds them, by the clamped springs' lengths only (``clamp=
 "strain"``: each clamped spring a :func:`~..network.strain_clamp.rod_clamped` rod at the
 clamp length, no node held; the lengths read are the clamp lengths up to the rod's strain
@@ -42,8 +42,9 @@ from types import SimpleNamespace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..network.dynamics import Stepper, _boundary
+from ..network.dynamics import _boundary
 from ..network.model import SpringNetwork
+from ..network.stepper import Stepper
 from ..network.strain_clamp import ROD_FACTOR, rod_clamped
 from ..network.viscous import Viscosity
 from .medium import check_rule_on_medium

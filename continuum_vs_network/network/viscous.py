@@ -18,7 +18,7 @@ Forces on the nodes (unit masses when ``inertia=True``)::
   prospective configuration in time (``L' = alpha k (r - L)``).
 
 Time stepping (backward Euler, the arms eliminated in closed form, the dashpot impulse of a
-displacement step) is :class:`~.dynamics.Stepper` and :func:`~.dynamics.simulate_viscous`.
+displacement step) is :class:`~.stepper.Stepper` and :func:`~.dynamics.simulate_viscous`.
 """
 
 from __future__ import annotations
