@@ -7,7 +7,10 @@ the same error and the same trend rule.
 
 The standard error is the ordinary least-squares one,
 ``sqrt(RSS / (n - 2) / sum((log x - mean)^2))``: NaN from two points, where a line fits
-exactly and the data say nothing about the error.
+exactly and the data say nothing about the error. It is computed from the residuals, not
+as ``scipy.stats.linregress`` does from ``1 - r**2``: that cancels on the near-exact power
+laws measured here (relative error 7e-5 at a log scatter of 1e-4, up to 100% at 1e-6) and
+is NaN for a constant ``y``, where this fit says "no trend".
 """
 
 from __future__ import annotations

@@ -234,6 +234,29 @@ def test_lock_is_reentrant_in_one_process_and_exclusive_across(tmp_path):
     assert issubclass(FolderBusyError, RuntimeError)
 
 
+def test_lock_of_a_killed_holder_is_taken_over(tmp_path):
+    code = (
+        "import sys, time\n"
+        "from continuum_vs_network.io.lock import folder_lock\n"
+        "with folder_lock(sys.argv[1]):\n"
+        "    print('held', flush=True)\n"
+        "    time.sleep(60)\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    cmd = [sys.executable, "-c", code, str(tmp_path)]
+    holder = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(FolderBusyError, match=f"process {holder.pid} since"):
+            with folder_lock(tmp_path):
+                pass
+    finally:
+        holder.kill()  # SIGKILL: no cleanup runs in the holder
+        holder.wait()
+    with folder_lock(tmp_path):
+        assert json.loads((tmp_path / ".lock").read_text())["pid"] == os.getpid()
+
+
 def test_two_concurrent_runs_on_one_folder_end_cleanly(tmp_path):
     scene = _write(tmp_path, LEARN)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

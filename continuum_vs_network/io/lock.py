@@ -1,10 +1,10 @@
 """An exclusive lock on a result folder, so that two runs never write into the same one.
 
-The lock is the file ``<folder>/.lock``, locked with ``fcntl.flock`` (the kernel releases
-it when the holding process dies, however it dies, so a killed run never leaves a stale
-lock) and holding the holder's PID and start time for the message the next run shows.
-Where ``fcntl`` does not exist the file is created with ``O_EXCL`` instead and a lock
-whose PID is no longer alive is stale and taken over.
+The lock is the file ``<folder>/.lock``, held with :class:`filelock.FileLock` (``flock``
+on POSIX, ``LockFileEx`` on Windows: the kernel releases it when the holding process dies,
+however it dies, so a killed run never leaves a stale lock) and holding the holder's PID
+and start time for the message the next run shows. filelock >= 4 is required: 3.x opened
+the file with ``O_TRUNC`` before trying the lock, so a losing contender erased that stamp.
 
 A second run on a locked folder does not wait: it raises :class:`FolderBusyError` at once
 (the CLI turns it into one line and exit code 7). Locks are re-entrant within a process
@@ -14,19 +14,22 @@ A second run on a locked folder does not wait: it raises :class:`FolderBusyError
 from __future__ import annotations
 
 import contextlib
-import errno
 import json
 import os
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from filelock import FileLock
 
 __all__ = ["LOCK_NAME", "FolderBusyError", "folder_lock", "pid_alive"]
 
 LOCK_NAME = ".lock"
 
-#: folders this process holds: resolved path -> (file descriptor, depth)
-_HELD: dict[str, tuple[int, int]] = {}
+#: folders this process holds: resolved path -> its (re-entrant) lock
+_HELD: dict[str, FileLock] = {}
 
 
 class FolderBusyError(RuntimeError):
@@ -72,46 +75,14 @@ def _read_holder(path: Path) -> dict:
     return data if isinstance(data, dict) else {}
 
 
-def _stamp() -> bytes:
-    return json.dumps(
-        {"pid": os.getpid(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-    ).encode()
-
-
-def _acquire(folder: Path) -> int:
-    path = folder / LOCK_NAME
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - not POSIX
-        return _acquire_exclusive(path)
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError as err:
-        os.close(fd)
-        if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-            raise FolderBusyError(folder, _read_holder(path)) from None
-        raise
+def _stamp(fd: int) -> None:
+    """Write this process's PID and start time into the lock file it has just locked."""
     os.ftruncate(fd, 0)
-    os.write(fd, _stamp())
+    os.write(
+        fd,
+        json.dumps({"pid": os.getpid(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}).encode(),
+    )
     os.fsync(fd)
-    return fd
-
-
-def _acquire_exclusive(path: Path) -> int:  # pragma: no cover - not POSIX
-    for _ in range(2):
-        try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
-        except FileExistsError:
-            holder = _read_holder(path)
-            if pid_alive(int(holder.get("pid", -1))):
-                raise FolderBusyError(path.parent, holder) from None
-            path.unlink(missing_ok=True)  # stale: its process is gone
-            continue
-        os.write(fd, _stamp())
-        os.fsync(fd)
-        return fd
-    raise FolderBusyError(path.parent, _read_holder(path))
 
 
 @contextlib.contextmanager
@@ -125,31 +96,29 @@ def folder_lock(folder: str | os.PathLike[str]) -> Iterator[Path]:
     OSError
         The folder cannot be created or written (not a folder, read-only, ...).
     """
+    from filelock import FileLock, Timeout
+
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     key = str(folder.resolve())
-    if key in _HELD:
-        fd, depth = _HELD[key]
-        _HELD[key] = (fd, depth + 1)
-    else:
-        _HELD[key] = (_acquire(folder), 1)
+    # one lock object per folder (its counter makes it re-entrant across call sites); no
+    # waiting, no soft (PID-file) fallback, and the file stays for the next holder's stamp
+    lock = _HELD.get(key) or FileLock(
+        folder / LOCK_NAME,
+        timeout=0,
+        thread_local=False,
+        fallback_to_soft=False,
+        preserve_lock_file=True,
+        on_acquired=_stamp,
+    )
+    try:
+        lock.acquire()
+    except Timeout:
+        raise FolderBusyError(folder, _read_holder(folder / LOCK_NAME)) from None
+    _HELD[key] = lock
     try:
         yield folder
     finally:
-        fd, depth = _HELD[key]
-        if depth > 1:
-            _HELD[key] = (fd, depth - 1)
-        else:
+        lock.release()
+        if not lock.is_locked:
             del _HELD[key]
-            if not _has_fcntl():  # pragma: no cover - not POSIX
-                with contextlib.suppress(OSError):
-                    (folder / LOCK_NAME).unlink()
-            os.close(fd)  # releases the flock
-
-
-def _has_fcntl() -> bool:
-    try:
-        import fcntl  # noqa: F401
-    except ImportError:  # pragma: no cover - not POSIX
-        return False
-    return True

@@ -127,6 +127,12 @@ class Document:
             self.add(f"Verdict rule: {rules.pop()}.", "")
 
     def table(self, headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:
+        """A GitHub Markdown table, unpadded, its row cells escaped (:func:`escape.cell`).
+
+        Not ``tabulate(tablefmt="github")``: it pads every cell to its column's width (the
+        committed reports' tables grow 2.6x, long "rule" cells widen whole columns) and does
+        not escape ``|`` in cells.
+        """
         if self.lines and self.lines[-1] != "":
             self.lines.append("")
         self.lines.append("| " + " | ".join(headers) + " |")

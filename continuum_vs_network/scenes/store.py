@@ -11,6 +11,12 @@ inf: an open end such as no instability below the largest value tried) is writte
 ``null`` and named in the record's ``"non_finite"`` map (JSON pointer -> ``"nan"``,
 ``"inf"`` or ``"-inf"``), and read back as it was; records written with bare ``NaN`` tokens
 by earlier versions still load.
+
+Not ``joblib.Memory``: it keys a result by a hash of the function's code and its pickled
+arguments and drops a function's results when its code changes, while a unit here is keyed
+by its name and the settings it depends on (:attr:`.Unit.fingerprint`) and kept across code
+changes; and its pickles, stored under hashes, are not the ``.npz`` + JSON record by unit
+key that the runner, the reports and other units read.
 """
 
 from __future__ import annotations
