@@ -185,19 +185,28 @@ def network_relaxation_time(
         eq = simulate_viscous(net, viscosity, dt=big, t_end=big, pinned=task.pinned, clamped=clamps)
         end = net.lengths(eq.positions[-1], task.targets) / rest
         start = net.lengths(net.positions, task.targets) / rest
-    t_end = 4.0 * (viscosity.drag + viscosity.dashpot) / k_mean * max(net.n_nodes, 4) ** 0.5
-    for _ in range(30):
+
+    def tau_of(t_end: float) -> float:
         traj = simulate_viscous(
             net, viscosity, dt=t_end / 200, t_end=t_end, pinned=task.pinned, clamped=clamps
         )
         if measure == "force":
             try:
-                tau = relaxation_time(traj, fraction)
+                return relaxation_time(traj, fraction)
             except ValueError:
-                tau = math.inf
-        else:
-            strains = np.stack([net.lengths(x, task.targets) / rest for x in traj.positions])
-            tau = settling_time(traj.times, strains, start, end, fraction)
+                return math.inf
+        strains = np.stack([net.lengths(x, task.targets) / rest for x in traj.positions])
+        return settling_time(traj.times, strains, start, end, fraction)
+
+    eta = viscosity.drag + viscosity.dashpot
+    return _settled(tau_of, 4.0 * eta / k_mean * max(net.n_nodes, 4) ** 0.5)
+
+
+def _settled(tau_of, t_end: float) -> float:
+    """``tau_of(t_end)`` (the relaxation time read from a run of length ``t_end``) from a run
+    at least 3 times longer than it, doubling ``t_end`` until it is."""
+    for _ in range(30):
+        tau = tau_of(t_end)
         if 3.0 * tau <= t_end:
             return tau
         t_end *= 2.0
@@ -259,8 +268,8 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
         f0 = float(np.max(np.abs(C @ v0))) if v0.size else 0.0
         if f0 == 0:
             return 0.0
-    t_end = 4.0 * eta / k_mean * max(net.n_nodes, 4) ** 0.5
-    for _ in range(30):
+
+    def tau_of(t_end: float) -> float:
         traj = simulate_viscous(
             rods, viscosity, dt=t_end / 200, t_end=t_end, pinned=task.pinned, x0=xj,
             arm0=arm_j, tol=tol,
@@ -269,14 +278,11 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
             pos = np.asarray(traj.positions).reshape(len(traj.times), -1)[:, fdofs]
             d = np.array([np.max(np.abs(C @ (b - a))) for a, b in itertools.pairwise(pos)])
             d /= t_end / 200
-            tau = settling_time(traj.times[1:], d[:, None], np.array([f0]), np.zeros(1), fraction)
-        else:
-            strains = np.stack([net.lengths(x, task.targets) / rest for x in traj.positions])
-            tau = settling_time(traj.times, strains, start, end, fraction)
-        if 3.0 * tau <= t_end:
-            return tau
-        t_end *= 2.0
-    raise RuntimeError("the network does not relax after the source step (is it rigid?)")
+            return settling_time(traj.times[1:], d[:, None], np.array([f0]), np.zeros(1), fraction)
+        strains = np.stack([net.lengths(x, task.targets) / rest for x in traj.positions])
+        return settling_time(traj.times, strains, start, end, fraction)
+
+    return _settled(tau_of, 4.0 * eta / k_mean * max(net.n_nodes, 4) ** 0.5)
 
 
 def learn_in_time(
