@@ -23,15 +23,17 @@ is accelerated by Anderson mixing (GMRES-like on its linear error) and starts fr
 extrapolated from the previous steps (the free state linearly, the nudged state by last
 step's nudge displacement). Convergence is judged by ``relax``'s own local stop rule
 (:mod:`~continuum_vs_network.network.stopping`), so reuse changes the cost, never the
-tolerance. The Lagrangian Hessian, the row order and the trust region are the engine's
+tolerance. The Lagrangian Hessian and the row order are the engine's
 (:mod:`~continuum_vs_network.network.lagrangian`); this module keeps only what is reused.
 
-When ``relax`` itself stalls (learning drives paper networks through snap-through
-instabilities, where the core Newton's positive-definite model creeps), the tracker
-continues from the stalled point with a dense trust-region Newton that follows negative
-curvature (:func:`~continuum_vs_network.network.lagrangian.trust_region`, small problems)
-and polishes with ``relax``; then it
-retries with strain continuation (``retry_ramps``).
+When ``relax`` itself fails (learning drives networks through snap-through
+instabilities, where a Newton iteration can creep), the tracker continues from the failed
+state with the engine's dense trust-region Newton, which follows negative curvature
+(:func:`~continuum_vs_network.network.trust.trust_region_newton`: what ``relax``'s Newton
+runs up to :data:`~continuum_vs_network.network.trust.TR_DENSE_MAX` free coordinates; here
+up to ``Solver.trust_region_max_free``, where ``relax`` ran the sparse Newton), to a
+looser tolerance, and polishes with ``relax``; then it retries with strain continuation
+(``retry_ramps``).
 
 Any other solver setting (``method="paper"``, ``"fire"``, rods, ``reuse=False``) calls
 :func:`~continuum_vs_network.relax` with a warm start.
@@ -50,12 +52,16 @@ from ..linalg.kkt import schur_solve
 from ..network.arguments import solver_arguments
 from ..network.constraints import Problem, clamp_tensions
 from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
-from ..network.lagrangian import Frame, lagrangian_hessian, trust_region
+from ..network.lagrangian import Frame, lagrangian_hessian
 from ..network.model import SpringNetwork
+from ..network.stopping import Trace
+from ..network.trust import trust_region_newton
 
 __all__ = ["Solver", "Tracker"]
 
 _MAX_REFACTORS = 3  # per chord solve; then relax (with its line search) takes over
+_RECOVERY_TOL = 100.0  # the recovery's solve stops at this multiple of tol; relax polishes
+_RECOVERY_ITER = 200  # its iteration budget
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -86,9 +92,11 @@ class Solver:
     anderson : int
         Depth of the Anderson acceleration of the chord iteration (0: plain chord).
     trust_region : bool
-        When ``relax`` stalls (typically at a nearly degenerate equilibrium, where learning
-        is about to make the network snap), continue with :func:`trust_region` from the
-        stalled point and polish with ``relax``: problems of at most
+        When ``relax`` fails (typically at a nearly degenerate equilibrium, where learning
+        is about to make the network snap), continue from the failed state with the
+        engine's dense trust-region Newton
+        (:func:`~continuum_vs_network.network.trust.trust_region_newton`, a fresh radius,
+        up to 200 iterations) to ``100 tol`` and polish with ``relax``: problems of at most
         ``trust_region_max_free`` free coordinates (dense).
     trust_region_max_free : int
     retry_ramps : tuple of int
@@ -334,7 +342,7 @@ class Tracker:
         first: int,
         err: EquilibriumError,
     ) -> Equilibrium:
-        """After a failed relax: trust region from the stalled point, then continuation;
+        """After a failed relax: trust region from the failed state, then continuation;
         neither where ``tol`` is below float64's reach at the failed state
         (``err.roundoff``): no solver or start does better there, and the continuation
         from the start cost the paper scene's GPC runs 2000 iterations (2.5 s) a step to
@@ -353,8 +361,8 @@ class Tracker:
         ):
             # a stall at a nearly degenerate equilibrium: follow the exact curvature, polish
             self.stats.trust_regions += 1
-            y, reached = trust_region(problem, x, force_tol=100 * s.tol)
-            if reached:
+            y = self._from_failure(problem, x)
+            if y is not None:
                 try:
                     return self._relax_once(net, pinned, clamped, y, 1)
                 except EquilibriumError as e:
@@ -368,6 +376,24 @@ class Tracker:
             except EquilibriumError as e:
                 last = e
         raise last
+
+    def _from_failure(self, problem: Problem, x: NDArray) -> NDArray | None:
+        """The engine's dense trust region on ``problem`` from ``x`` to ``_RECOVERY_TOL``
+        times ``tol`` (``relax`` then polishes): the state it reaches, or None where it
+        does not. Dense at every size the tracker asks (``trust_region_max_free``): above
+        ``TR_DENSE_MAX`` ``relax`` ran the sparse Newton, and that again from its failed
+        state recovered fewer of the stalls the trust region recovers
+        (``docs/solver-notes.md#tracker-recovery``)."""
+        s = self.solver
+        stop = problem.stop_rule(
+            _RECOVERY_TOL * s.tol, max_iter=_RECOVERY_ITER, max_seconds=s.max_seconds
+        )
+        try:
+            outcome = trust_region_newton(problem, problem.start(x), stop, Trace())
+        except (np.linalg.LinAlgError, FloatingPointError):
+            return None
+        self.stats.iterations += outcome.iterations
+        return outcome.x if outcome.converged and np.all(np.isfinite(outcome.x)) else None
 
     # -- fast path --------------------------------------------------------------------
     def _linearise(

@@ -1,4 +1,4 @@
-"""The Lagrangian of a clamped equilibrium: its Hessian, the row order, and a trust region.
+"""The Lagrangian of a clamped equilibrium: its Hessian and the row order.
 
 One implementation serves every solver of the package: :func:`~.newton.newton` (through
 :func:`lagrangian_blocks`), the learning tracker's chord iteration, sensitivities (exact
@@ -9,9 +9,9 @@ gradients) and source sweeps.
   factorisations made anywhere match.
 * :func:`lagrangian_blocks` / :func:`lagrangian_hessian`: ``W = H_E + sum_c mu_c d^2 r_c +
   rho A^T A`` per spring block and assembled.
-* :func:`trust_region`: dense trust-region Newton on the clamp manifold that follows
-  negative curvature (eigen-decomposition of the reduced Hessian), for small problems that
-  stall at nearly degenerate equilibria.
+
+The trust region that follows negative curvature is :mod:`.trust`'s (``relax`` and the
+learning tracker's recovery use it).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from .energy import HessianPattern
 from .model import SpringNetwork, spring_vectors, vector_lengths
 from .ordering import band_order, coordinate_order, nested_dissection
 
-__all__ = ["Frame", "lagrangian_blocks", "lagrangian_hessian", "pattern_for", "trust_region"]
+__all__ = ["Frame", "lagrangian_blocks", "lagrangian_hessian", "pattern_for"]
 
 
 def pattern_for(
@@ -226,87 +226,3 @@ def lagrangian_hessian(
         rho = float(np.max(problem.net.stiffness)) if problem.n_clamps else 0.0
     blocks = lagrangian_blocks(problem, x, np.asarray(multipliers, float), float(rho))
     return frame.pattern.assemble(blocks)
-
-
-def trust_region(
-    problem: Problem,
-    x: NDArray,
-    *,
-    force_tol: float,
-    max_iter: int = 200,
-) -> tuple[NDArray, bool]:
-    """Dense trust-region Newton on the clamp manifold, for small stalled problems.
-
-    Newton with a positive-definite model creeps where the equilibrium is nearly degenerate
-    (a soft mode whose curvature changes sign: the warm-started branch is about to vanish
-    or has just vanished). This method uses the exact reduced Hessian
-    ``Q^T W Q`` (``Q`` a basis of the null space of the clamp Jacobian) with a trust region
-    (eigen-decomposition, so negative curvature is followed, not clipped), restores the
-    clamp lengths after every step, and accepts steps that lower the energy (or, once the
-    energy change is at round-off, the residual). It stops when
-    the residual is ``<= force_tol`` (absolute); :func:`relax` then polishes. Dense:
-    O(n_free^3) per iteration.
-
-    Returns ``(x, reached)``.
-    """
-    net = problem.net
-    frame = Frame(net, problem.free, sparse_solver=problem.sparse_solver)
-    clamps = problem.clamp_springs
-    m = problem.n_clamps
-    x = _restore(problem, np.array(x, dtype=np.float64))
-    scale = float(np.mean(net.rest_length))
-    radius = 0.1 * scale
-    energy = problem.energy(x)
-    for _ in range(max_iter):
-        res = problem.residual(x)
-        residual, mu = res.imbalance, res.multipliers
-        if residual <= force_tol:
-            return x, True
-        g = frame.take(problem.gradient(x))
-        if m:
-            vt = np.linalg.svd(frame.rows(net, x, clamps, dense=True))[2]
-            Q = vt[m:].T
-        else:
-            Q = np.eye(frame.n)
-        W = lagrangian_hessian(problem, x, mu, rho=0.0, frame=frame).toarray()
-        H = Q.T @ W @ Q
-        gr = Q.T @ g
-        vals, vecs = np.linalg.eigh(H)
-        gt = vecs.T @ gr
-
-        low = max(0.0, -vals[0])
-        p = _tr_step(vals, vecs, gt, 0.0) if vals[0] > 0 else None
-        if p is None or np.linalg.norm(p) > radius:
-            lo, hi = low, low + np.linalg.norm(gr) / radius + abs(vals[-1])
-            for _ in range(80):  # bisection on the shift: |p(shift)| = radius
-                mid = 0.5 * (lo + hi)
-                long = np.linalg.norm(_tr_step(vals, vecs, gt, mid)) > radius
-                lo, hi = (mid, hi) if long else (lo, mid)
-            p = _tr_step(vals, vecs, gt, hi)
-        predicted = float(gr @ p + 0.5 * p @ H @ p)
-        y = x + frame.put(Q @ p)
-        y = _restore(problem, y)
-        e_y = problem.energy(y)
-        ratio = (e_y - energy) / predicted if predicted < 0 else -1.0
-        flat = abs(e_y - energy) <= 1e-12 * abs(energy)  # energy at round-off: use the force
-        if e_y < energy or (flat and problem.residual(y).imbalance < residual):
-            x, energy = y, e_y
-        radius *= 2.0 if ratio > 0.75 else (0.25 if ratio < 0.25 else 1.0)
-        radius = max(radius, 1e-12 * scale)
-    return x, False
-
-
-def _tr_step(vals: NDArray, vecs: NDArray, gt: NDArray, shift: float) -> NDArray:
-    return -vecs @ (gt / (vals + shift))
-
-
-def _restore(problem: Problem, y: NDArray) -> NDArray:
-    """Minimum-norm correction of ``y`` back onto the clamp lengths (Gauss-Newton)."""
-    if not problem.n_clamps:
-        return y
-    target = 1e-13 * float(np.mean(problem.clamp_lengths))
-    for _ in range(20):
-        if np.max(np.abs(problem.clamp_violation(y))) <= target:
-            break
-        y = problem.toward_clamps(y)
-    return y
