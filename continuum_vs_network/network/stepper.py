@@ -32,10 +32,11 @@ Factorisations: ``jacobian="frozen"`` keeps the last factorisation of ``H + A`` 
 iterations and steps while a correction with it (a chord iteration) cuts the net force at
 least 4-fold, and refactorises at the current state otherwise (exact for a linear network,
 i.e. small displacements, so a linear run factorises once); ``"update"`` refactorises at
-the first correction of every step. The converged state is the same, only the cost
-changes. Very stiff springs (rods of k = 1e10 among k ~ 1) that must rotate during a step
-make Newton zig-zag along a curved valley (~60 iterations for a step; hence
-``max_newton=200`` in :func:`simulate`).
+the first correction of every step, and at every correction after one that cut the net
+force less than 4-fold (full Newton for the rest of the step). The converged state is
+the same, only the cost changes. Very stiff springs (rods of k = 1e10 among k ~ 1) that
+must rotate during a step make Newton zig-zag along a curved valley (~60 iterations for a
+step; hence ``max_newton=200`` in :func:`~.dynamics.simulate`).
 """
 
 from __future__ import annotations
@@ -255,7 +256,9 @@ class Stepper:
     def _solve(self, net, kc, Lc, D, x0, b, y, where: str) -> NDArray:
         """Minimise ``Phi(y) = E_step(y) + s^T D s / 2 - b.s``, ``s = y - x0``, over the free
         coordinates from ``y``: Newton with an Armijo line search; a kept factorisation
-        serves (chord iterations) while its correction cuts the net force 4-fold."""
+        serves (chord iterations) while its correction cuts the net force 4-fold. With
+        ``jacobian="update"``, once a correction cuts it less, every further iteration of
+        the step refactorises (full Newton)."""
         springs, rows = net.springs, self.rows
         x0_rows = x0.ravel()[rows]
 
@@ -270,6 +273,7 @@ class Stepper:
         g = grad(y)
         gnorm = float(np.max(np.abs(g))) if g.size else 0.0
         fresh = False  # self._stored was factorised at the current y
+        newton = False  # "update": full Newton for the rest of the step
         for _ in range(self.max_newton):
             if gnorm <= force_tol:
                 break
@@ -307,10 +311,16 @@ class Stepper:
                 fresh = True
                 continue
             self.newton_iterations += 1
+            # "update": a correction that does not cut the force 4-fold means the step is
+            # nonlinear (large rotations, stiff springs): full Newton from here on
+            newton = self.jacobian == "update" and (newton or gnz > 0.25 * gnorm)
             y, g, gnorm = z, gz, gnz
             fresh = False
             if alpha == 1.0 and float(np.max(np.abs(d))) <= length_tol:
                 break
+            if newton and gnorm > force_tol:
+                self._stored = self._factor(y, springs, kc, Lc, D, where)
+                fresh = True
         else:
             if gnorm > force_tol:
                 raise RuntimeError(
