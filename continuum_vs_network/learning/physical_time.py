@@ -250,15 +250,16 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
     start = net.lengths(x0, task.targets) / rest
     end = None
     fdofs = free.ravel()
-    C = (
-        dashpot_matrix(x0, net, viscosity.dashpot) + viscosity.drag * sp.identity(2 * net.n_nodes)
-    ).tocsr()[fdofs][:, fdofs]
     if measure == "target":
         big = 1e12 / k_mean
         eq = simulate_viscous(rods, viscosity, dt=big, t_end=big, pinned=task.pinned, tol=tol)
         end = net.lengths(eq.positions[-1], task.targets) / rest
         f0 = None
     else:
+        C = dashpot_matrix(x0, net, viscosity.dashpot) + viscosity.drag * sp.identity(
+            2 * net.n_nodes
+        )
+        C = C.tocsr()[fdofs][:, fdofs]
         force = -spring_gradient(xj, net.springs, net.stiffness, net.rest_length)
         if arm0 is not None:
             k2 = np.full(net.n_springs, viscosity.arm_stiffness)
