@@ -294,8 +294,9 @@ def test_the_kept_band_layout_follows_each_matrix_structure():
     ``indptr``. A grid whose vertical edges are twisted by one column has the grid's row
     counts (the same ``indptr``) but other columns; it, the grid again and a copy of the
     grid with every entry stored twice (not canonical) each solve their own system, to
-    float64 and float32 round-off, against dense solves."""
-    side = 24
+    float64 and float32 round-off, against dense solves (1024 rows: from
+    ``ROUGH_BANDED_MIN`` a rough factor is float32)."""
+    side = 32
     n = side * side
     ids = np.arange(n).reshape(side, side)
     across = np.c_[ids[:, :-1].ravel(), ids[:, 1:].ravel()]
@@ -333,7 +334,9 @@ def test_a_rough_banded_factor_is_float32_and_still_refuses_indefinite_w(monkeyp
     """``rough=True`` on a narrow band: LAPACK's Cholesky in float32, its solution off by
     float32 round-off times the condition number; a negative eigenvalue is refused and its
     direction still found. A diagonal over eight decades, or a condition number float32
-    cannot solve to ROUGH_RESIDUAL (a grid grounded by 1e-9), gets the float64 factor."""
+    cannot solve to ROUGH_RESIDUAL (a grid grounded by 1e-9), gets the float64 factor.
+    (576 rows: float32 from any size here, ``ROUGH_BANDED_MIN`` lowered.)"""
+    monkeypatch.setattr(spd_module, "ROUGH_BANDED_MIN", 0)
     side = 24
     W = _laplacian_2d(side)  # natural order: lower bandwidth 24
     b = np.sin(np.arange(W.shape[0], dtype=float))
@@ -368,14 +371,16 @@ def test_a_ladder_rung_takes_a_failed_float32_pivot_as_final(monkeypatch):
     (``rung=True``) it fails without factorising in float64. A well-conditioned rung still
     gets its float32 factor, and an inaccurate float32 factor (a pivot that passed) still
     gets the float64 one (forced: whether a given float32 factor passes its pivots but
-    solves inaccurately depends on the machine's BLAS)."""
+    solves inaccurately depends on the machine's BLAS). (Float32 from any size here,
+    ``ROUGH_BANDED_MIN`` lowered.)"""
+    monkeypatch.setattr(spd_module, "ROUGH_BANDED_MIN", 0)
     blocks = 300  # 600 rows: above DENSE_MAX, lower bandwidth 1
     near = sp.block_diag([np.array([[1.0, 1.0 - 1e-9], [1.0 - 1e-9, 1.0]])] * blocks, "csr")
     assert isinstance(factor_spd(near, rough=True, sparse_solver="superlu"), Factor)
     calls = []
-    cholesky = spd_module.sla.cholesky_banded
+    cholesky = spd_module.sla.lapack.dpbtrf  # the float64 banded Cholesky
     monkeypatch.setattr(
-        spd_module.sla, "cholesky_banded", lambda *a, **k: calls.append(1) or cholesky(*a, **k)
+        spd_module.sla.lapack, "dpbtrf", lambda *a, **k: calls.append(1) or cholesky(*a, **k)
     )
     assert factor_spd(near, rough=True, rung=True, sparse_solver="superlu") is None and not calls
     well = factor_spd(_laplacian_2d(24), rough=True, rung=True, sparse_solver="superlu")
@@ -388,6 +393,22 @@ def test_a_ladder_rung_takes_a_failed_float32_pivot_as_final(monkeypatch):
     assert calls and np.allclose(
         fallback.solve(b), factor_spd(grounded, sparse_solver="superlu").solve(b), rtol=1e-12
     )
+
+
+def test_a_small_bands_rough_factor_is_float64():
+    """Below ``ROUGH_BANDED_MIN`` rows a rough banded factor is the float64 one, and it
+    preconditions with its own solve (exact to float64 round-off); from it, float32."""
+    from continuum_vs_network.linalg.spd import ROUGH_BANDED_MIN
+
+    for side, small in ((24, True), (32, False)):
+        W = _laplacian_2d(side)
+        assert (W.shape[0] < ROUGH_BANDED_MIN) == small
+        b = np.sin(np.arange(W.shape[0], dtype=float))
+        exact = np.linalg.solve(W.toarray(), b)
+        rough = factor_spd(W, rough=True, sparse_solver="superlu")
+        error = np.linalg.norm(rough.precondition(b) - exact) / np.linalg.norm(exact)
+        assert rough.approximate != small
+        assert (error < 1e-13) if small else (1e-12 < error < 1e-5)
 
 
 def test_band_order_reports_the_assembled_bandwidth():

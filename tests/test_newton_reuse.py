@@ -7,6 +7,7 @@ import pytest
 import scipy.sparse as sp
 from pulled_lattices import pulled_apart
 
+from continuum_vs_network.linalg import spd as spd_module
 from continuum_vs_network.linalg.kkt import Factor, factor_spd, range_space, range_space_solve
 from continuum_vs_network.network import hessian_ladder as ladder
 from continuum_vs_network.network import newton as nw
@@ -55,11 +56,13 @@ def test_projected_cg_step_equals_the_exact_kkt_step():
     np.testing.assert_allclose(mult, exact_mult, rtol=1e-7)
 
 
-def test_a_float32_factors_newton_step_is_refined_to_the_forcing_tolerance():
+def test_a_float32_factors_newton_step_is_refined_to_the_forcing_tolerance(monkeypatch):
     """A rough banded factor is float32 (``approximate``): on a lattice of stiffness over
     four decades its direct KKT step misses the force balance by more than 1e-6 of the
     force, while Newton's step from it (projected CG on the factorised matrix, preconditioned
-    by it) meets the forcing tolerance 1e-8 and the clamps to round-off."""
+    by it) meets the forcing tolerance 1e-8 and the clamps to round-off. (Float32 from
+    any size here, ``ROUGH_BANDED_MIN`` lowered.)"""
+    monkeypatch.setattr(spd_module, "ROUGH_BANDED_MIN", 0)
     rng = np.random.default_rng(3)
     net = triangular_lattice(18, 18, noise=0.1, rng=rng)
     net = net.with_stiffness(10.0 ** rng.uniform(-2, 2, net.n_springs))
@@ -86,12 +89,14 @@ def test_a_float32_factors_newton_step_is_refined_to_the_forcing_tolerance():
     np.testing.assert_allclose(A @ step, -viol, atol=1e-12 * np.abs(viol).max())
 
 
-def test_a_banded_factor_preconditions_in_float32_and_the_step_stays_exact():
+def test_a_banded_factor_preconditions_in_float32_and_the_step_stays_exact(monkeypatch):
     """The banded Cholesky's preconditioner is the factor rounded to float32: it differs
     from the float64 solve by 1e-9..1e-5 relative (so it is rounded, and close); projected
     CG with it still meets A step = -viol to round-off and reaches the exact KKT step to
     1e-10 (it stalled at 2e-9 while the Schur complement was symmetrised: A Z is not
-    symmetric to round-off with a float32 Z)."""
+    symmetric to round-off with a float32 Z). (Float32 from any size here,
+    ``ROUGH_BANDED_MIN`` lowered.)"""
+    monkeypatch.setattr(spd_module, "ROUGH_BANDED_MIN", 0)
     problem, x0, x1 = _problem_and_two_points()
     net = problem.net
     pattern = pattern_for(net.springs, net.n_nodes, problem.free, net.positions)
