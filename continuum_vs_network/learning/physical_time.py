@@ -226,9 +226,9 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
     chord-strain rows).
     """
     from ..linalg.kkt import factor_kkt
-    from ..network.constraints import strain_jacobian
     from ..network.dynamics import _boundary
     from ..network.energy import spring_gradient
+    from ..network.length_jacobian import strain_jacobian
     from ..network.stepper import Stepper
     from ..network.strain_clamp import ROD_FACTOR, rod_clamped
     from ..network.viscous import dashpot_matrix
