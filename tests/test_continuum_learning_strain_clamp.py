@@ -10,9 +10,9 @@ import pytest
 import scipy.sparse as sp
 
 from continuum_vs_network.network.builders import triangular_lattice
-from continuum_vs_network.network.constraints import strain_jacobian
 from continuum_vs_network.network.energy import hessian
 from continuum_vs_network.network.equilibrium import relax
+from continuum_vs_network.network.length_jacobian import strain_jacobian
 from continuum_vs_network.network.strain_clamp import (
     rod_clamped,
     rod_strain_error,

@@ -3,7 +3,7 @@ both are the derivative of the spring lengths (central differences)."""
 
 import numpy as np
 
-from continuum_vs_network.network.constraints import dense_jacobian_pays, length_jacobian
+from continuum_vs_network.network.length_jacobian import dense_jacobian_pays, length_jacobian
 
 
 def _lengths(x, pairs):

@@ -307,7 +307,7 @@ def test_stiff_rod_is_stable_at_any_step():
 def test_a_first_iterate_changes_the_cost_of_a_step_not_its_result():
     """Backward Euler has one solution per step: a predictor ``2 x1 - x0`` (or a poor guess)
     gives the same state to the tolerance, and the predictor needs fewer iterations."""
-    from continuum_vs_network.network.dynamics import _boundary
+    from continuum_vs_network.network.held_boundary import held_boundary
     from continuum_vs_network.network.stepper import Stepper
 
     net = cvn.triangular_lattice(6, 6)
@@ -315,7 +315,7 @@ def test_a_first_iterate_changes_the_cost_of_a_step_not_its_result():
     net = net.with_rest_length(net.rest_length * (1 + 0.05 * rng.standard_normal(net.n_springs)))
     pins = np.zeros((net.n_nodes, 2), bool)
     pins[:6] = True  # the bottom row held
-    free = _boundary(net, pins, None, None, net.positions)[1]
+    free = held_boundary(net, pins, None, None, net.positions)[1]
     steppers = [Stepper(net, Viscosity(drag=1.0), free, 0.01) for _ in range(3)]
     xs = [net.positions] * 3
     prev = None

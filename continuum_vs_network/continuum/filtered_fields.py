@@ -31,7 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .element_operators import tensor
-from .learnable import free_state_measurements
+from .learning_states import free_state_measurements
 
 __all__ = ["ExamplesState", "FilteredFields", "MaterialExamples", "filtered_fields"]
 

@@ -40,37 +40,11 @@ __all__ = [
     "EigenstrainKind",
     "LearnableBody",
     "MaterialDof",
-    "free_state_measurements",
     "learnable_body",
-    "mandel",
-    "tensor",
 ]
 
 MaterialDof = Literal["eigenstrain", "modulus"]
 EigenstrainKind = Literal["tensor", "isotropic"]
-
-
-def free_state_measurements(
-    medium: Any, task: Any, free: Any, dof: str, mask: NDArray
-) -> dict[str, Any]:
-    """What :func:`~continuum_vs_network.train` records of a learning medium's free state:
-    target lengths (those of the material springs: undeformed ``|ab|``, deformed
-    ``|ab| (1 + S)``), strains, the error (one convention: the material has no learning rest
-    length), the energy and the norm of ``medium``'s local gradient of ``dof`` on ``mask``."""
-    length = task.target_length
-    g = medium.local_gradient(free, dof)[mask]
-    err = task.error(free.target_strain)
-    return {
-        "target_rest_length": length,
-        "desired_length": length * (1.0 + task.target_strain),
-        "target_length": length * (1.0 + free.target_strain),
-        "target_strain": free.target_strain,
-        "error_current": err,
-        "error_initial": err,
-        "energy_free": free.energy,
-        "energy_gradient_free": float(np.sqrt(np.sum(g * g))),
-        "residual": free.residual,
-    }
 
 
 @dataclass(frozen=True, eq=False)
@@ -390,7 +364,9 @@ class LearnableBody:
 
     def measurements(self, task: Any, free: Any, dof: str, mask: NDArray) -> dict[str, Any]:
         """What :func:`~continuum_vs_network.train` records of a free state
-        (:func:`free_state_measurements`)."""
+        (:func:`.learning_states.free_state_measurements`)."""
+        from .learning_states import free_state_measurements
+
         return free_state_measurements(self, task, free, dof, mask)
 
     def to_arrays(self) -> dict[str, NDArray]:

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,6 +44,7 @@ __all__ = [
     "cost_gradient",
     "effective_stiffness",
     "free_state",
+    "free_state_measurements",
     "free_target_strain",
 ]
 
@@ -253,3 +255,26 @@ def cost_gradient(
     p = np.zeros(medium.n_dofs)
     p[sys_.free] = pf
     return medium.parameter_gradient(free.u, p, dof)
+
+
+def free_state_measurements(
+    medium: Any, task: Any, free: Any, dof: str, mask: NDArray
+) -> dict[str, Any]:
+    """What :func:`~continuum_vs_network.train` records of a learning medium's free state:
+    target lengths (those of the material springs: undeformed ``|ab|``, deformed
+    ``|ab| (1 + S)``), strains, the error (one convention: the material has no learning rest
+    length), the energy and the norm of ``medium``'s local gradient of ``dof`` on ``mask``."""
+    length = task.target_length
+    g = medium.local_gradient(free, dof)[mask]
+    err = task.error(free.target_strain)
+    return {
+        "target_rest_length": length,
+        "desired_length": length * (1.0 + task.target_strain),
+        "target_length": length * (1.0 + free.target_strain),
+        "target_strain": free.target_strain,
+        "error_current": err,
+        "error_initial": err,
+        "energy_free": free.energy,
+        "energy_gradient_free": float(np.sqrt(np.sum(g * g))),
+        "residual": free.residual,
+    }

@@ -226,9 +226,9 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
     chord-strain rows).
     """
     from ..linalg.kkt import factor_kkt
-    from ..network.constraints import strain_jacobian
-    from ..network.dynamics import _boundary
     from ..network.energy import spring_gradient
+    from ..network.held_boundary import held_boundary
+    from ..network.length_jacobian import strain_jacobian
     from ..network.stepper import Stepper
     from ..network.strain_clamp import ROD_FACTOR, rod_clamped
     from ..network.viscous import dashpot_matrix
@@ -240,7 +240,7 @@ def _strain_relaxation_time(net, task, viscosity, reference, fraction, measure) 
     k_mean = float(np.mean(net.stiffness))
     rest = task.target_rest(net, reference)
     x0 = net.positions
-    free = _boundary(net, task.pinned, None, None, x0)[1]
+    free = held_boundary(net, task.pinned, None, None, x0)[1]
     arm0 = net.lengths(x0) if viscosity.has_arm else None
     eta = viscosity.drag + viscosity.dashpot
     jumper = Stepper(rods, viscosity, free, 1e-3 * eta / k_mean, tol=tol)

@@ -5,26 +5,11 @@ rest lengths or stiffnesses moved a little since the last step. :class:`Solver` 
 they are found; :class:`Tracker` finds them and keeps what can be reused.
 
 With ``Solver(method="newton", clamp="exact", reuse=True)`` (the default) the tracker runs
-a *chord* (modified Newton) SQP iteration on the equilibrium equations::
-
-    F1 = grad E(x) + A(x)^T mu(x) = 0      (net force, mu = least-squares clamp tensions)
-    F2 = r_c(x) - l_c              = 0      (clamp lengths)
-
-with a factorisation of the augmented Lagrangian Hessian ``W = H_E + sum mu_c d2r_c +
-rho A^T A`` taken at an earlier *linearisation point* and the clamp directions
-``Z_c = W^{-1} a_c`` cached per clamped spring (an approximate ``W^-1`` serves: ``rough``,
-float32 where accurate: :func:`~..linalg.spd.factor_spd`; one alive per key). One iteration costs
-one pair of triangular solves. Because learning changes the network little per step, the
-same factorisation serves the free state, the nudged state (its extra target clamps need
-one cached column each: the Schur-complement reuse) and many following learning steps; it
-is refreshed when the iteration contracts slowly (ratio > ``refactor_ratio``) and, if that
-fails too, the state is found by :func:`~continuum_vs_network.relax`. The chord iteration
-is accelerated by Anderson mixing (GMRES-like on its linear error) and starts from a guess
-extrapolated from the previous steps (the free state linearly, the nudged state by last
-step's nudge displacement). Convergence is judged by ``relax``'s own local stop rule
-(:mod:`~continuum_vs_network.network.stopping`), so reuse changes the cost, never the
-tolerance. The Lagrangian Hessian and the row order are the engine's
-(:mod:`~continuum_vs_network.network.lagrangian`); this module keeps only what is reused.
+a *chord* (modified Newton) SQP iteration (:func:`~.chord.chord_solve`) on a factorisation
+of the Lagrangian Hessian kept per key ("free", "clamped") and reused between states and
+learning steps; where that fails, the state is found by :func:`~continuum_vs_network.relax`.
+The chord starts from a guess extrapolated from the previous steps (the free state
+linearly, the nudged state by last step's nudge displacement).
 
 When ``relax`` itself fails (learning drives networks through snap-through
 instabilities, where a Newton iteration can creep), the tracker continues from the failed
@@ -48,18 +33,16 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from ..linalg.kkt import schur_solve
 from ..network.arguments import solver_arguments
-from ..network.constraints import Problem, clamp_tensions
+from ..network.constraints import Problem
 from ..network.equilibrium import METHODS, Equilibrium, EquilibriumError, relax
-from ..network.lagrangian import Frame, lagrangian_hessian
 from ..network.model import SpringNetwork
 from ..network.stopping import Trace
 from ..network.trust import trust_region_newton
+from .chord import Linearisation, chord_solve
 
 __all__ = ["Solver", "Tracker"]
 
-_MAX_REFACTORS = 3  # per chord solve; then relax (with its line search) takes over
 _RECOVERY_TOL = 100.0  # the recovery's solve stops at this multiple of tol; relax polishes
 _RECOVERY_ITER = 200  # its iteration budget
 
@@ -134,38 +117,6 @@ class Solver:
         return self.reuse and self.method == "newton" and self.clamp == "exact"
 
 
-class _Linearisation:
-    """A factorised ``W`` at one point, cached columns ``W^{-1} a_c`` and Schur matrices."""
-
-    def __init__(self, factor, x: NDArray, frame: Frame) -> None:
-        self.factor = factor
-        self.x = x.copy()
-        self.frame = frame
-        self.columns: dict[int, tuple[NDArray, NDArray]] = {}  # spring -> (a_c, W^-1 a_c)
-        self.sets: dict[tuple[int, ...], tuple[NDArray, NDArray, NDArray]] = {}
-        self.uses = 0
-
-    def rows_and_columns(
-        self, net: SpringNetwork, springs: NDArray
-    ) -> tuple[NDArray, NDArray, NDArray]:
-        """``(A, Z, S)`` for a clamp set: rows ``a_c`` at the linearisation point (m, n),
-        ``Z = W^{-1} A^T`` (n, m) and the Schur complement ``S = A Z`` (m, m)."""
-        key = tuple(int(s) for s in springs)
-        if key in self.sets:
-            return self.sets[key]
-        n = self.frame.n
-        missing = [s for s in key if s not in self.columns]
-        if missing:
-            A = self.frame.rows(net, self.x, np.array(missing), dense=True)
-            Z = np.asarray(self.factor.solve(A.T.copy())).reshape(n, len(missing))
-            for j, s in enumerate(missing):
-                self.columns[s] = (A[j], Z[:, j].copy())
-        A = np.array([self.columns[s][0] for s in key]).reshape(len(key), n)
-        Z = np.array([self.columns[s][1] for s in key]).reshape(len(key), n).T
-        self.sets[key] = (A, Z, A @ Z)
-        return self.sets[key]
-
-
 @dataclass
 class TrackerStats:
     """Work done by a :class:`Tracker` (cumulative counts)."""
@@ -189,7 +140,7 @@ class Tracker:
     def __init__(self, solver: Solver | None = None) -> None:
         self.solver = solver or Solver()
         self.stats = TrackerStats()
-        self._lin: dict[str, _Linearisation] = {}
+        self._lin: dict[str, Linearisation] = {}
 
     def forget(self) -> None:
         """Drop every cached factorisation."""
@@ -240,11 +191,8 @@ class Tracker:
             return self._loaded(net, pinned, clamped, x0, key, guess, load, t0)
         try:
             if self.solver.fast and x0 is not None:
-                start = np.asarray(x0, float)
-                if guess is not None:
-                    start = np.where(pinned, start, np.asarray(guess, float))
                 try:
-                    state = self._chord(net, pinned, clamped, start, key)
+                    state = self._chord(net, pinned, clamped, x0, key, guess, None)
                 except (np.linalg.LinAlgError, FloatingPointError, RuntimeError):
                     self._lin.pop(key, None)  # degenerate linear algebra: relax instead
                     state = None
@@ -263,11 +211,8 @@ class Tracker:
             raise ValueError(
                 "external loads need Solver(method='newton', clamp='exact', reuse=True) and x0"
             )
-        start = np.asarray(x0, float)
-        if guess is not None:
-            start = np.where(pinned, start, np.asarray(guess, float))
         try:
-            state = self._chord(net, pinned, clamped, start, key, load=load)
+            state = self._chord(net, pinned, clamped, x0, key, guess, load)
         except (np.linalg.LinAlgError, FloatingPointError, RuntimeError):
             state = None
         finally:
@@ -276,6 +221,17 @@ class Tracker:
             self._lin.pop(key, None)
             raise EquilibriumError("loaded equilibrium: the chord iteration did not converge")
         return state
+
+    def _chord(self, net, pinned, clamped, x0, key, guess, load) -> Equilibrium | None:
+        """:func:`~.chord.chord_solve` from ``x0``, its free coordinates from ``guess`` when
+        given, with this tracker's solver, factorisations and stats."""
+        start = np.asarray(x0, float)
+        if guess is not None:
+            start = np.where(pinned, start, np.asarray(guess, float))
+        return chord_solve(
+            net, pinned, clamped, start, solver=self.solver, cache=self._lin, key=key,
+            stats=self.stats, load=load,
+        )  # fmt: skip
 
     # -- robust path ------------------------------------------------------------------
     def _relax(
@@ -394,146 +350,3 @@ class Tracker:
             return None
         self.stats.iterations += outcome.iterations
         return outcome.x if outcome.converged and np.all(np.isfinite(outcome.x)) else None
-
-    # -- fast path --------------------------------------------------------------------
-    def _linearise(
-        self, problem: Problem, frame: Frame, x: NDArray, mu: NDArray, key: str
-    ) -> _Linearisation | None:
-        self._lin.pop(key, None)  # released before the next one is made (memory at 1e6)
-        W = lagrangian_hessian(problem, x, mu, frame=frame)
-        factor = frame.factor(W, rough=True)  # the chord needs only an approximate W^-1
-        self.stats.factorisations += 1
-        if factor is None:
-            return None
-        lin = _Linearisation(factor, x, frame)
-        self._lin[key] = lin
-        return lin
-
-    def _chord(
-        self,
-        net: SpringNetwork,
-        pinned: NDArray,
-        clamped: dict[int, float],
-        x: NDArray,
-        key: str,
-        load: NDArray | None = None,
-    ) -> Equilibrium | None:
-        """Chord SQP from ``x`` (``grad E - load = 0``); None when it fails (the caller
-        then relaxes)."""
-        s = self.solver
-        problem = Problem.build(net, pinned=pinned, clamped=clamped, clamp="exact")
-        lin = self._lin.get(key)
-        if lin is not None and lin.frame.n != int(problem.free_flat.size):
-            lin = None
-        frame = (
-            lin.frame
-            if lin is not None
-            else Frame(net, problem.free, sparse_solver=problem.sparse_solver)
-        )
-        clamps = problem.clamp_springs
-        stop = problem.stop_rule(s.tol, max_iter=30, max_seconds=s.max_seconds)
-        trace_r: list[float] = []
-        trace_t: list[float] = []
-        t0 = time.perf_counter()
-        refactors = 0  # factorisations made by this call
-        x = x.copy()
-        previous = np.inf
-        minus_load = None if load is None else -frame.take(load)
-        xs: list[NDArray] = []  # Anderson memory: free coordinates and chord steps
-        fs: list[NDArray] = []
-        for it in range(30):
-            if not np.all(np.isfinite(x)):
-                return None
-            g, r = frame.gradient_and_lengths(net, x)
-            if minus_load is not None:
-                g = g + minus_load
-            if clamps.size:
-                A = frame.rows(net, x, clamps)  # dense while small (200 MB at 1e6)
-                viol = r[clamps] - problem.clamp_lengths
-                mu = clamp_tensions(A, g, stop.scale[frame.coords])
-                force = g + A.T @ mu
-            else:
-                viol, mu, force = np.empty(0), np.empty(0), g
-            relative = stop.imbalance(force, frame.coords)
-            clamp_relative = stop.clamp_error(viol)
-            trace_r.append(relative)
-            trace_t.append(time.perf_counter() - t0)
-            if stop.met(relative, clamp_relative):
-                self.stats.iterations += it
-                residual = float(np.max(np.abs(force))) if force.size else 0.0
-                clamp_error = float(np.max(np.abs(viol))) if viol.size else 0.0
-                return _equilibrium(
-                    net, x, r, (residual, relative, clamp_error), mu, it, t0, trace_r, trace_t
-                )
-            measure = max(relative, clamp_relative) / s.tol
-            if not np.isfinite(measure):
-                return None
-            if lin is None or measure > s.refactor_ratio * previous:
-                if refactors >= _MAX_REFACTORS:
-                    if measure >= previous:
-                        return None  # Newton steps do not contract here: relax instead
-                else:
-                    lin = None  # the caller's reference too: one factorisation alive
-                    lin = self._linearise(problem, frame, x, mu, key)
-                    refactors += 1
-                    xs.clear()
-                    fs.clear()
-                    if lin is None:
-                        return None
-            if measure >= previous:
-                xs.clear()
-                fs.clear()
-            previous = measure
-            z = lin.factor.solve(force)
-            if clamps.size:
-                At, Z, S = lin.rows_and_columns(net, clamps)
-                step, _ = schur_solve(-z, At, Z, S, -viol)
-            else:
-                step = -z
-            lin.uses += 1
-            xf = frame.take(x)
-            new = xf + step
-            if s.anderson and xs:
-                # Anderson acceleration of the chord iteration (GMRES-like on its error)
-                dX = np.column_stack([xf - xo for xo in xs])
-                dF = np.column_stack([step - fo for fo in fs])
-                gamma = np.linalg.lstsq(dF, step, rcond=None)[0]
-                new = new - (dX + dF) @ gamma
-            xs.append(xf)
-            fs.append(step)
-            if len(xs) > s.anderson:
-                xs.pop(0)
-                fs.pop(0)
-            x = x.copy()
-            x.reshape(-1)[frame.coords] = new
-        return None
-
-
-def _equilibrium(
-    net: SpringNetwork,
-    x: NDArray,
-    r: NDArray,
-    residuals: tuple[float, float, float],
-    mu: NDArray,
-    iterations: int,
-    t0: float,
-    trace_r: list[float],
-    trace_t: list[float],
-) -> Equilibrium:
-    residual, relative, clamp_error = residuals
-    x = x.copy()
-    x.setflags(write=False)
-    return Equilibrium(
-        positions=x,
-        energy=float(0.5 * np.dot(net.stiffness, (r - net.rest_length) ** 2)),
-        residual=residual,
-        relative_residual=relative,
-        clamp_error=clamp_error,
-        clamp_force=-np.asarray(mu, dtype=np.float64),  # dE/dl_c, as relax reports it
-        converged=True,
-        iterations=iterations,
-        seconds=time.perf_counter() - t0,
-        method="newton-chord",
-        residual_trace=np.asarray(trace_r),
-        seconds_trace=np.asarray(trace_t),
-    )

@@ -29,8 +29,8 @@ from numpy.typing import NDArray
 from .. import _validate as check
 from ..network.constraints import Problem
 from ..network.equilibrium import Equilibrium
+from ..network.lagrangian import Frame, lagrangian_hessian
 from ..network.model import SpringNetwork
-from .states import Frame, lagrangian_hessian
 
 __all__ = ["MAX_FREE", "thermal_sample"]
 

@@ -42,7 +42,7 @@ from types import SimpleNamespace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..network.dynamics import _boundary
+from ..network.held_boundary import held_boundary
 from ..network.model import SpringNetwork
 from ..network.stepper import Stepper
 from ..network.strain_clamp import ROD_FACTOR, rod_clamped
@@ -152,10 +152,10 @@ def held_free_state(
     clamps = task.source_clamps(net, reference)
     if clamp == "strain":
         rods = rod_clamped(net, clamps)
-        free = _boundary(net, task.pinned, None, None, net.positions)[1]
+        free = held_boundary(net, task.pinned, None, None, net.positions)[1]
         stepper = _equilibrium_stepper(net, free, _rod_tol(net, rods, tol))
         return stepper.step(rods, net.positions)[0]
-    x, free = _boundary(net, task.pinned, None, clamps, net.positions)
+    x, free = held_boundary(net, task.pinned, None, clamps, net.positions)
     return _equilibrium_stepper(net, free, tol).step(net, x)[0]
 
 
@@ -227,7 +227,7 @@ class NetworkTime:
     def copy(self, net, target_strain, start=None) -> _Copy:
         x0 = net.positions if start is None else start.x
         clamps = self._clamps(net, target_strain) if self.clamp == "nodes" else None
-        x, free = _boundary(net, self.task.pinned, None, clamps, x0)
+        x, free = held_boundary(net, self.task.pinned, None, clamps, x0)
         if self.quasistatic:  # equilibria: arms relaxed carry no force
             return _Copy(x, free, None, _equilibrium_stepper(net, free, self.tol))
         arm = net.lengths(x) if self.vis.has_arm else None
@@ -240,7 +240,7 @@ class NetworkTime:
     def advance(self, net, copy: _Copy, target_strain) -> None:
         clamps = self._clamps(net, target_strain)
         if self.clamp == "nodes":
-            held = _boundary(net, self.task.pinned, None, clamps, copy.x)[0]
+            held = held_boundary(net, self.task.pinned, None, clamps, copy.x)[0]
             copy.arm = copy.step(net, held, copy.arm)
         else:
             copy.arm = copy.step(self._stepped(net, copy, clamps), None, copy.arm)
@@ -304,7 +304,7 @@ class NetworkTime:
             return task.error(net, eq.x, ref)
         held = None  # "initial": the clamps stay where they were set
         if ref == "current":
-            held = _boundary(net, task.pinned, None, self._clamps(net, None), eq.x)[0]
+            held = held_boundary(net, task.pinned, None, self._clamps(net, None), eq.x)[0]
         eq.step(net, held)
         return task.error(net, eq.x, ref)
 

@@ -27,9 +27,10 @@ from numpy.typing import NDArray
 from ..linalg.kkt import factor_spd
 from ..linalg.memo import per_array, per_network
 from .arguments import lone_nodes
-from .constraints import Problem, clamp_tensions, length_jacobian
+from .constraints import Problem, clamp_tensions
 from .hessian_ladder import shifted
 from .lagrangian import Frame, lagrangian_blocks, lagrangian_hessian
+from .length_jacobian import length_jacobian
 from .model import SpringNetwork
 from .rigidity import count_zero_modes
 from .trust_model import null_basis, rigid_motions

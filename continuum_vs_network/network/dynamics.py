@@ -8,18 +8,8 @@ Inertial (unit masses, ``inertia=True``) and overdamped (``inertia=False``)::
 ``c`` is the node drag (against the lab frame, so rigid-body motion decays and no pins are
 needed); ``D_kv`` the Kelvin-Voigt dashpots and ``l`` the Maxwell arms of a
 :class:`~.viscous.Viscosity` (:func:`simulate_viscous`; :func:`simulate` has drag only).
-Boundary conditions:
-
-* ``pinned``: coordinates held at their starting values;
-* ``prescribed``: ``{node: (x, y)}``, nodes moved to a position at ``t = 0`` (a step) and
-  held there;
-* ``clamped``: ``{spring: length}``, a clamp imposed as a prescribed displacement of the
-  clamped spring's two end nodes: they move apart (or together) symmetrically along the
-  spring to the clamp length at ``t = 0`` and are then held. This is what a continuum
-  comparison imposes (a displacement boundary condition on two small regions); unlike the
-  equilibrium clamp of :func:`~.equilibrium.relax` the clamped spring cannot also rotate
-  or translate. An exact length constraint would need a differential-algebraic
-  integrator; rods would need a step ~ 1/sqrt(1e10) in explicit schemes.
+Boundary conditions (``pinned``, ``prescribed``, ``clamped``, held from ``t = 0``):
+:func:`~.held_boundary.held_boundary`.
 
 Each step is made by :class:`~.stepper.Stepper` (schemes, the implicit step's Newton and
 its factorisations are described there).
@@ -44,10 +34,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from .. import _validate as check
 from ..linalg.spd import factor_spd
-from .constraints import Pins, pin_mask
-from .energy import (
-    hessian_norm_bound,
-)
+from .constraints import Pins
+from .energy import hessian_norm_bound
+from .held_boundary import held_boundary
 from .model import SpringNetwork
 from .stepper import Scheme, Stepper
 from .viscous import Viscosity, dashpot_matrix
@@ -60,7 +49,6 @@ __all__ = [
     "simulate_viscous",
     "stability_limit",
 ]
-
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,65 +98,6 @@ class Trajectory:
     def relaxation_time(self, fraction: float = 1e-2, *, measure: str = "residual") -> float:
         """See :func:`relaxation_time`."""
         return relaxation_time(self, fraction, measure=measure)
-
-
-# -- boundary conditions ----------------------------------------------------------------------
-def _boundary(
-    net: SpringNetwork,
-    pinned: Pins,
-    prescribed: Mapping[int, ArrayLike] | None,
-    clamped: Mapping[int, float] | None,
-    x0: ArrayLike | None,
-) -> tuple[NDArray, NDArray]:
-    """Starting positions with prescribed and clamped nodes moved, and the free mask."""
-    n = net.n_nodes
-    x = net.positions.copy() if x0 is None else np.array(x0, dtype=np.float64, copy=True)
-    if x.shape != (n, 2):
-        raise ValueError(f"x0 must have shape ({n}, 2), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError("x0 must be finite")
-    fixed = np.zeros((n, 2), dtype=bool) if pinned is None else pin_mask(net, pinned)
-    held = np.zeros(n, dtype=bool)  # nodes moved by prescribed/clamped
-    for node, pos in (prescribed or {}).items():
-        i = int(node)
-        if not 0 <= i < n:
-            raise ValueError(f"prescribed names node {node} outside 0..{n - 1}")
-        p = np.asarray(pos, dtype=np.float64)
-        if p.shape != (2,) or not np.all(np.isfinite(p)):
-            raise ValueError(f"prescribed position of node {i} must be 2 finite numbers, got {pos}")
-        x[i] = p
-        held[i] = True
-    for spring, length in (clamped or {}).items():
-        j = int(spring)
-        if not 0 <= j < net.n_springs:
-            raise ValueError(f"clamped names spring {spring} outside 0..{net.n_springs - 1}")
-        length = float(length)
-        if not (np.isfinite(length) and length > 0):
-            raise ValueError(f"clamped length of spring {j} must be finite and > 0, got {length}")
-        a, b = net.springs[j]
-        if held[a] or held[b]:
-            raise ValueError(
-                f"clamped spring {j} shares node {a if held[a] else b} with "
-                "another clamp or a prescribed node"
-            )
-        d = x[b] - x[a]
-        r = float(np.hypot(*d))
-        if r == 0.0:
-            raise ValueError(f"clamped spring {j} has zero length at the start")
-        grow = (length - r) * d / r
-        stay_a, stay_b = fixed[a].all(), fixed[b].all()
-        if stay_a and stay_b:
-            raise ValueError(f"clamped spring {j}: both end nodes are pinned")
-        if stay_a:
-            x[b] += grow
-        elif stay_b:
-            x[a] -= grow
-        else:
-            x[a] -= 0.5 * grow
-            x[b] += 0.5 * grow
-        held[[a, b]] = True
-    fixed[held] = True
-    return x, ~fixed
 
 
 # -- stability of the explicit scheme -------------------------------------------------------
@@ -292,7 +221,7 @@ def simulate(
     prescribed : {node: (x, y)}, optional
         Nodes stepped to a position at ``t = 0`` and held there.
     clamped : {spring: length}, optional
-        Clamps as prescribed displacements of both end nodes (see module docstring).
+        Clamps as prescribed displacements of both end nodes (:mod:`.held_boundary`).
     x0 : (n_nodes, 2) float array, optional
         Starting positions (default ``net.positions``).
     v0 : (n_nodes, 2) float array, optional
@@ -333,7 +262,7 @@ def simulate(
     # every frame keeps positions, velocities and forces, (n_nodes, 2) each, and 4 scalars
     check.memory("t_end", t_end, frames * (48 * net.n_nodes + 32), f"{frames} recorded frames")
     inertia = bool(inertia)
-    x, free = _boundary(net, pinned, prescribed, clamped, x0)
+    x, free = held_boundary(net, pinned, prescribed, clamped, x0)
     v = np.zeros_like(x)
     if v0 is not None:
         if not inertia:
@@ -433,7 +362,7 @@ def simulate_viscous(
     t_end = _check_number("t_end", t_end, positive=True)
     record_every = check.integer("record_every", record_every, low=1)
     start = net.positions if x0 is None else np.asarray(x0, dtype=np.float64)
-    x, free = _boundary(net, pinned, prescribed, clamped, x0)
+    x, free = held_boundary(net, pinned, prescribed, clamped, x0)
     arm = None
     if viscosity.has_arm:
         arm = net.lengths(start) if arm0 is None else np.array(arm0, dtype=np.float64)

@@ -26,17 +26,18 @@ from .checks import (
     roundoff_floor,
 )
 from .constraints import ClampMode, Pins, Problem, Residual, default_pins
-from .energy import spring_energy, spring_gradient
+from .energy import spring_energy
 from .escapes import DEFAULT_TOL, Method, second_order, unfold
 from .minimizers import fire, lbfgs, paper_adagrad
 from .model import SpringNetwork
 from .newton import newton
+from .pin_load import pin_reaction, pins_loaded, residual_and_reaction
 from .placement import lever_frame, place_on_pins
 from .reachable import refuse_unreachable_clamps
 from .stopping import Outcome, StopRule, Trace
 from .trust import TR_DENSE_MAX
 
-__all__ = ["METHODS", "Equilibrium", "EquilibriumError", "StopRule", "Trace", "relax"]
+__all__ = ["METHODS", "Equilibrium", "EquilibriumError", "relax"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -296,7 +297,7 @@ def relax(
         outcome = replace(outcome, x=back)
         if outcome.converged:
             outcome = checked = replace(outcome, certified=True)
-            placed, reaction = _residual_and_reaction(problem, outcome.x)
+            placed, reaction = residual_and_reaction(problem, outcome.x)
             known = (problem, outcome.x, placed)
             if not stop.met(placed.imbalance, placed.clamp):  # turned: round-off, polish
                 trace.base = iterations
@@ -317,12 +318,12 @@ def relax(
         if pinned is not None or not outcome.converged:
             break
         if reaction is None or outcome is not checked:
-            found, reaction = _residual_and_reaction(problem, outcome.x)
+            found, reaction = residual_and_reaction(problem, outcome.x)
             known = (problem, outcome.x, found)  # _finish's residual, if x stays
         if reaction <= stop.tol:
             break
         if rounds == _PIN_ROUNDS:
-            outcome = replace(outcome, converged=False, message=_pins_loaded(reaction, rounds))
+            outcome = replace(outcome, converged=False, message=pins_loaded(reaction, rounds))
             named = True
             break
         free = ~default_pins(net.with_positions(outcome.x), problem.clamp_springs)
@@ -337,7 +338,7 @@ def relax(
         iterations += outcome.iterations
         if not outcome.converged and target < stop.tol:
             why = f"; the solve to tol {target:.1e} from there stopped: {outcome.message}"
-            outcome = replace(outcome, message=_pins_loaded(reaction, rounds + 1) + why)
+            outcome = replace(outcome, message=pins_loaded(reaction, rounds + 1) + why)
             named = True
     extra = 0
     if outcome is not checked:  # a placed outcome has the lengths just judged
@@ -345,51 +346,6 @@ def relax(
     res = known[2] if known and known[0] is problem and known[1] is outcome.x else None
     name_load = pinned is None and not named  # _finish names a load the pins still carry
     return _finish(problem, outcome, iterations + extra, method, stop, trace, res, name_load)
-
-
-def _pins_loaded(reaction: float, rounds: int) -> str:
-    """The reason given when the default pins still carry load after ``rounds`` re-pinnings."""
-    return (
-        f"the default pins carry a net force of {reaction:.1e} of their nodes' sum k L "
-        f"after {rounds} re-pinnings (they should only remove rigid motion): the free "
-        "nodes' residual forces add up to it"
-    )
-
-
-def _residual_and_reaction(problem: Problem, x: NDArray) -> tuple[Residual, float]:
-    """``problem.residual(x)`` and :func:`_pin_reaction` at ``x`` from one spring gradient
-    (the clamp tensions are fitted on each coordinate set, free and all, as those do)."""
-    net = problem.net
-    grad = spring_gradient(x, net.springs, net.stiffness, net.rest_length).ravel()
-    free, pinned = problem.free_flat, np.flatnonzero(~problem.free.ravel())
-    if problem.n_clamps:
-        res = problem.residual(x, force=problem.unbalanced_force(x, free, grad=grad))
-        if not pinned.size:
-            return res, 0.0
-        every = np.arange(grad.size)
-        force = problem.unbalanced_force(x, every, grad=grad)[0]
-        return res, _pin_reaction(problem, x, force)
-    force = np.abs(grad)
-    relative = force / problem.scale  # the same numbers Problem.residual and _pin_reaction use
-    res = Residual(
-        float(np.max(relative[free])) if free.size else 0.0,
-        float(np.max(force[free])) if free.size else 0.0,
-        0.0,
-        np.empty(0),
-    )
-    return res, float(np.max(relative[pinned])) if pinned.size else 0.0
-
-
-def _pin_reaction(problem: Problem, x: NDArray, force: NDArray | None = None) -> float:
-    """Largest force the pins exert on the network at ``x``, clamp forces removed,
-    relative to the pinned coordinates' local force scale (``force``: the unbalanced
-    force on every coordinate, when known)."""
-    pinned = np.flatnonzero(~problem.free.ravel())
-    if not pinned.size:
-        return 0.0
-    if force is None:
-        force, _ = problem.unbalanced_force(x, np.arange(problem.free.size))
-    return float(np.max(np.abs(force[pinned]) / problem.scale[pinned]))
 
 
 def _start(problem: Problem, x0: ArrayLike | None) -> NDArray:
@@ -494,7 +450,7 @@ def _finish(
         if (
             finite
             and name_pin_load
-            and (load := _pin_reaction(problem, x)) > max(relative, stop.tol)
+            and (load := pin_reaction(problem, x)) > max(relative, stop.tol)
         ):
             reason += (
                 f"; the default pins (which should only remove rigid motion) hold a net force "

@@ -24,8 +24,9 @@ from numpy.typing import NDArray
 
 from ..linalg.kkt import DENSE_MAX, banded_pays, factor_spd, sparse_backend
 from ..linalg.memo import per_array
-from .constraints import Problem, dense_jacobian_pays, length_jacobian
+from .constraints import Problem
 from .energy import HessianPattern
+from .length_jacobian import dense_jacobian_pays, length_jacobian
 from .model import SpringNetwork, spring_vectors, vector_lengths
 from .ordering import band_order, coordinate_order, nested_dissection
 
@@ -169,7 +170,7 @@ class Frame:
     ) -> sp.csr_matrix | NDArray:
         """Length gradients ``dr_j/dx`` of ``springs`` (len(springs), n): a dense ndarray
         or a sparse CSR matrix (``dense=None``: whichever
-        :func:`~.constraints.dense_jacobian_pays` picks)."""
+        :func:`~.length_jacobian.dense_jacobian_pays` picks)."""
         springs = np.atleast_1d(np.asarray(springs, dtype=np.int64))
         if dense is None:
             dense = dense_jacobian_pays(springs.size, self.n)

@@ -80,7 +80,7 @@ from ..linalg.kkt import (
     range_space_solve,
 )
 from .checks import dependent_clamps, roundoff_floor
-from .constraints import Problem, clamp_tensions, dense_jacobian_pays
+from .constraints import Problem, clamp_tensions
 from .energy import HessianPattern, _scatter_nodes, spring_energy_change, spring_gradient
 from .hessian_ladder import (
     DAMP_MIN,
@@ -90,6 +90,7 @@ from .hessian_ladder import (
     shifted,
 )
 from .lagrangian import lagrangian_blocks, pattern_for
+from .length_jacobian import dense_jacobian_pays
 from .line_search import follow_curvature, geodesic_path, line_search
 from .model import spring_vectors
 from .reuse import NegativeCurvature, SolveFailed, projected_pcg, reuse_budget

@@ -23,7 +23,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
-from .constraints import Problem, end_columns
+from .constraints import Problem
+from .length_jacobian import end_columns
 from .model import unit_vectors
 
 __all__ = ["StiffSprings", "median"]

@@ -39,7 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from ..network.constraints import strain_jacobian
+from ..network.length_jacobian import strain_jacobian
 
 __all__ = [
     "body_modes",
