@@ -11,11 +11,8 @@ import time
 
 import numpy as np
 
-from continuum_vs_network.network.builders import (
-    diluted_lattice,
-    jammed_network,
-    triangular_lattice,
-)
+from continuum_vs_network.network.builders import diluted_lattice, triangular_lattice
+from continuum_vs_network.network.jammed import jammed_network
 from continuum_vs_network.network.rigidity import is_rigid
 
 

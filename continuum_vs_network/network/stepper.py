@@ -64,6 +64,7 @@ Scheme = Literal["implicit", "newmark", "explicit"]
 _SCHEMES = ("implicit", "newmark", "explicit")
 _JACOBIANS = ("update", "frozen")
 
+
 # -- the stepper ------------------------------------------------------------------------------
 class _Scaled:
     """``a I`` as a matrix for ``@``."""
@@ -351,5 +352,3 @@ class Stepper:
             if factor is not None:
                 return factor
         raise RuntimeError(f"{where}: the step matrix could not be factorised")
-
-
