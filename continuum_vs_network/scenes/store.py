@@ -1,6 +1,7 @@
 """Storage of a scene's units in ``<directory>/units/``: write, check, read back, merge.
 
-Each unit is an ``.npz`` payload (or a saved :class:`~..learning.history.History`) and a
+Each unit is an ``.npz`` payload (its arrays, or a saved
+:class:`~..learning.history.History`) and a
 ``.json`` record written last, holding a fingerprint of every setting the unit depends on;
 both are written atomically. A unit is done when its record matches its fingerprint (and,
 when asked, its payload reads back).
@@ -32,6 +33,7 @@ import numpy as np
 from ..io.atomic import atomic_path, write_text_atomic
 from ..io.strict_json import dumps_record, loads_record
 from .provenance import environment
+from .results import is_result, to_stored
 from .units import Unit, UnitResult
 
 __all__: list[str] = []  # helpers of the runner (:mod:`.runner`) and :mod:`.compute`
@@ -89,7 +91,7 @@ def _save_unit(directory: Path, unit: Unit, output: Any, seconds: float) -> None
             output.save(tmp)
         record = {"history": True, "meta": {}}
     else:
-        arrays, meta = output
+        arrays, meta = to_stored(output) if is_result(output) else output
         with atomic_path(payload) as tmp, open(tmp, "wb") as fh:
             np.savez_compressed(fh, **{k: np.asarray(v) for k, v in arrays.items()})
         record = {"history": False, "meta": meta}

@@ -27,7 +27,8 @@ class Unit:
     ----------
     key : str
         Unique within the scene, ``/``-separated (``"train/newton/gcl/noise0/trial3"``).
-    func : callable ``f(scene, params, ctx) -> (arrays, meta)`` or ``-> History``
+    func : callable ``f(scene, params, ctx) -> (arrays, meta)``, a result dataclass
+        (:mod:`.results`) or a ``History``
         A module-level function (it is sent to worker processes by reference).
     params : dict
         JSON-able parameters of this unit.

@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from .results import TransmissionResult
 from .schema import Scene
 from .units import Unit, UnitContext
 
@@ -115,7 +116,7 @@ def _fit(distance, strain, n: int) -> tuple[float, float, float, float, float]:
     return fit.exponent, fit.prefactor, fit.r_min, fit.r_max, fit.exponent_error
 
 
-def transmission_unit(scene: Scene, params: dict, ctx: UnitContext):
+def transmission_unit(scene: Scene, params: dict, ctx: UnitContext) -> TransmissionResult:
     """Strain against distance in the network and (with ``[continuum]``) the continuum."""
     from ..continuum.transmission import network_transmission
 
@@ -125,25 +126,8 @@ def transmission_unit(scene: Scene, params: dict, ctx: UnitContext):
     strain = scene.task.strain
     tol = scene.solver.tol if scene.solver is not None else 1e-10
     a = network_transmission(net, src, strain, tol=tol)
-    arrays: dict[str, Any] = {
-        "springs": a.springs,
-        "distance": a.distance,
-        "network_strain": a.strain,
-    }
     fit = _fit(a.distance, a.strain, n)
-    meta: dict[str, Any] = {
-        "n": n,
-        "n_nodes": net.n_nodes,
-        "n_springs": net.n_springs,
-        "source": src,
-        "strain": strain,
-        "network_seconds": a.seconds,
-        "network_exponent": fit[0],
-        "network_exponent_error": fit[4],
-        "network_prefactor": fit[1],
-        "fit_r_min": fit[2],
-        "fit_r_max": fit[3],
-    }
+    continuum: dict[str, Any] = {}
     if scene.continuum is not None:
         from ..continuum.transmission import continuum_transmission
 
@@ -158,18 +142,33 @@ def transmission_unit(scene: Scene, params: dict, ctx: UnitContext):
             order=c.order,
             patch_radius=c.patch_radius * length,
         )
-        arrays["continuum_strain"] = b.strain
         cfit = _fit(b.distance, b.strain, n)
-        meta.update(
-            continuum_seconds=b.seconds,
-            continuum_exponent=cfit[0],
-            continuum_exponent_error=cfit[4],
-            continuum_prefactor=cfit[1],
-            correlation=float(np.corrcoef(a.strain, b.strain)[0, 1]),
-        )
-    if params["fields"]:
-        arrays.update(_transmission_fields(scene, net, src, strain, tol))
-    return arrays, meta
+        continuum = {
+            "continuum_strain": b.strain,
+            "continuum_seconds": b.seconds,
+            "continuum_exponent": cfit[0],
+            "continuum_exponent_error": cfit[4],
+            "continuum_prefactor": cfit[1],
+            "correlation": float(np.corrcoef(a.strain, b.strain)[0, 1]),
+        }
+    return TransmissionResult(
+        n=n,
+        n_nodes=net.n_nodes,
+        n_springs=net.n_springs,
+        source=src,
+        strain=strain,
+        springs=a.springs,
+        distance=a.distance,
+        network_strain=a.strain,
+        network_seconds=a.seconds,
+        network_exponent=fit[0],
+        network_exponent_error=fit[4],
+        network_prefactor=fit[1],
+        fit_r_min=fit[2],
+        fit_r_max=fit[3],
+        fields=_transmission_fields(scene, net, src, strain, tol) if params["fields"] else {},
+        **continuum,
+    )
 
 
 def _transmission_fields(scene: Scene, net, src: int, strain: float, tol: float) -> dict:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...scenes.results import TransmissionResult, from_stored
 from ..document import (
     Document,
     above,
@@ -17,7 +18,7 @@ from .renders import side_by_side
 def section(doc: Document, result) -> None:
     """Strain against distance, network and continuum; decay exponents; renders."""
     scene = result.scene
-    units = result.select("transmission/")
+    runs = [from_stored(u, TransmissionResult) for u in result.select("transmission/").values()]
     cont = scene.continuum is not None
     doc.add(
         f"The spring nearest the centre of an n x n triangular lattice (spacing 1, k = 1) "
@@ -34,14 +35,13 @@ def section(doc: Document, result) -> None:
     )
     rows = []
     panels = []
-    for u in units.values():
-        m, a = u.meta, u.arrays
-        row = [m["n"], m["n_nodes"], _exponent(m, "network"), fmt(m["network_seconds"])]
-        floor = 1e-9 * float(np.max(np.abs(a["network_strain"])))
+    for r in runs:
+        row = [r.n, r.n_nodes, _exponent(r, "network"), fmt(r.network_seconds)]
+        floor = 1e-9 * float(np.max(np.abs(r.network_strain)))
         series = [
             Series(
-                a["distance"],
-                above(np.abs(a["network_strain"]), floor),
+                r.distance,
+                above(np.abs(r.network_strain), floor),
                 "network",
                 style="",
                 marker=".",
@@ -50,29 +50,29 @@ def section(doc: Document, result) -> None:
         ]
         if cont:
             row += [
-                _exponent(m, "continuum"),
-                fmt(m["correlation"], 4),
-                fmt(m["continuum_seconds"]),
+                _exponent(r, "continuum"),
+                fmt(r.correlation, 4),
+                fmt(r.continuum_seconds),
             ]
             series.append(
                 Series(
-                    a["distance"],
-                    above(np.abs(a["continuum_strain"]), floor),
+                    r.distance,
+                    above(np.abs(r.continuum_strain), floor),
                     "continuum",
                     style="",
                     marker=".",
                     alpha=0.5,
                 )
             )
-        series += _binned(a["distance"], np.abs(a["network_strain"]), floor)
-        if np.isfinite(m["network_exponent"]):  # the r^-2 guide only where a decay is fitted
-            r = np.linspace(1.0, float(np.max(a["distance"])), 50)
-            ref = np.nanmedian(np.abs(a["network_strain"])[np.abs(a["distance"] - 2) < 0.6])
-            series.append(Series(r, ref * (r / 2.0) ** -2, "r^-2", style="--", color="0.3"))
+        series += _binned(r.distance, np.abs(r.network_strain), floor)
+        if np.isfinite(r.network_exponent):  # the r^-2 guide only where a decay is fitted
+            d = np.linspace(1.0, float(np.max(r.distance)), 50)
+            ref = np.nanmedian(np.abs(r.network_strain)[np.abs(r.distance - 2) < 0.6])
+            series.append(Series(d, ref * (d / 2.0) ** -2, "r^-2", style="--", color="0.3"))
         panels.append(
             Panel(
                 series,
-                f"n = {m['n']} (N = {m['n_nodes']})",
+                f"n = {r.n} (N = {r.n_nodes})",
                 "distance from the source",
                 "|strain|",
                 xscale="log",
@@ -85,10 +85,10 @@ def section(doc: Document, result) -> None:
         headers += ["continuum decay exponent", "correlation network/continuum", "continuum s"]
     doc.table(headers, rows)
     comparisons = [
-        f"{medium} n = {m['n']}: {_against_two(m, medium)}"
-        for m in (u.meta for u in units.values())
+        f"{medium} n = {r.n}: {_against_two(*fit)}"
+        for r in runs
         for medium in ("network", "continuum")
-        if f"{medium}_exponent" in m and np.isfinite(m[f"{medium}_exponent"])
+        if (fit := r.exponent(medium)) is not None and np.isfinite(fit[0])
     ]
     doc.add(
         "Strains below 1e-9 of the largest (round-off; springs that only rotate) are not "
@@ -113,23 +113,22 @@ def section(doc: Document, result) -> None:
         ncols=min(3, len(panels)),
     )
     if cont:
-        last = list(units.values())[-1]
-        a = last.arrays
+        last = runs[-1]
         doc.figure(
             "transmission_scatter",
             [
                 Panel(
                     [
                         Series(
-                            a["network_strain"],
-                            a["continuum_strain"],
+                            last.network_strain,
+                            last.continuum_strain,
                             "springs",
                             style="",
                             marker=".",
                             alpha=0.5,
                         )
                     ],
-                    f"n = {last.meta['n']}: every spring",
+                    f"n = {last.n}: every spring",
                     "network strain",
                     "continuum chord strain",
                     diagonal=True,
@@ -159,16 +158,14 @@ def _binned(distance, strain, floor: float) -> list[Series]:
     return [Series(np.array(xs), np.array(ys), "network, binned median", color="black")]
 
 
-def _exponent(meta: dict, medium: str) -> str:
+def _exponent(run: TransmissionResult, medium: str) -> str:
     """``"2.01 +- 0.03"``: a medium's decay exponent and its standard error."""
-    value = fmt(meta[f"{medium}_exponent"])
-    error = meta.get(f"{medium}_exponent_error", float("nan"))
-    return f"{value} +- {fmt(error)}" if np.isfinite(error) else value
+    value, error = run.exponent(medium)
+    return f"{fmt(value)} +- {fmt(error)}" if np.isfinite(error) else fmt(value)
 
 
-def _against_two(meta: dict, medium: str) -> str:
-    """A medium's decay exponent against 2 by the two-standard-error rule."""
+def _against_two(exponent: float, error: float) -> str:
+    """A decay exponent against 2 by the two-standard-error rule."""
     from ...fits import PowerLaw, against
 
-    error = meta.get(f"{medium}_exponent_error", float("nan"))
-    return against(PowerLaw(meta[f"{medium}_exponent"], error, 1.0, 0, 0.0), 2.0)
+    return against(PowerLaw(exponent, error, 1.0, 0, 0.0), 2.0)

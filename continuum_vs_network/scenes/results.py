@@ -1,0 +1,112 @@
+"""Typed unit results: a unit returns a frozen dataclass, a report section reads it back.
+
+One codec for every result class. A result is a frozen dataclass whose fields hold plain
+values (numbers, strings, lists: the unit's JSON record), arrays (the unit's ``.npz``
+payload, under the field's name) or, in one field named ``fields``, a mapping of further
+arrays whose names carry a ``/`` (``"net/x"``, ``"cont/strain"``: what mesh export reads).
+A field with a default may be absent from a stored unit (a continuum part a scene leaves
+out). The stored layout is the one untyped units write, so results computed before a kind
+was typed read back as its class.
+
+    arrays, meta = to_stored(TransmissionResult(...))   # what the store writes
+    result = from_stored(unit, TransmissionResult)      # what a section reads
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
+
+import numpy as np
+
+from .units import UnitResult
+
+__all__ = ["TransmissionResult", "from_stored", "is_result", "to_stored"]
+
+T = TypeVar("T")
+
+
+def is_result(output: Any) -> bool:
+    """True for an instance of a result dataclass (not a class, not a History)."""
+    return dataclasses.is_dataclass(output) and not isinstance(output, type)
+
+
+def to_stored(result: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """``(arrays, meta)`` of a result dataclass: array fields and the ``fields`` mapping
+    to ``arrays``, every other field to ``meta``; fields left at None are not stored."""
+    arrays: dict[str, np.ndarray] = {}
+    meta: dict[str, Any] = {}
+    for f in dataclasses.fields(result):
+        value = getattr(result, f.name)
+        if value is None:
+            continue
+        if f.name == "fields":
+            arrays.update(value)
+        elif isinstance(value, np.ndarray):
+            arrays[f.name] = value
+        else:
+            meta[f.name] = value
+    return arrays, meta
+
+
+def from_stored(unit: UnitResult, cls: type[T]) -> T:
+    """``unit``'s arrays and record read as ``cls`` (a result dataclass).
+
+    Raises KeyError naming the unit and the field when a field without a default is not
+    stored (a result of another kind, or of an older layout).
+    """
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        if f.name == "fields":
+            values["fields"] = {k: v for k, v in unit.arrays.items() if "/" in k}
+        elif f.name in unit.arrays:
+            values[f.name] = unit.arrays[f.name]
+        elif f.name in unit.meta:
+            values[f.name] = unit.meta[f.name]
+        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+            raise KeyError(f"unit {unit.key!r} stores no {f.name!r} for {cls.__name__}")
+    return cls(**values)
+
+
+@dataclass(frozen=True)
+class TransmissionResult:
+    """Strain against distance from a clamped source spring (a ``transmission`` unit).
+
+    Arrays (n_springs,): ``springs`` (the springs read, in distance order), ``distance``
+    (from the source, lattice spacings), ``network_strain`` and, with a continuum,
+    ``continuum_strain`` (chord strain of the same springs). Decay fits ``|strain| ~
+    prefactor * distance**exponent`` between ``fit_r_min`` and ``fit_r_max`` (NaN where
+    the lattice is too small), each with its standard error; ``correlation``: of the two
+    media's strains. ``fields``: the relaxed network and continuum for mesh export (empty
+    unless the scene asks for fields). Seconds are wall-clock.
+    """
+
+    n: int
+    n_nodes: int
+    n_springs: int
+    source: int
+    strain: float
+    springs: np.ndarray
+    distance: np.ndarray
+    network_strain: np.ndarray
+    network_seconds: float
+    network_exponent: float
+    network_exponent_error: float
+    network_prefactor: float
+    fit_r_min: float
+    fit_r_max: float
+    continuum_strain: np.ndarray | None = None
+    continuum_seconds: float | None = None
+    continuum_exponent: float | None = None
+    continuum_exponent_error: float | None = None
+    continuum_prefactor: float | None = None
+    correlation: float | None = None
+    fields: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    def exponent(self, medium: str) -> tuple[float, float] | None:
+        """``(exponent, standard error)`` of ``medium`` ("network" or "continuum"); None
+        when that medium was not run."""
+        value = getattr(self, f"{medium}_exponent")
+        return None if value is None else (value, getattr(self, f"{medium}_exponent_error"))
