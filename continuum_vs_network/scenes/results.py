@@ -23,7 +23,7 @@ import numpy as np
 
 from .units import UnitResult
 
-__all__ = ["TransmissionResult", "from_stored", "is_result", "to_stored"]
+__all__ = ["RelaxationResult", "TransmissionResult", "from_stored", "is_result", "to_stored"]
 
 T = TypeVar("T")
 
@@ -110,3 +110,34 @@ class TransmissionResult:
         when that medium was not run."""
         value = getattr(self, f"{medium}_exponent")
         return None if value is None else (value, getattr(self, f"{medium}_exponent_error"))
+
+
+@dataclass(frozen=True)
+class RelaxationResult:
+    """Relaxation after one side of a lattice is stepped (a ``relaxation`` unit).
+
+    ``network_times`` (T,) and ``network_deviation`` (T,): the largest displacement to the
+    final state over time; ``network_tau``: when it stays below the scene's fraction of its
+    start; ``network_tau_mode``: 1 / the smallest decay rate of the linearised equations;
+    ``dt`` and ``t_end`` in the same time unit. The ``continuum_*`` values (with a
+    continuum) are the same for the finite-element body with the drag smeared over the
+    area per node. ``fields``: the network (and continuum) for mesh export.
+    """
+
+    n: int
+    n_nodes: int
+    dt: float
+    t_end: float
+    network_times: np.ndarray
+    network_deviation: np.ndarray
+    network_tau_mode: float
+    network_tau: float
+    network_seconds: float
+    network_factorisations: int
+    continuum_times: np.ndarray | None = None
+    continuum_deviation: np.ndarray | None = None
+    continuum_tau_mode: float | None = None
+    continuum_tau: float | None = None
+    continuum_seconds: float | None = None
+    continuum_dofs: int | None = None
+    fields: Mapping[str, np.ndarray] = field(default_factory=dict)

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .results import TransmissionResult
+from .results import RelaxationResult, TransmissionResult
 from .schema import Scene
 from .units import Unit, UnitContext
 
@@ -257,7 +257,7 @@ def _smallest_eigenvalue(K, M=None) -> float:
     return float(vals[0])
 
 
-def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
+def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext) -> RelaxationResult:
     """Relaxation time of the network (and the continuum) after a step of one side."""
     from ..continuum.viscoelastic import relaxation_time
     from ..network.dynamics import simulate
@@ -292,21 +292,10 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
     net_seconds = time.perf_counter() - t0
     T = tr.times.size
     disp = tr.positions - x
-    dev = np.max(np.abs(disp - disp[-1]).reshape(T, -1), axis=1)
-    arrays: dict[str, Any] = {"network_times": tr.times, "network_deviation": dev}
-    meta: dict[str, Any] = {
-        "n": n,
-        "n_nodes": net.n_nodes,
-        "dt": dt,
-        "t_end": t_end,
-        "network_tau_mode": tau,
-        "network_tau": relaxation_time(tr.times, disp.reshape(T, -1), fraction=dyn.fraction),
-        "network_seconds": net_seconds,
-        "network_factorisations": tr.factorisations,
-    }
+    fields: dict[str, np.ndarray] = {}
     if params["fields"]:
         idx = np.unique(np.linspace(0, T - 1, dyn.frames).round().astype(int))
-        arrays.update(
+        fields.update(
             {
                 "net/positions": x,
                 "net/springs": net.springs,
@@ -317,16 +306,33 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
                 "net/series_x": tr.positions[idx],
             }
         )
+    continuum: dict[str, Any] = {}
     if scene.continuum is not None:
-        arrays_c, meta_c = _relax_continuum(
+        continuum, continuum_fields = _relax_continuum(
             scene, net, left, right, shift, dt, t_end, fields=params["fields"]
         )
-        arrays.update(arrays_c)
-        meta.update(meta_c)
-    return arrays, meta
+        fields.update(continuum_fields)
+    return RelaxationResult(
+        n=n,
+        n_nodes=net.n_nodes,
+        dt=dt,
+        t_end=t_end,
+        network_times=tr.times,
+        network_deviation=np.max(np.abs(disp - disp[-1]).reshape(T, -1), axis=1),
+        network_tau_mode=tau,
+        network_tau=relaxation_time(tr.times, disp.reshape(T, -1), fraction=dyn.fraction),
+        network_seconds=net_seconds,
+        network_factorisations=tr.factorisations,
+        fields=fields,
+        **continuum,
+    )
 
 
-def _relax_continuum(scene: Scene, net, left, right, shift, dt, t_end, *, fields: bool):
+def _relax_continuum(
+    scene: Scene, net, left, right, shift, dt, t_end, *, fields: bool
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """The continuum's part of a :class:`RelaxationResult` (its ``continuum_*`` values)
+    and, with ``fields``, its fields for mesh export."""
     from ..continuum.body import elastic_body, near_segments, stiffness_matrix
     from ..continuum.materials import lattice_area_per_node, node_drag_to_continuum
     from ..continuum.mesh import network_mesh
@@ -382,16 +388,12 @@ def _relax_continuum(scene: Scene, net, left, right, shift, dt, t_end, *, fields
     else:
         C = damping_matrix(body, damping, density=0.0, K=K)[freedofs][:, freedofs]
         tau_mode = slowest_relaxation_time(Kf, C)
-    arrays = {
+    values = {
         "continuum_times": traj.times,
         "continuum_deviation": np.max(np.abs(obs - obs[-1]), axis=1),
-    }
-    meta = {
         "continuum_tau_mode": tau_mode,
         "continuum_tau": relaxation_time(traj.times, obs, fraction=dyn.fraction),
         "continuum_seconds": seconds,
         "continuum_dofs": body.n_dofs,
     }
-    if fields:
-        arrays.update(_continuum_fields(body, traj.u, mat))
-    return arrays, meta
+    return values, _continuum_fields(body, traj.u, mat) if fields else {}

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...fits import against, power_law
+from ...scenes.results import RelaxationResult, from_stored
 from ..document import (
     Document,
     fmt,
@@ -19,7 +20,7 @@ def section(doc: Document, result) -> None:
     scene = result.scene
     dyn = scene.dynamics
     cont = scene.continuum is not None
-    units = list(result.select("relaxation/").values())
+    runs = [from_stored(u, RelaxationResult) for u in result.select("relaxation/").values()]
     doc.add(
         f"The left side of an n x n triangular lattice (k = 1, unit node masses "
         f"{'with' if dyn.inertia else 'without'} inertia, node drag c = {dyn.damping:g}) is "
@@ -35,23 +36,16 @@ def section(doc: Document, result) -> None:
             else ""
         )
     )
-    n = np.array([u.meta["n"] for u in units], dtype=float)
+    n = np.array([r.n for r in runs], dtype=float)
     rows = []
-    for u in units:
-        m = u.meta
-        row = [
-            m["n"],
-            m["n_nodes"],
-            fmt(m["network_tau_mode"]),
-            fmt(m["network_tau"]),
-            fmt(m["network_seconds"]),
-        ]
+    for r in runs:
+        row = [r.n, r.n_nodes, fmt(r.network_tau_mode), fmt(r.network_tau), fmt(r.network_seconds)]
         if cont:
             row += [
-                fmt(m["continuum_tau_mode"]),
-                fmt(m["continuum_tau"]),
-                fmt(m["continuum_seconds"]),
-                m["continuum_dofs"],
+                fmt(r.continuum_tau_mode),
+                fmt(r.continuum_tau),
+                fmt(r.continuum_seconds),
+                r.continuum_dofs,
             ]
         rows.append(row)
     headers = ["n", "N", "network slowest-mode time", "network relaxation time", "network s"]
@@ -75,7 +69,7 @@ def section(doc: Document, result) -> None:
             ("continuum_tau", "continuum, measured", ""),
         ]
     for j, (k, label, style) in enumerate(names):
-        t = np.array([u.meta[k] for u in units], dtype=float)
+        t = np.array([getattr(r, k) for r in runs], dtype=float)
         ok = np.isfinite(t) & (t > 0)
         if ok.sum() >= 2:
             fit = power_law(n[ok], t[ok])
@@ -87,19 +81,16 @@ def section(doc: Document, result) -> None:
             )
         )
     curves = []
-    for j, u in enumerate(units):
-        a = u.arrays
-        d = a["network_deviation"]
-        curves.append(
-            Series(a["network_times"], d / d[0], f"network n={u.meta['n']}", color=COLORS[j % 10])
-        )
+    for j, r in enumerate(runs):
+        d = r.network_deviation
+        curves.append(Series(r.network_times, d / d[0], f"network n={r.n}", color=COLORS[j % 10]))
         if cont:
-            c = a["continuum_deviation"]
+            c = r.continuum_deviation
             curves.append(
                 Series(
-                    a["continuum_times"],
+                    r.continuum_times,
                     c / c[0],
-                    f"continuum n={u.meta['n']}",
+                    f"continuum n={r.n}",
                     style="--",
                     color=COLORS[j % 10],
                 )
