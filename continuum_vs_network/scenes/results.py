@@ -1,12 +1,14 @@
 """Typed unit results: a unit returns a frozen dataclass, a report section reads it back.
 
 One codec for every result class. A result is a frozen dataclass whose fields hold plain
-values (numbers, strings, lists: the unit's JSON record), arrays (the unit's ``.npz``
-payload, under the field's name) or, in one field named ``fields``, a mapping of further
+values (numbers, strings, lists: the unit's JSON record), arrays (annotated ``np.ndarray``:
+the unit's ``.npz`` payload) or, in one field named ``fields``, a mapping of further
 arrays whose names carry a ``/`` (``"net/x"``, ``"cont/strain"``: what mesh export reads).
-A field with a default may be absent from a stored unit (a continuum part a scene leaves
-out). The stored layout is the one untyped units write, so results computed before a kind
-was typed read back as its class.
+Each is stored under the field's name, or under ``field(metadata={"stored": name})``
+(an array and a record value may share a stored name). A field with a default may be
+absent from a stored unit (a continuum part a scene leaves out). The stored layout is the
+one untyped units write, so results computed before a kind was typed read back as its
+class.
 
     arrays, meta = to_stored(TransmissionResult(...))   # what the store writes
     result = from_stored(unit, TransmissionResult)      # what a section reads
@@ -23,7 +25,14 @@ import numpy as np
 
 from .units import UnitResult
 
-__all__ = ["RelaxationResult", "TransmissionResult", "from_stored", "is_result", "to_stored"]
+__all__ = [
+    "RelaxationResult",
+    "SolverResult",
+    "TransmissionResult",
+    "from_stored",
+    "is_result",
+    "to_stored",
+]
 
 T = TypeVar("T")
 
@@ -33,6 +42,12 @@ def is_result(output: Any) -> bool:
     return dataclasses.is_dataclass(output) and not isinstance(output, type)
 
 
+def _stored(f: dataclasses.Field) -> tuple[str, bool]:
+    """A field's stored name and whether it is an array (in the payload, not the record)."""
+    kind = str(f.type)
+    return f.metadata.get("stored", f.name), "ndarray" in kind and "Mapping" not in kind
+
+
 def to_stored(result: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """``(arrays, meta)`` of a result dataclass: array fields and the ``fields`` mapping
     to ``arrays``, every other field to ``meta``; fields left at None are not stored."""
@@ -40,14 +55,15 @@ def to_stored(result: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     meta: dict[str, Any] = {}
     for f in dataclasses.fields(result):
         value = getattr(result, f.name)
+        name, is_array = _stored(f)
         if value is None:
             continue
         if f.name == "fields":
             arrays.update(value)
-        elif isinstance(value, np.ndarray):
-            arrays[f.name] = value
+        elif is_array:
+            arrays[name] = np.asarray(value)
         else:
-            meta[f.name] = value
+            meta[name] = value
     return arrays, meta
 
 
@@ -59,14 +75,14 @@ def from_stored(unit: UnitResult, cls: type[T]) -> T:
     """
     values: dict[str, Any] = {}
     for f in dataclasses.fields(cls):
+        name, is_array = _stored(f)
+        stored = unit.arrays if is_array else unit.meta
         if f.name == "fields":
             values["fields"] = {k: v for k, v in unit.arrays.items() if "/" in k}
-        elif f.name in unit.arrays:
-            values[f.name] = unit.arrays[f.name]
-        elif f.name in unit.meta:
-            values[f.name] = unit.meta[f.name]
+        elif name in stored:
+            values[f.name] = stored[name]
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-            raise KeyError(f"unit {unit.key!r} stores no {f.name!r} for {cls.__name__}")
+            raise KeyError(f"unit {unit.key!r} stores no {name!r} for {cls.__name__}")
     return cls(**values)
 
 
@@ -141,3 +157,28 @@ class RelaxationResult:
     continuum_seconds: float | None = None
     continuum_dofs: int | None = None
     fields: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SolverResult:
+    """One equilibrium method at one lattice size (a ``solvers`` unit).
+
+    ``residual``: the relative residual (each net force over its node's sum k L) reached;
+    ``seconds``: the whole solve's wall-clock time; ``error``: the method's reason where
+    it did not converge (empty otherwise). The traces (R,) record the relative residual,
+    the wall-clock seconds and the method's own iteration number at its records (stored
+    as ``residual``, ``seconds`` and ``iteration``).
+    """
+
+    n: int
+    method: str
+    n_nodes: int
+    n_springs: int
+    converged: bool
+    residual: float
+    iterations: int
+    seconds: float
+    error: str
+    residual_trace: np.ndarray = field(metadata={"stored": "residual"})
+    seconds_trace: np.ndarray = field(metadata={"stored": "seconds"})
+    iteration_trace: np.ndarray = field(metadata={"stored": "iteration"})

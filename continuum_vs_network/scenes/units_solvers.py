@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .results import SolverResult
 from .schema import Scene
 from .timing import single_threaded
 from .units import Unit, UnitContext
@@ -59,7 +60,7 @@ def warm_up(method: str) -> None:
 
 
 @single_threaded
-def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
+def solver_unit(scene: Scene, params: dict, ctx: UnitContext) -> SolverResult:
     """Residual against iterations and wall-clock time of one method at one size."""
     from ..network.equilibrium import EquilibriumError, relax
 
@@ -80,20 +81,17 @@ def solver_unit(scene: Scene, params: dict, ctx: UnitContext):
     except EquilibriumError as err:
         eq = err.state
         error = err.reason
-    arrays = {  # relative residuals: each net force over its node's sum k L
-        "residual": np.asarray(eq.residual_trace),
-        "seconds": np.asarray(eq.seconds_trace),
-        "iteration": np.asarray(eq.iteration_trace),
-    }
-    meta = {
-        "n": params["n"],
-        "method": method,
-        "n_nodes": net.n_nodes,
-        "n_springs": net.n_springs,
-        "converged": bool(eq.converged),
-        "residual": eq.relative_residual,
-        "iterations": int(eq.iterations),
-        "seconds": eq.seconds,
-        "error": error,
-    }
-    return arrays, meta
+    return SolverResult(
+        n=params["n"],
+        method=method,
+        n_nodes=net.n_nodes,
+        n_springs=net.n_springs,
+        converged=bool(eq.converged),
+        residual=eq.relative_residual,
+        iterations=int(eq.iterations),
+        seconds=eq.seconds,
+        error=error,
+        residual_trace=np.asarray(eq.residual_trace),
+        seconds_trace=np.asarray(eq.seconds_trace),
+        iteration_trace=np.asarray(eq.iteration_trace),
+    )

@@ -7,6 +7,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
+from ...scenes.results import SolverResult, from_stored
 from ..document import (
     Document,
     fmt,
@@ -37,29 +38,33 @@ def section(doc: Document, result) -> None:
         "was reached (a warm-up solve first, so imports are not timed; one BLAS thread, "
         "as in every timed unit)."
     )
+    runs = {
+        (n, method): from_stored(result.units[f"solvers/n{n}/{method}"], SolverResult)
+        for n in sizes
+        for method in methods
+    }
     rows = []
     it_panels, t_panels = [], []
     for n in sizes:
         it_s, t_s = [], []
         for j, method in enumerate(methods):
-            u = result.units[f"solvers/n{n}/{method}"]
-            a, m = u.arrays, u.meta
-            it = a["iteration"]  # the solver's own iteration count of each record
-            it_s.append(Series(it, a["residual"], method, color=COLORS[j]))
-            t_s.append(Series(a["seconds"], a["residual"], method, color=COLORS[j]))
+            r = runs[n, method]
+            # the solver's own iteration count of each record
+            it_s.append(Series(r.iteration_trace, r.residual_trace, method, color=COLORS[j]))
+            t_s.append(Series(r.seconds_trace, r.residual_trace, method, color=COLORS[j]))
             rows.append(
                 [
                     n,
-                    m["n_nodes"],
+                    r.n_nodes,
                     method,
-                    "yes" if m["converged"] else "no",
-                    m["iterations"],
-                    fmt(m["seconds"]),
-                    fmt(m["residual"]),
-                    m["error"][:100],
+                    "yes" if r.converged else "no",
+                    r.iterations,
+                    fmt(r.seconds),
+                    fmt(r.residual),
+                    r.error[:100],
                 ]
             )
-        N = result.units[f"solvers/n{n}/{methods[0]}"].meta["n_nodes"]
+        N = runs[n, methods[0]].n_nodes
         it_panels.append(
             Panel(
                 it_s,
@@ -95,15 +100,15 @@ def section(doc: Document, result) -> None:
     tols = np.logspace(-2, math.log10(scene.solver.tol), 9)
     wp, scale, reached = [], [], {}
     n_last = sizes[-1]
-    nodes = [result.units[f"solvers/n{n}/{methods[0]}"].meta["n_nodes"] for n in sizes]
+    nodes = [runs[n, methods[0]].n_nodes for n in sizes]
     for j, method in enumerate(methods):
-        a = result.units[f"solvers/n{n_last}/{method}"].arrays
-        times = [time_to(a["residual"], a["seconds"], t) for t in tols]
+        last = runs[n_last, method]
+        times = [time_to(last.residual_trace, last.seconds_trace, t) for t in tols]
         wp.append(Series(times, tols, method, marker="o", color=COLORS[j]))
         reach = []
         for n in sizes:
-            b = result.units[f"solvers/n{n}/{method}"].arrays
-            reach.append(time_to(b["residual"], b["seconds"], scene.solver.tol))
+            r = runs[n, method]
+            reach.append(time_to(r.residual_trace, r.seconds_trace, scene.solver.tol))
         scale.append(Series(nodes, reach, method, marker="o", color=COLORS[j]))
         reached[method] = reach
     doc.figure(
