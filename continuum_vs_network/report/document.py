@@ -184,6 +184,11 @@ def fmt(x: float, digits: int = 3) -> str:
     return f"{x:.{digits}g}"
 
 
+def mesh_name(refine: int) -> str:
+    """The element size of a mesh refined ``refine`` times from h: "h", "h/2", "h/4", ..."""
+    return "h" if refine == 0 else f"h/{2**refine}"
+
+
 def summary_text(values: NDArray, completed: NDArray | None = None) -> str:
     """Final normalised value: "median [q25, q75]" over trials (missing ones counted)."""
     from ..learning.metrics import summary

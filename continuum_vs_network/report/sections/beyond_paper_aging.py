@@ -10,9 +10,10 @@ import math
 import numpy as np
 
 from ...learning.coupling import MET_AT
+from ..document import fmt
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import _g, basis, reasoned
+from .beyond_paper_format import basis, reasoned
 
 SAME = 1e-6  # relative difference of two error curves that counts as identical
 TASK_NAMES = {"paper": "the paper's task", "lattice": "Rocks et al.'s task on the lattice"}
@@ -41,7 +42,7 @@ def rule_verdict(meta: dict, opt: dict | None) -> tuple[str, str]:
     if not opt["feasible"]:
         return NOT_COMPARABLE, (
             f"infeasible, the optimum of {opt['dof']} leaves its worst example at C_e/C_e0 = "
-            f"{_g(opt['worst_example'])} > {FEASIBLE:g} (counted apart)"
+            f"{fmt(opt['worst_example'])} > {FEASIBLE:g} (counted apart)"
         )
     if meta["outcome"].startswith("learned"):
         return REPRODUCED, ""
@@ -89,9 +90,9 @@ def _compare(doc, scene, units) -> None:
             e = np.asarray(units[f"beyond/compare/{task}/{r}"].arrays["error"], dtype=float)
             verdict, reason = rule_verdict(m, o)
             rows.append([
-                r, m["dof"], _g(m["ratio"]), f"{_g(m['source_share'], 2)} ({m['coupling']})",
-                m["outcome"], f"{_g(o.get('worst_example'))} ({o.get('outcome')})",
-                _g(m["seconds"]), (m["stop_reason"] or "")[:80],
+                r, m["dof"], fmt(m["ratio"]), f"{fmt(m['source_share'], 2)} ({m['coupling']})",
+                m["outcome"], f"{fmt(o.get('worst_example'))} ({o.get('outcome')})",
+                fmt(m["seconds"]), (m["stop_reason"] or "")[:80],
             ])  # fmt: skip
             series.append(Series(np.arange(e.size), e / e[0], r, color=COLORS[i % len(COLORS)]))
             group = "infeasible" if reason.startswith("infeasible") else m["outcome"]
@@ -122,8 +123,8 @@ def _compare(doc, scene, units) -> None:
         first = metas[rules[0]]
         doc.add(
             f"**{TASK_NAMES[task]}** ({first['n_nodes']} nodes, {first['n_springs']} springs; "
-            f"source strain {', '.join(_g(s) for s in first['source_strain'])}, desired "
-            f"target strain {', '.join(_g(s) for s in first['target_strain'])}):"
+            f"source strain {', '.join(fmt(s) for s in first['source_strain'])}, desired "
+            f"target strain {', '.join(fmt(s) for s in first['target_strain'])}):"
         )
         doc.table(
             ["rule", "learns", "C/C0 at the end", "source share (coupling)", "outcome",
@@ -134,8 +135,8 @@ def _compare(doc, scene, units) -> None:
             "; ".join(f"{g}: {', '.join(rs)}" for g, rs in groups.items())
             + ". Optimum per dof: "
             + "; ".join(
-                f"{d} {_g(o.get('worst_example'))} in {o.get('iterations', '-')} iterations "
-                f"({_g(o.get('seconds'), 2)} s)"
+                f"{d} {fmt(o.get('worst_example'))} in {o.get('iterations', '-')} iterations "
+                f"({fmt(o.get('seconds'), 2)} s)"
                 for d, o in sorted(opts.items())
             )
             + ".",
@@ -211,7 +212,7 @@ def _aging_is_gpc(doc, scene, units) -> None:
             )
         )
         doc.add(
-            f"- {TASK_NAMES[task]}: aging and GPC error curves differ by at most {_g(diff, 2)} "
+            f"- {TASK_NAMES[task]}: aging and GPC error curves differ by at most {fmt(diff, 2)} "
             f"of C0 ({'uniform' if meta['uniform_stiffness'] else 'non-uniform'} k; "
             f"{verdict} by the rule in the findings)."
         )

@@ -9,9 +9,10 @@ from __future__ import annotations
 import numpy as np
 
 from ...learning.coupling import MET_AT
+from ..document import fmt
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import _g, basis, reasoned
+from .beyond_paper_format import basis, reasoned
 
 
 def capacity(outcomes: dict[int, list[str]]) -> int:
@@ -88,15 +89,15 @@ def _capacity(doc, scene, units) -> None:
                 [
                     f"{n} x {n} ({us[0].meta['n_springs']} springs)",
                     m,
-                    ", ".join(_g(w) for w in worst),
+                    ", ".join(fmt(w) for w in worst),
                     f"{len(feas)} / {len(us)}",
                     ", ".join(str(e.get("iterations", "-")) for e in ex),
-                    ", ".join(_g(u.meta.get("worst_example")) for u in us),
+                    ", ".join(fmt(u.meta.get("worst_example")) for u in us),
                     f"{sum(o.startswith('learned') for o in by_m_gcl[m])} / {len(feas)}",
-                    _g(min(min(e["source_share"], u.meta["source_share"])
+                    fmt(min(min(e["source_share"], u.meta["source_share"])
                            for e, u in zip(ex, us)), 2),
-                    _g(sum(e["seconds"] for e in ex)) + " / "
-                    + _g(sum(u.meta["seconds"] for u in us)),
+                    fmt(sum(e["seconds"] for e in ex)) + " / "
+                    + fmt(sum(u.meta["seconds"] for u in us)),
                 ]
             )  # fmt: skip
         caps[n], gcl_caps[n] = capacity(by_m), capacity(by_m_gcl)

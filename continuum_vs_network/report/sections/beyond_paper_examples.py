@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from ...learning.coupling import MET_AT
+from ..document import fmt
 from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import _g, basis, reasoned
+from .beyond_paper_format import basis, reasoned
 
 
 def _infeasible(opt: dict) -> str:
@@ -22,7 +23,7 @@ def _infeasible(opt: dict) -> str:
     if not opt.get("feasible"):
         return (
             f"infeasible, the optimum of the stiffnesses leaves its worst example at "
-            f"C_e/C_e0 = {_g(opt['worst_example'])} > {FEASIBLE:g} in "
+            f"C_e/C_e0 = {fmt(opt['worst_example'])} > {FEASIBLE:g} in "
             f"{opt.get('iterations', '-')} iterations (counted apart)"
         )
     return ""
@@ -43,9 +44,9 @@ def _symmetric(doc, units) -> None:
         "GCL of the stiffnesses (the target clamped at the strain it should reach and the "
         "source asked for its own strain, as a second example), "
         f"{m['completed']} steps: errors forward / backward "
-        f"{_g(before[0])} / {_g(before[1])} before, {_g(after[0])} / {_g(after[1])} after; "
-        f"coupling {_g(m['source_share'], 2)} ({m['coupling']}). The optimum of the pair "
-        f"leaves its worst direction at C_e/C_e0 = {_g(opt.get('worst_example'))} "
+        f"{fmt(before[0])} / {fmt(before[1])} before, {fmt(after[0])} / {fmt(after[1])} after; "
+        f"coupling {fmt(m['source_share'], 2)} ({m['coupling']}). The optimum of the pair "
+        f"leaves its worst direction at C_e/C_e0 = {fmt(opt.get('worst_example'))} "
         f"({opt.get('outcome')}).",
         "",
     )
@@ -96,14 +97,14 @@ def _regression(doc, units) -> None:
     test_ratio = m["test_final"] / m["test_initial"] if m["test_initial"] > 0 else np.nan
     doc.add(
         "The seed paper's proposed next step: desired target strain a fixed linear map of two "
-        f"source strains, S_T = M S_S (random M, gain {_g(m['gain'])}); GCL of the "
+        f"source strains, S_T = M S_S (random M, gain {fmt(m['gain'])}); GCL of the "
         f"stiffnesses on {m['n_train']} training examples, {m['completed']} steps; the summed "
         f"error of {m['n_test']} held-out examples is measured before and after. Training "
-        f"C/C0 {_g(train_ratio)}, held-out C/C0 {_g(test_ratio)}; coupling of the trained "
+        f"C/C0 {fmt(train_ratio)}, held-out C/C0 {fmt(test_ratio)}; coupling of the trained "
         f"network (smallest source share over the training examples) "
-        f"{_g(m['source_share'], 2)} ({m['coupling']}); {_g(m['seconds'], 2)} s. The optimum "
+        f"{fmt(m['source_share'], 2)} ({m['coupling']}); {fmt(m['seconds'], 2)} s. The optimum "
         f"of the training set leaves its worst example at C_e/C_e0 = "
-        f"{_g(opt.get('worst_example'))} ({opt.get('outcome')}).",
+        f"{fmt(opt.get('worst_example'))} ({opt.get('outcome')}).",
         "",
     )
     finite = bool(np.isfinite(train_ratio) and np.isfinite(test_ratio))

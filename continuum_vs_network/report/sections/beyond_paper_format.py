@@ -5,15 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-import numpy as np
-
 from ..findings import NOT_COMPARABLE
-
-
-def _g(x, digits: int = 3) -> str:
-    if x is None or not np.isfinite(x):
-        return "-"
-    return f"{x:.{digits}g}"
 
 
 def basis(runs: Iterable[dict]) -> str:

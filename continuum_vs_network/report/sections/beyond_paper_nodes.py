@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 
 from ...learning.coupling import MET_AT
+from ..document import fmt
 from ..figures import COLORS, Panel, Series
 from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import _g, basis, reasoned
+from .beyond_paper_format import basis, reasoned
 
 OUTPUT_NAMES = {
     "absolute": ("absolute node displacements", "x_T"),
@@ -73,9 +74,9 @@ def _nodes(doc, scene, units) -> None:
             m = u.meta
             e = np.asarray(u.arrays["error"], dtype=float)
             rows.append(
-                [rule, m.get("learns", "-"), _g(m["ratio"]),
-                 f"{_g(m['source_share'], 2)} ({m['coupling']})", m["outcome"],
-                 _g(m["seconds"]), (m["stop_reason"] or "")[:80]]
+                [rule, m.get("learns", "-"), fmt(m["ratio"]),
+                 f"{fmt(m['source_share'], 2)} ({m['coupling']})", m["outcome"],
+                 fmt(m["seconds"]), (m["stop_reason"] or "")[:80]]
             )  # fmt: skip
             series.append(Series(np.arange(e.size), e / e[0], rule, color=COLORS[i % len(COLORS)]))
         doc.add(f"**{name}** (output {symbol}):")

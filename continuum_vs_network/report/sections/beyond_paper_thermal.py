@@ -11,9 +11,10 @@ import itertools
 import numpy as np
 
 from ...learning.metrics import PLATEAU, bound, tail_change
+from ..document import fmt
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import _g, basis, reasoned
+from .beyond_paper_format import basis, reasoned
 from .learning_checks_noise import decoupled_caveat
 
 #: the least rise of a floor that counts as a rise (runs differ by ~1 % at equal settings)
@@ -68,9 +69,9 @@ def coupling_cell(metas) -> str:
     if len(set(verdicts.values())) == 1:
         (v,) = set(verdicts.values())
         lo, hi = float(np.nanmin(shares)), float(np.nanmax(shares))
-        share = _g(lo, 2) if lo == hi else f"{_g(lo, 2)} to {_g(hi, 2)}"
+        share = fmt(lo, 2) if lo == hi else f"{fmt(lo, 2)} to {fmt(hi, 2)}"
         return f"all {v} (source share {share})"
-    return "; ".join(f"{k} {v} ({_g(x, 2)})" for (k, v), x in zip(verdicts.items(), shares))
+    return "; ".join(f"{k} {v} ({fmt(x, 2)})" for (k, v), x in zip(verdicts.items(), shares))
 
 
 def bounds_caption(points) -> str:
@@ -151,7 +152,7 @@ def _thermal(doc, scene, units) -> None:
             [
                 f"{T:g}",
                 *(
-                    f"{_g(floors[run][i])} ({_g(100 * changes[run][i], 2)} %, {kinds[run][i]})"
+                    f"{fmt(floors[run][i])} ({fmt(100 * changes[run][i], 2)} %, {kinds[run][i]})"
                     for run in runs
                 ),
                 coupling_cell({labels[run]: metas[run][i] for run in runs}),
@@ -266,8 +267,8 @@ def _thermal(doc, scene, units) -> None:
         doc.add(
             "Has the noise-free baseline converged? "
             + "; ".join(
-                f"{labels[run]}: final C/C0 {_g(final0[run])} at T = 0, lowest floor at T > 0 "
-                f"{_g(min([f for f in floors[run][1:] if np.isfinite(f)], default=np.nan))}"
+                f"{labels[run]}: final C/C0 {fmt(final0[run])} at T = 0, lowest floor at T > 0 "
+                f"{fmt(min([f for f in floors[run][1:] if np.isfinite(f)], default=np.nan))}"
                 f" ({'converged' if converged[run] else 'not converged'})"
                 for run in runs
             )
@@ -281,7 +282,7 @@ def _thermal(doc, scene, units) -> None:
             + (
                 " Still descending at T = 0 (the baseline): "
                 + ", ".join(
-                    f"{run} ({_g(100 * changes[run][0], 2)} % over the last quarter)"
+                    f"{run} ({fmt(100 * changes[run][0], 2)} % over the last quarter)"
                     for run in runs[:-1]
                     if kinds[run][0] != "plateau"
                 )

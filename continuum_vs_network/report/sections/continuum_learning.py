@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...learning.coupling import DECOUPLED_BELOW
-from ..document import Document
+from ..document import Document, fmt, mesh_name
 from ..figures import COLORS, Panel, Series
 from .continuum_learning_figures import _field_figure, _renders
 from .continuum_learning_findings import (
@@ -26,7 +26,6 @@ from .continuum_learning_findings import (
     fields_agree_verdict,
 )
 from .continuum_learning_findings import _same_coupling as _same_coupling
-from .continuum_learning_format import _g, _h
 from .continuum_learning_measures import (
     LOCALISED,
     SETTLED,
@@ -74,7 +73,8 @@ def section(doc: Document, result) -> None:
     for rule in L.rules:
         doc.heading(f"Rule `{rule}`", 3)
         media = [("network", f"continuum_learning/network/{rule}")] + [
-            (_h(r), f"continuum_learning/refine{r}/{rule}") for r in range(R + 1)
+            (f"continuum {mesh_name(r)}", f"continuum_learning/refine{r}/{rule}")
+            for r in range(R + 1)
         ]
         rows, s_err, s_time = [], [], []
         needed = []
@@ -90,11 +90,11 @@ def section(doc: Document, result) -> None:
                 [
                     name,
                     u.meta.get("n_dofs", 2 * u.meta.get("n_nodes", 0)),
-                    _g(k),
-                    _g(t[int(k)]) if np.isfinite(k) else "-",
-                    _g(float(ratio[-1])),
-                    _g(1e3 * per_step),
-                    f"{_g(u.meta['source_share'], 2)} ({u.meta['coupling']})",
+                    fmt(k),
+                    fmt(t[int(k)]) if np.isfinite(k) else "-",
+                    fmt(float(ratio[-1])),
+                    fmt(1e3 * per_step),
+                    f"{fmt(u.meta['source_share'], 2)} ({u.meta['coupling']})",
                     u.meta["outcome"],
                     u.meta["stop_reason"] or "",
                 ]
@@ -151,10 +151,10 @@ def section(doc: Document, result) -> None:
             ],
             [
                 [
-                    _h(r).removeprefix("continuum "),
-                    _g(summary["change"][r]),
-                    _g(summary["correlation"][r]),
-                    _g(summary["localised"][r]),
+                    mesh_name(r),
+                    fmt(summary["change"][r]),
+                    fmt(summary["correlation"][r]),
+                    fmt(summary["localised"][r]),
                 ]
                 for r in range(R + 1)
             ],

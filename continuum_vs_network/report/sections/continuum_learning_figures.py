@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .continuum_learning_format import _h
+from ..document import mesh_name
 from .continuum_learning_measures import _magnitude
 
 
@@ -28,7 +28,14 @@ def _field_figure(doc, units, rule: str, refine: int) -> None:
     ]
     for r in range(refine + 1):
         a = units[f"continuum_learning/refine{r}/{rule}"].arrays
-        panels.append((_h(r), a["points"], a["triangles"], _magnitude(np.asarray(a["field"]))))
+        panels.append(
+            (
+                f"continuum {mesh_name(r)}",
+                a["points"],
+                a["triangles"],
+                _magnitude(np.asarray(a["field"])),
+            )
+        )
     vmax = max(float(np.max(p[3])) for p in panels) or 1.0
     fig, axes = plt.subplots(1, len(panels), figsize=(3.2 * len(panels), 3.4))
     for ax, (title, pts, tri, val) in zip(np.atleast_1d(axes), panels):
@@ -62,7 +69,11 @@ def _renders(doc, units, rule: str, R: int, render: bool, reason: str) -> None:
 
     shown = [
         ("network", units[f"continuum_learning/network/{rule}"].arrays, "coarse"),
-        (_h(R), units[f"continuum_learning/refine{R}/{rule}"].arrays, "field"),
+        (
+            f"continuum {mesh_name(R)}",
+            units[f"continuum_learning/refine{R}/{rule}"].arrays,
+            "field",
+        ),
     ]
     vmax = max(float(np.max(_magnitude(np.asarray(a[f])))) for _, a, f in shown) or 1.0
     for name, a, f in shown:

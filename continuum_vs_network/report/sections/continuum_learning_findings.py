@@ -11,8 +11,8 @@ import numpy as np
 
 from ...fits import power_law
 from ...learning.coupling import DECOUPLED_BELOW
+from ..document import fmt, mesh_name
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .continuum_learning_format import _g, _h
 from .continuum_learning_measures import LOCALISED, SETTLED, SHRINK, TOLERANCE
 
 __all__ = ["agreed_coupling", "fields_agree_verdict", "refinement_verdict"]
@@ -100,7 +100,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
         )
         lines.append(
             f"- **Refinement.** Successive changes of the field on the lattice triangles: "
-            f"{', '.join(_g(c, 2) for c in change)} ({verdict} by the rule in the findings)."
+            f"{', '.join(fmt(c, 2) for c in change)} ({verdict} by the rule in the findings)."
         )
     loc = summary["localised"]
     if len(loc) >= 2 and all(np.isfinite(loc)):
@@ -110,14 +110,14 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
                 source="check",
                 claim=f"the learned change localises as the mesh is refined ({rule})",
                 metric=f"area fraction whose change exceeds {LOCALISED:g} of the largest",
-                measured={_h(r).removeprefix("continuum "): x for r, x in enumerate(loc)},
+                measured={mesh_name(r): x for r, x in enumerate(loc)},
                 verdict=NOT_COMPARABLE if decoupled else (REPRODUCED if falls else NOT_REPRODUCED),
                 rule="reproduced when the fraction falls at every refinement" + unless,
             )
         )
         lines.append(
             f"- **Localisation.** Area fraction whose rest strain changed by more than "
-            f"{LOCALISED:g} of the largest change: {' -> '.join(_g(x, 2) for x in loc)}."
+            f"{LOCALISED:g} of the largest change: {' -> '.join(fmt(x, 2) for x in loc)}."
         )
     cont = np.array(needed[1:], dtype=float)
     if np.all(np.isfinite(cont)) and cont.size >= 2 and np.all(cont > 0):
@@ -125,21 +125,21 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
         fit = power_law(h, cont)
         lines.append(
             f"- **Steps needed.** Steps to C/C0 <= {TOLERANCE:g}: "
-            f"{', '.join(_g(c) for c in cont)} from h to h/{2**R}, by least squares "
+            f"{', '.join(fmt(c) for c in cont)} from h to h/{2**R}, by least squares "
             f"{fit.describe('steps', 'h')} with the element size h (whole step counts: the "
-            f"standard error is a lower bound) (network: {_g(needed[0])} steps)."
+            f"standard error is a lower bound) (network: {fmt(needed[0])} steps)."
         )
     lines.append(
         f"- **Coupling.** Network: {metas['network']['outcome']}; continuum at h: "
         f"{metas['continuum h']['outcome']} (source shares "
-        f"{_g(metas['network']['source_share'], 2)} and "
-        f"{_g(metas['continuum h']['source_share'], 2)}). A decoupled solution meets the "
+        f"{fmt(metas['network']['source_share'], 2)} and "
+        f"{fmt(metas['continuum h']['source_share'], 2)}). A decoupled solution meets the "
         "task by prestressing the targets, not by transmitting the sources' strain. "
         f"Coupling verdicts: {agreed_coupling(metas)}."
     )
     lines.append(
         f"- **Same triangles.** Correlation of the network's and the continuum's learned "
-        f"rest strains on the lattice triangles at h: {_g(corr, 2)}."
+        f"rest strains on the lattice triangles at h: {fmt(corr, 2)}."
     )
     return [*lines, ""]
 
@@ -182,7 +182,7 @@ def _rules_agree(doc, units, rules, R: int) -> None:
         Finding(
             source="check",
             claim="coupled learning and the exact gradient learn the same continuum field",
-            metric=f"relative difference of the learned eigenstrain at {_h(R)}",
+            metric=f"relative difference of the learned eigenstrain at continuum {mesh_name(R)}",
             measured={
                 "relative difference": diff,
                 **{f"share {r}": m["source_share"] for r, m in metas.items()},
@@ -195,11 +195,12 @@ def _rules_agree(doc, units, rules, R: int) -> None:
         )
     )
     doc.add(
-        f"GCL and the exact gradient learn fields that differ by {_g(diff, 2)} (relative) at "
-        f"{_h(R)}: from zero eigenstrain both descend a linear least-squares problem within the "
+        f"GCL and the exact gradient learn fields that differ by {fmt(diff, 2)} (relative) at "
+        f"continuum {mesh_name(R)}: from zero eigenstrain both descend a linear least-squares "
+        "problem within the "
         "range of one Jacobian, so both converge to its minimum-norm solution; the targets' "
         "weighting (effective stiffness for GCL) changes the path, not the end. Source shares "
-        + ", ".join(f"{r} {_g(m['source_share'], 2)} ({m['coupling']})" for r, m in metas.items())
+        + ", ".join(f"{r} {fmt(m['source_share'], 2)} ({m['coupling']})" for r, m in metas.items())
         + (
             f": **{verdict}** as evidence that the two rules learn alike, since a decoupled "
             "field is prestress, the same minimum-norm solution for any descent."

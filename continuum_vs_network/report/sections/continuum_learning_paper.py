@@ -9,8 +9,8 @@ import math
 import numpy as np
 
 from ...learning.coupling import DECOUPLED_BELOW
+from ..document import fmt, mesh_name
 from ..findings import NOT_REPRODUCED, REPRODUCED, Finding
-from .continuum_learning_format import _g, _h
 from .continuum_learning_measures import TOLERANCE, steps_to
 
 
@@ -23,13 +23,13 @@ def _paper(doc, units, R: int, rule: str) -> None:
         finals.append(float(e[-1] / e[0]) if np.isfinite(e[-1]) else math.inf)
         rows.append(
             [
-                _h(r).removeprefix("continuum "),
+                mesh_name(r),
                 u.meta["n_dofs"],
-                _g(u.meta["source_strain"][0]),
-                _g(u.meta["target_strain"][0]),
-                _g(steps_to(e)),
-                _g(e[-1] / e[0]),
-                f"{_g(u.meta['source_share'], 2)} ({u.meta['coupling']})",
+                fmt(u.meta["source_strain"][0]),
+                fmt(u.meta["target_strain"][0]),
+                fmt(steps_to(e)),
+                fmt(e[-1] / e[0]),
+                f"{fmt(u.meta['source_share'], 2)} ({u.meta['coupling']})",
             ]
         )
     doc.add(

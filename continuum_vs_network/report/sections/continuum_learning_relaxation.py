@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..document import fmt
 from ..figures import Panel, Series
-from .continuum_learning_format import _g
 
 
 def _relaxation(doc, units) -> None:
@@ -50,7 +50,7 @@ def _relaxation(doc, units) -> None:
         s = np.asarray(a[f"{arr}_strain"] if arr else a["continuum_strain"])
         d = np.linalg.norm(s - s[-1], axis=1)
         panels.append(Series(t, d / d[0], name))
-        rows.append([name, _g(m[f"{key}_settle"]), _g(m[f"{key}_gap"]), _g(m[f"{key}_seconds"])])
+        rows.append([name, fmt(m[f"{key}_settle"]), fmt(m[f"{key}_gap"]), fmt(m[f"{key}_seconds"])])
     doc.table(
         [
             "medium",
