@@ -17,7 +17,7 @@ from continuum_vs_network.report.findings import (
 )
 from continuum_vs_network.report.sections.beyond_paper_thermal import _thermal
 from continuum_vs_network.report.sections.continuum_learning_findings import _verdicts
-from continuum_vs_network.report.sections.physical_time_findings import _findings
+from continuum_vs_network.report.sections.physical_time.findings import _findings
 
 
 # -- physical_time: learning speed needs coupling; the quasi-static limit does not ----------

@@ -1,5 +1,5 @@
 """Why the physical_time relaxation times differ from the `relaxation` scene's: the task
-units' linear modes (:mod:`...scenes.units_time_modes`), shown as two tables, a paragraph
+units' linear modes (:mod:`....scenes.units_time_modes`), shown as two tables, a paragraph
 and findings by stated rules (:func:`modes_section`).
 
 The `relaxation` scene reports the slowest-mode time of a lattice with one side held and
@@ -15,8 +15,8 @@ import math
 
 import numpy as np
 
-from ..document import Document, fmt
-from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
+from ...document import Document, fmt
+from ...findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
 #: Slowest-mode times of the two media "agree" within this relative difference ...
 MODE_AGREEMENT = 0.10

@@ -1,4 +1,4 @@
-"""The findings of the physical_time section (:mod:`.physical_time`), each by its stated
+"""The findings of the physical_time section (:mod:`.`), each by its stated
 rule: whether the learning rate speeds learning up, converges to the quasi-static result,
 and where learning stops working. The claims about learning (speed-up, Stern's critical
 ratio) need a coupling measurement (:func:`coupling_reason`); the comparison with the
@@ -11,11 +11,10 @@ import math
 
 import numpy as np
 
-from ...learning.coupling import DECOUPLED_BELOW
-from ..document import Document
-from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .physical_time_figures import bracket_closed
-from .physical_time_units import _NAMES
+from ....learning.coupling import DECOUPLED_BELOW
+from ...document import Document
+from ...findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
+from .runs import _NAMES, bracket_closed
 
 #: Speed-up (learning time at the smallest ratio over the shortest) that counts as "the
 #: learning rate speeds learning up", and below which it does not.
@@ -67,10 +66,10 @@ def decoupled_count(units) -> int | None:
 def coupling_reason(units) -> str:
     """Why a claim about learning over ``units`` (physical_time units, one per size and
     draw) is not comparable, or "" when it can be judged: a claim about learning counts only
-    runs that are not decoupled (as in :mod:`..verdicts.claims`), so every unit needs a
-    coupling verdict (meta ``"coupling"``, :mod:`...learning.coupling`) and none may be
+    runs that are not decoupled (as in :mod:`...verdicts.claims`), so every unit needs a
+    coupling verdict (meta ``"coupling"``, :mod:`....learning.coupling`) and none may be
     decoupled. A unit's verdict is that of its smallest source share over its runs
-    (:mod:`...scenes.units_time_coupling`)."""
+    (:mod:`....scenes.units_time_coupling`)."""
     n = decoupled_count(units)
     if n is None:
         return "coupling not measured: the task may be met trivially by prestress"
@@ -125,7 +124,7 @@ def _counts(units) -> dict[str, float]:
 
 
 def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
-    from ...scenes.units_time import OSCILLATION, SLOWDOWN
+    from ....scenes.units_time import OSCILLATION, SLOWDOWN
 
     findings = []
     for name, units in rules.items():
