@@ -16,7 +16,7 @@ from continuum_vs_network.report.sections.continuum_learning import (
     agreed_coupling,
     fields_agree_verdict,
 )
-from continuum_vs_network.report.sections.learning_checks import (
+from continuum_vs_network.report.sections.learning.checks import (
     EQUILIBRIUM_RESIDUAL,
     not_equilibria,
     residual_range,

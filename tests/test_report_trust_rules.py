@@ -74,7 +74,7 @@ def test_learning_speed_claims_need_a_coupling_measurement(tmp_path):
 
 # -- beyond_paper thermal: decoupled runs disclosed, unsettled floors called bounds --------
 def test_decoupled_caveat_counts_and_words():
-    from continuum_vs_network.report.sections.learning_checks_noise import decoupled_caveat
+    from continuum_vs_network.report.sections.learning.noise import decoupled_caveat
 
     verdicts = ["decoupled", "coupled", "decoupled", "decoupled", "decoupled"]
     # final C/C0: met (<= 0.01), coupled, not met twice, not known

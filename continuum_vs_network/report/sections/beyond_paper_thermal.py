@@ -15,7 +15,7 @@ from ..document import fmt
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 from .beyond_paper_format import basis, reasoned
-from .learning_checks_noise import decoupled_caveat
+from .learning.noise import decoupled_caveat
 
 #: the least rise of a floor that counts as a rise (runs differ by ~1 % at equal settings)
 RISE = 1.1

@@ -1,4 +1,4 @@
-"""The read-out noise floor of the learning section (:mod:`.learning_checks`): floors
+"""The read-out noise floor of the learning section (:mod:`.`): floors
 against the noise, the (sigma/eta)^2 fit, its finding and figure.
 """
 
@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..document import Document, fmt
-from ..figures import COLORS, Panel, Series
-from ..findings import Finding
-from .learning_checks_coupling import coupling_verdicts
-from .learning_checks_text import CONVENTION_TEXT
+from ...document import Document, fmt
+from ...figures import COLORS, Panel, Series
+from ...findings import Finding
+from .checks import CONVENTION_TEXT
+from .coupling import coupling_verdicts
 
 __all__ = ["decoupled_caveat", "noise_floor"]
 
@@ -18,7 +18,7 @@ __all__ = ["decoupled_caveat", "noise_floor"]
 def decoupled_caveat(verdicts, *, ratios, runs: str, what: str, noun: str) -> tuple[str, dict]:
     """The caveat of a noise floor judged on every run, decoupled or not, and its counts.
 
-    ``verdicts``: per-run coupling verdicts (:mod:`...learning.coupling`; empty when not
+    ``verdicts``: per-run coupling verdicts (:mod:`....learning.coupling`; empty when not
     measured); ``ratios``: each run's final C/C0 (NaN: not known), one per verdict, which
     tells whether it met the task (``<= MET_AT``); ``runs``: what they are, in words;
     ``what``: what the judged quantity is a property of (a sentence without its full
@@ -27,7 +27,7 @@ def decoupled_caveat(verdicts, *, ratios, runs: str, what: str, noun: str) -> tu
     (decoupled)": k}`` for a finding's ``measured`` (empty when nothing is measured). Only
     the decoupled runs that met the task are said to have met it trivially; of those that
     did not, that what they learned is not carried by the sources."""
-    from ...learning.coupling import MET_AT
+    from ....learning.coupling import MET_AT
 
     verdicts = list(verdicts)
     ratios = np.asarray(ratios, dtype=np.float64).ravel()
@@ -74,9 +74,9 @@ def decoupled_caveat(verdicts, *, ratios, runs: str, what: str, noun: str) -> tu
 
 def noise_floor(doc: Document, result, h, solver: str, names) -> None:
     """Floors of every run against the noise, the (sigma/eta)^2 fit, a table."""
-    from ...learning.metrics import final_values, normalised
-    from ...learning.noise import floor_scaling
-    from ...learning.noise import noise_floor as floor_of
+    from ....learning.metrics import final_values, normalised
+    from ....learning.noise import floor_scaling
+    from ....learning.noise import noise_floor as floor_of
 
     L = result.scene.learning
     doc.heading("Read-out noise: the (sigma / eta)^2 floor")

@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from ..document import (
+from ...document import (
     Document,
     fmt,
     normalised,
@@ -17,7 +17,7 @@ from ..document import (
     stats,
     summary_text,
 )
-from ..figures import COLORS, Panel, Series
+from ...figures import COLORS, Panel, Series
 
 
 def sweeps(doc: Document, result, solver: str) -> None:
@@ -113,7 +113,7 @@ def _cos_text(c: NDArray) -> str:
 
 
 def noise(doc: Document, result, h, solver: str) -> None:
-    from ...learning.metrics import final_values
+    from ....learning.metrics import final_values
 
     L = result.scene.learning
     doc.heading("Robustness to read-out noise")
@@ -126,7 +126,7 @@ def noise(doc: Document, result, h, solver: str) -> None:
     positive = levels[levels > 0]
     x0 = positive.min() / 10 if positive.size else 1e-4
     xs = np.where(levels > 0, levels, x0)
-    from ...scenes.units_learning import run_names
+    from ....scenes.units_learning import run_names
 
     for j, rule in enumerate(run_names(result.scene)):
         med, lo, hi, cells = [], [], [], []
@@ -161,8 +161,8 @@ def noise(doc: Document, result, h, solver: str) -> None:
 
 
 def solver_comparison(doc: Document, result, h, solvers: Sequence[str]) -> None:
-    from ...scenes.units_learning import run_names
-    from .learning_checks import EQUILIBRIUM_RESIDUAL, not_equilibria, residual_range
+    from ....scenes.units_learning import run_names
+    from .checks import EQUILIBRIUM_RESIDUAL, not_equilibria, residual_range
 
     doc.heading("Exact equilibria against the paper's relaxation")
     doc.add(

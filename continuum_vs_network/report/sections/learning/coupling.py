@@ -1,4 +1,4 @@
-"""The coupling check of the learning section (:mod:`.learning_checks`): whether every
+"""The coupling check of the learning section (:mod:`.`): whether every
 trained network's targets are driven by its sources, the per-trial outcome rule, the
 source-sweep figure.
 """
@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..document import Document, fmt, quiet
-from ..figures import COLORS, Panel, Series
-from ..findings import Finding
+from ...document import Document, fmt, quiet
+from ...figures import COLORS, Panel, Series
+from ...findings import Finding
 
 __all__ = ["coupling", "coupling_verdicts", "trial_outcomes"]
 
@@ -38,10 +38,10 @@ def coupling(
     """A table: for every run, final C/C0, the coupling (source share, verdicts) and what
     was achieved; the sweep figure; one finding per run of the scene's default task.
     ``notes``: per solver whose stored states are not equilibria, the note its findings
-    carry (from :func:`.learning_checks.claims`; they are tagged as the claims are)."""
-    from ...learning.coupling import COUPLED_AT, DECOUPLED_BELOW, MET_AT
-    from ...learning.metrics import final_values, normalised
-    from ..verdicts.claims import MIN_STEPS, enough_trials, last_measured
+    carry (from :func:`.checks.claims`; they are tagged as the claims are)."""
+    from ....learning.coupling import COUPLED_AT, DECOUPLED_BELOW, MET_AT
+    from ....learning.metrics import final_values, normalised
+    from ...verdicts.claims import MIN_STEPS, enough_trials, last_measured
 
     doc.heading("Are the targets driven by the sources? (coupling of every trained network)")
     doc.add(
@@ -65,7 +65,7 @@ def coupling(
         "their median C/C0 is >= 1 (fewer: a run cut short, not reproduced).",
     )
     notes = notes or {}
-    from ...learning.coupling import coupling_verdict
+    from ....learning.coupling import coupling_verdict
 
     rows = []
     for solver in solvers:
@@ -184,8 +184,8 @@ def trial_outcomes(final: NDArray, verdicts: list[str], *, ran: NDArray | None =
     :data:`~continuum_vs_network.report.verdicts.claims.MIN_STEPS` steps (``ran``, (trials,) bool;
     None: all of them did) and the median C/C0 over those trials is >= 1, not reproduced
     otherwise."""
-    from ...learning.coupling import MET_AT
-    from ..verdicts.claims import enough_trials
+    from ....learning.coupling import MET_AT
+    from ...verdicts.claims import enough_trials
 
     final = np.asarray(final, dtype=np.float64)
     n = len(final)

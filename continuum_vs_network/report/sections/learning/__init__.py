@@ -1,5 +1,11 @@
 """Learning scenes: the paper's claims (or the Stern-scale table), error against steps and
 seconds, the paper's figures from this package's runs, the studies and the renders.
+
+This module writes the section in order; its parts: :mod:`.checks` (the paper's claims judged
+by rule, whether the stored states are equilibria, how the checks word conventions, labels and
+captions), :mod:`.coupling` (coupling of every trained network), :mod:`.noise` (the read-out
+noise floor), :mod:`.paper` (the paper scene in its own setting), :mod:`.studies` (source
+sweeps, the exact gradient, read-out noise, solvers compared).
 """
 
 from __future__ import annotations
@@ -7,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..document import (
+from ...document import (
     SHORT_NAMES,
     SOLVER_NAMES,
     Document,
@@ -15,23 +21,23 @@ from ..document import (
     quiet,
     stats,
 )
-from ..figures import COLORS, Panel, Series
-from .learning_checks import (
+from ...figures import COLORS, Panel, Series
+from ..renders import learning_renders
+from .checks import (
     CONVENTION_TEXT,
     claims,
-    coupling,
     curve_caption,
     error_label,
-    noise_floor,
 )
-from .learning_studies import gradient, noise, solver_comparison, sweeps
-from .renders import learning_renders
+from .coupling import coupling
+from .noise import noise_floor
+from .studies import gradient, noise, solver_comparison, sweeps
 
 
 def section(doc: Document, result) -> None:
     """The learning section: claims or Stern table, error figures, studies, renders."""
-    from ...learning.metrics import length_error, rest_length_error
-    from ...scenes.units_learning import run_names
+    from ....learning.metrics import length_error, rest_length_error
+    from ....scenes.units_learning import run_names
 
     scene = result.scene
     L = scene.learning
@@ -75,7 +81,7 @@ def section(doc: Document, result) -> None:
     feas: dict = {}
     if scene.task.kind == "paper":
         if L.paper_setting:
-            from .learning_paper import feasibility, setting_table
+            from .paper import feasibility, setting_table
 
             setting_table(doc, h, first, names)
         notes = claims(doc, result, h, solvers)
@@ -83,7 +89,7 @@ def section(doc: Document, result) -> None:
             feas = feasibility(doc, result, h, first, names[0])
     else:
         notes = {}
-        from ...scenes.stern import stern_table
+        from ....scenes.stern import stern_table
 
         doc.heading("Stern-scale allostery")
         for solver in solvers:
@@ -103,7 +109,7 @@ def section(doc: Document, result) -> None:
         )
     coupling(doc, result, h, solvers, names, notes=notes)
     if scene.task.kind == "paper" and L.paper_setting:
-        from .learning_paper import explanations
+        from .paper import explanations
 
         explanations(doc, result, h, first, feas)
 
@@ -171,8 +177,8 @@ def held_at_last(hist, values: NDArray) -> NDArray:
     tables' final value) from its last measurement
     (:func:`~continuum_vs_network.report.verdicts.claims.last_measured`) on, so that a median
     over trials at every step is over all of them."""
-    from ...learning.metrics import final_values
-    from ..verdicts.claims import last_measured
+    from ....learning.metrics import final_values
+    from ...verdicts.claims import last_measured
 
     out = np.array(values, dtype=np.float64)
     last = np.minimum(last_measured(hist), out.shape[1] - 1)
@@ -186,7 +192,7 @@ def held_at_last(hist, values: NDArray) -> NDArray:
 def _held_note(runs) -> str:
     """Caption sentence: how many trials of each run stopped early (held at their last
     measured value in the median)."""
-    from ..verdicts.claims import last_measured
+    from ...verdicts.claims import last_measured
 
     stopped = [(name, int(np.sum(last_measured(h) < h.steps)), h.trials) for name, h in runs]
     parts = [f"{name} {n} of {trials}" for name, n, trials in stopped if n]
@@ -202,7 +208,7 @@ def _common_steps(hist) -> int:
     """Last measurement index every trial reached (curves over trials stop there): the
     smallest :func:`~continuum_vs_network.report.verdicts.claims.last_measured` (a trial that lost
     its equilibrium at step ``completed`` has no measurement there)."""
-    from ..verdicts.claims import last_measured
+    from ...verdicts.claims import last_measured
 
     return int(np.min(last_measured(hist))) if hist.trials else 0
 
@@ -223,7 +229,7 @@ MEAN_OVER_MEDIAN = 10.0
 
 
 def _final_ratios(hist, values: NDArray) -> NDArray:
-    from ...learning.metrics import final_values
+    from ....learning.metrics import final_values
 
     return final_values(normalised(values), hist.completed)
 
@@ -390,7 +396,7 @@ def _paper_figures(doc: Document, scene, h, solver: str, length_error, rest_leng
 
 
 def _trials_appendix(doc: Document, scene, h, solver: str) -> None:
-    from ...scenes.units_learning import run_names
+    from ....scenes.units_learning import run_names
 
     panels = []
     for rule in run_names(scene):

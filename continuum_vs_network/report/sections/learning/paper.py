@@ -1,7 +1,7 @@
 """The paper scene in its own setting: the runs' settings (stated once), what each draw of the
 task allows, and the explanations of what the runs show, each computed from the same run.
 
-Read by :mod:`.learning` for a paper-task scene with ``[learning] paper_setting``. The
+Read by :mod:`.` for a paper-task scene with ``[learning] paper_setting``. The
 per-draw measures come from the scene's ``feasibility`` unit
 (:func:`~continuum_vs_network.scenes.paper_setting.draw_feasibility`).
 """
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..document import Document, fmt
-from ..figures import Panel, Series
-from ..findings import Finding
+from ...document import Document, fmt
+from ...figures import Panel, Series
+from ...findings import Finding
 
 __all__ = [
     "DEGENERATE_OPTIMUM",
@@ -151,15 +151,15 @@ def feasibility(doc: Document, result, h, solver: str, rule: str) -> dict:
 
 
 def _linear() -> float:
-    from ...scenes.paper_setting import LINEAR
+    from ....scenes.paper_setting import LINEAR
 
     return LINEAR
 
 
 def _degenerate_figure(doc, result, h, solver, rule, i, a) -> None:
     """The untrained network of draw ``i`` at its free state, source and target marked."""
-    from ...learning.states import Tracker
-    from ...network.equilibrium import EquilibriumError
+    from ....learning.states import Tracker
+    from ....network.equilibrium import EquilibriumError
 
     hist = h(solver, rule)
     net, task = hist.initial[i], hist.tasks[i]
@@ -208,7 +208,7 @@ def _lt_ratio(hist) -> np.ndarray:
 
 
 def _c_ratio(hist) -> np.ndarray:
-    from ...learning.metrics import final_values, normalised
+    from ....learning.metrics import final_values, normalised
 
     return final_values(normalised(hist.error_current), hist.completed)
 
@@ -224,7 +224,7 @@ def _range(x) -> str:
 def explanations(doc: Document, result, h, solver: str, feas: dict) -> list[list[str]]:
     """One paragraph per explanation, each with its number from this run; returns the rows
     ``[topic, number, text]`` kept in ``report.json`` (summary ``explanations``)."""
-    from .learning_checks import coupling_verdicts
+    from .coupling import coupling_verdicts
 
     rules = result.scene.learning.rules
     rows: list[list[str]] = []
@@ -291,7 +291,7 @@ def explanations(doc: Document, result, h, solver: str, feas: dict) -> list[list
             ]
         )
         res = np.asarray(feas["adagrad_residual"])
-        from ...scenes.paper_setting import ADAGRAD_ITERATIONS
+        from ....scenes.paper_setting import ADAGRAD_ITERATIONS
 
         text = (
             "**The paper's relaxation is not an equilibrium.** The paper's Adagrad (learning "
