@@ -1,4 +1,4 @@
-"""Node tasks of the ``beyond_paper`` section (:mod:`.beyond_paper`): absolute and relative
+"""Node tasks of the ``beyond_paper`` section (:mod:`.`): absolute and relative
 node displacements as the learned output, each task trained with its rest example.
 """
 
@@ -6,11 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...learning.coupling import MET_AT
-from ..document import fmt
-from ..figures import COLORS, Panel, Series
-from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import basis, reasoned
+from ....learning.coupling import MET_AT
+from ...document import fmt
+from ...figures import COLORS, Panel, Series
+from ...findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding, reasoned, runs_basis
 
 OUTPUT_NAMES = {
     "absolute": ("absolute node displacements", "x_T"),
@@ -45,7 +44,7 @@ def node_verdict(rule: str, metas: dict[str, dict]) -> tuple[str, str]:
 
 
 def _nodes(doc, scene, units) -> None:
-    from ...scenes.units_beyond import node_rules
+    from ....scenes.units_beyond import node_rules
 
     t = scene.task
     doc.heading("Node tasks", 3)
@@ -113,7 +112,7 @@ def _nodes(doc, scene, units) -> None:
                         reason,
                     ),
                     source="field",
-                    basis=basis([m]),
+                    basis=runs_basis([m]),
                 )
             )
     doc.figure(

@@ -1,4 +1,4 @@
-"""Directed aging against GPC, GCL and the exact gradient (:mod:`.beyond_paper`): final
+"""Directed aging against GPC, GCL and the exact gradient (:mod:`.`): final
 error, coupling and outcome of every default rule on each anchored task beside the optimum
 of its dof, and the identity of rest-length aging and GPC at uniform stiffness.
 """
@@ -9,11 +9,18 @@ import math
 
 import numpy as np
 
-from ...learning.coupling import MET_AT
-from ..document import fmt
-from ..figures import COLORS, Panel, Series
-from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import basis, reasoned
+from ....learning.coupling import MET_AT
+from ...document import fmt
+from ...figures import COLORS, Panel, Series
+from ...findings import (
+    CONTRADICTED,
+    NOT_COMPARABLE,
+    NOT_REPRODUCED,
+    REPRODUCED,
+    Finding,
+    reasoned,
+    runs_basis,
+)
 
 SAME = 1e-6  # relative difference of two error curves that counts as identical
 TASK_NAMES = {"paper": "the paper's task", "lattice": "Rocks et al.'s task on the lattice"}
@@ -35,7 +42,7 @@ def rule_verdict(meta: dict, opt: dict | None) -> tuple[str, str]:
     the reason when not comparable: infeasible (the optimum misses ``FEASIBLE``: counted
     apart), met trivially, or no optimum; reproduced when learned (``C/C0 <= MET_AT``, not
     decoupled), not reproduced when a feasible task is not met in the budget."""
-    from ...scenes.units_beyond import FEASIBLE
+    from ....scenes.units_beyond import FEASIBLE
 
     if opt is None or opt.get("outcome") == "stopped":
         return NOT_COMPARABLE, "the optimum of this dof could not be found"
@@ -52,7 +59,7 @@ def rule_verdict(meta: dict, opt: dict | None) -> tuple[str, str]:
 
 
 def _compare(doc, scene, units) -> None:
-    from ...scenes.units_beyond import DOFS, FEASIBLE, LATTICE_TASK, compare_rules
+    from ....scenes.units_beyond import DOFS, FEASIBLE, LATTICE_TASK, compare_rules
 
     L = scene.learning
     rules = compare_rules(scene)
@@ -117,7 +124,7 @@ def _compare(doc, scene, units) -> None:
                         reason,
                     ),
                     source=SOURCES.get(r, "field"),
-                    basis=basis([m]),
+                    basis=runs_basis([m]),
                 )
             )
         first = metas[rules[0]]

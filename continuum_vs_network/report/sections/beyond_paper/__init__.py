@@ -8,27 +8,20 @@ capacity of a network trained on several examples at once (optimum and GCL again
 number of examples and the network size), the thermal floor against temperature, a
 regression task (training and held-out error: generalisation) and symmetric training.
 
-This module orders the parts; each is its own module: :mod:`.beyond_paper_aging`,
-:mod:`.beyond_paper_nodes`, :mod:`.beyond_paper_capacity`, :mod:`.beyond_paper_thermal`,
-:mod:`.beyond_paper_examples` (symmetric training, regression).
+This module orders the parts; each is its own module: :mod:`.aging`, :mod:`.nodes`,
+:mod:`.examples` (capacity, symmetric training, regression), :mod:`.thermal`.
 """
 
 from __future__ import annotations
 
-from ...learning.coupling import MET_AT
-from ..document import Document
-from .beyond_paper_aging import SAME as SAME
-from .beyond_paper_aging import TASK_NAMES as TASK_NAMES
-from .beyond_paper_aging import _compare
-from .beyond_paper_capacity import _capacity, capacity
-from .beyond_paper_examples import GENERALISES_WITHIN as GENERALISES_WITHIN
-from .beyond_paper_examples import _regression, _symmetric
-from .beyond_paper_nodes import OUTPUT_NAMES as OUTPUT_NAMES
-from .beyond_paper_nodes import _nodes
-from .beyond_paper_thermal import RISE as RISE
-from .beyond_paper_thermal import _thermal
+from ....learning.coupling import MET_AT
+from ...document import Document
+from .aging import _compare
+from .examples import _capacity, _regression, _symmetric
+from .nodes import _nodes
+from .thermal import _thermal
 
-__all__ = ["capacity", "section"]
+__all__ = ["section"]
 
 
 def section(doc: Document, result) -> None:

@@ -1,4 +1,4 @@
-"""Thermal noise in the ``beyond_paper`` section (:mod:`.beyond_paper`): the error floor
+"""Thermal noise in the ``beyond_paper`` section (:mod:`.`): the error floor
 against temperature. Floors are told settled or not by the plateau test of
 :func:`~continuum_vs_network.learning.metrics.tail_change` and
 :func:`~continuum_vs_network.learning.metrics.bound`.
@@ -10,12 +10,19 @@ import itertools
 
 import numpy as np
 
-from ...learning.metrics import PLATEAU, bound, tail_change
-from ..document import fmt
-from ..figures import COLORS, Panel, Series
-from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .beyond_paper_format import basis, reasoned
-from .learning.noise import decoupled_caveat
+from ....learning.metrics import PLATEAU, bound, tail_change
+from ...document import fmt
+from ...figures import COLORS, Panel, Series
+from ...findings import (
+    CONTRADICTED,
+    NOT_COMPARABLE,
+    NOT_REPRODUCED,
+    REPRODUCED,
+    Finding,
+    reasoned,
+    runs_basis,
+)
+from ..learning.noise import decoupled_caveat
 
 #: the least rise of a floor that counts as a rise (runs differ by ~1 % at equal settings)
 RISE = 1.1
@@ -261,7 +268,7 @@ def _thermal(doc, scene, units) -> None:
                     reason or "a floor is not finite (a run stopped)",
                 ),
                 source="field",
-                basis=basis(m for run in runs[:-1] for m in metas[run]),
+                basis=runs_basis(m for run in runs[:-1] for m in metas[run]),
             )
         )  # fmt: skip
         doc.add(
@@ -333,6 +340,6 @@ def _thermal(doc, scene, units) -> None:
                     reason,
                 ),
                 source="field",
-                basis=basis([metas[runs[0]][-1], metas[runs[len(etas) - 1]][-1]]),
+                basis=runs_basis([metas[runs[0]][-1], metas[runs[len(etas) - 1]][-1]]),
             )
         )
