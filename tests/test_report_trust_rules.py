@@ -16,7 +16,7 @@ from continuum_vs_network.report.findings import (
     REPRODUCED,
 )
 from continuum_vs_network.report.sections.beyond_paper.thermal import _thermal
-from continuum_vs_network.report.sections.continuum_learning_findings import _verdicts
+from continuum_vs_network.report.sections.continuum_learning.findings import _verdicts
 from continuum_vs_network.report.sections.physical_time.findings import _findings
 
 
