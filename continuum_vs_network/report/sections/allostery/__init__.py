@@ -6,19 +6,19 @@ the feasibility map first (share of draws the bounded optimum solves against the
 source-target distance, as Rocks et al. 2017), then for every (size, task, dof) a summary
 table per rule beside the optimum's row, the verdict of every draw, C/C0 against steps and
 seconds, the source sweeps and a render of one trained network. Numbers:
-:mod:`.allostery_data`; figures: :mod:`.allostery_figures`.
+:mod:`.data`; figures: :mod:`.figures`.
 """
 
 from __future__ import annotations
 
-from ...learning.coupling import COUPLED_AT, DECOUPLED_BELOW, MET_AT
-from ...learning.ranges import REST_LENGTH_RANGE, STIFFNESS_RANGE
-from ...scenes.units_allostery import CLAMPED, FEASIBLE, RULES, _rule, steps_of
-from ..document import Document, fmt
-from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .allostery_data import LEARNED, feasibility_map, groups, optimum_summary, tally
-from .allostery_figures import RULE_NAMES, curve_panels, map_panel, render, sweep_panels
-from .allostery_noise import noise_section
+from ....learning.coupling import COUPLED_AT, DECOUPLED_BELOW, MET_AT
+from ....learning.ranges import REST_LENGTH_RANGE, STIFFNESS_RANGE
+from ....scenes.units_allostery import CLAMPED, FEASIBLE, RULES, _rule, steps_of
+from ...document import Document, fmt
+from ...findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
+from .data import LEARNED, RULE_NAMES, feasibility_map, groups, optimum_summary, tally
+from .figures import curve_panels, map_panel, render, sweep_panels
+from .noise import noise_section
 
 __all__ = ["CLAIM_SHARE", "section"]
 

@@ -5,7 +5,7 @@ Computed from the scene's stored units (it runs nothing). A run's *floor* is the
 its C/C0 over the last quarter of its steps. On every draw where the noise-free GCL run at a
 nudge learned the task (coupled), the noisy runs at that nudge measure the noise floor: the
 exponent p of ``floor = c (sigma / eta)^p`` is fitted over the points the noise limits
-(floor above 10 x the noise-free run's floor, :func:`~...learning.noise.floor_scaling`).
+(floor above 10 x the noise-free run's floor, :func:`~....learning.noise.floor_scaling`).
 The paper's claim that GPC tolerates read-out noise better than GCL (Sec. 5.3) is judged at
 every noise level from the same draws.
 """
@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...learning.noise import floor_scaling
-from ..document import Document, fmt, quiet
-from ..figures import COLORS, Panel, Series
-from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
-from .allostery_data import LEARNED, Group, tally
-from .allostery_figures import RULE_NAMES
+from ....learning.noise import floor_scaling
+from ...document import Document, fmt
+from ...figures import COLORS, Panel, Series
+from ...findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
+from .data import LEARNED, RULE_NAMES, Group, nan_median, tally
 
 __all__ = ["EXPONENT_TOLERANCE", "noise_section"]
 
@@ -44,11 +43,6 @@ def _families(g: Group) -> dict[str, dict[float, str]]:
     for name, run in g.runs.items():
         out.setdefault(family(run), {})[run.noise] = name
     return out
-
-
-def _median(values) -> float:
-    v = np.asarray(values, dtype=float)
-    return float(quiet(np.nanmedian, v)) if v.size else float("nan")
 
 
 def _floor_points(g: Group, fams) -> tuple[dict, list[str]]:
@@ -94,7 +88,7 @@ def _table(doc: Document, g: Group, fams, sigmas) -> dict:
             floors = [
                 u.meta["floor"] for u, f in zip(g.train[by_noise[sigma]], ok, strict=True) if f
             ]
-            med[fam, sigma] = _median(floors)
+            med[fam, sigma] = nan_median(floors)
             cells.append(f"{fmt(med[fam, sigma], 2)} ({t.learned}/{t.feasible})")
         rows.append([fam, *cells])
     doc.table(["run", *(f"sigma = {s:g}" for s in sigmas)], rows)

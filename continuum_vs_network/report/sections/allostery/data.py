@@ -12,16 +12,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...scenes.units_allostery import FEASIBLE, LEVELS, Run, runs
-from ..document import quiet
+from ....scenes.units_allostery import LEVELS, Run, runs
+from ...document import quiet
 
 __all__ = [
-    "FEASIBLE",
     "LEARNED",
+    "RULE_NAMES",
     "Group",
     "Tally",
     "feasibility_map",
     "groups",
+    "nan_median",
     "optimum_summary",
     "tally",
     "verdict",
@@ -29,6 +30,9 @@ __all__ = [
 
 #: The outcome (:func:`~continuum_vs_network.learning.coupling.outcome`) that counts.
 LEARNED = "learned (coupled)"
+
+#: How the report names each rule.
+RULE_NAMES = {"gcl": "GCL", "exact": "exact gradient", "gpc": "GPC", "aging": "directed aging"}
 
 
 def verdict(train_meta, opt_meta) -> str:
@@ -105,7 +109,8 @@ class Tally:
         return self.learned / self.feasible if self.feasible else float("nan")
 
 
-def _median(values) -> float:
+def nan_median(values) -> float:
+    """Median of ``values`` with None and NaN left out; NaN when none is left."""
     v = np.asarray([np.nan if x is None else x for x in values], dtype=float)
     return float(quiet(np.nanmedian, v)) if v.size else float("nan")
 
@@ -121,7 +126,7 @@ def tally(group: Group, rule: str) -> Tally:
     for level in LEVELS:
         hits = [u.meta["steps_to"][f"{level:g}"] for u in good]
         hits = [h for h in hits if h is not None]
-        steps_to[f"{level:g}"] = _median(hits)
+        steps_to[f"{level:g}"] = nan_median(hits)
         reached[f"{level:g}"] = len(hits)
     return Tally(
         rule=rule,
@@ -129,11 +134,11 @@ def tally(group: Group, rule: str) -> Tally:
         feasible=sum(ok),
         learned=sum(v == LEARNED for v in verdicts),
         verdicts=verdicts,
-        ratio=_median([u.meta["ratio"] for u in good]),
+        ratio=nan_median([u.meta["ratio"] for u in good]),
         steps_to=steps_to,
         reached=reached,
-        seconds=_median([u.meta["rule_seconds"] for u in good]),
-        contrast=_median([u.meta["contrast"] for u in good]),
+        seconds=nan_median([u.meta["rule_seconds"] for u in good]),
+        contrast=nan_median([u.meta["contrast"] for u in good]),
     )
 
 
@@ -143,10 +148,10 @@ def optimum_summary(group: Group) -> dict[str, float]:
     return {
         "feasible": sum(group.feasible),
         "draws": len(o),
-        "ratio": _median([m["ratio"] for m in o]),
-        "evaluations": _median([m["evaluations"] for m in o]),
-        "seconds": _median([m["seconds"] for m in o]),
-        "contrast": _median([m["contrast"] for m in o]),
+        "ratio": nan_median([m["ratio"] for m in o]),
+        "evaluations": nan_median([m["evaluations"] for m in o]),
+        "seconds": nan_median([m["seconds"] for m in o]),
+        "contrast": nan_median([m["contrast"] for m in o]),
     }
 
 

@@ -1,4 +1,4 @@
-"""Figures of the ``allostery`` section (:mod:`.allostery`), drawn from stored units: the
+"""Figures of the ``allostery`` section (:mod:`.`), drawn from stored units: the
 feasibility map, C/C0 against steps and seconds, the source sweeps, and a render of one
 trained network coloured by its learned change of stiffness.
 """
@@ -9,14 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ...learning.coupling import MET_AT
-from ...scenes.units_allostery import SCALES
-from ..figures import COLORS, Panel, Series, _pyplot, _save
-from .allostery_data import Group
+from ....learning.coupling import MET_AT
+from ....scenes.units_allostery import SCALES
+from ...figures import COLORS, Panel, Series, _pyplot, _save
+from .data import RULE_NAMES, Group
 
 __all__ = ["curve_panels", "map_panel", "render", "sweep_panels"]
-
-RULE_NAMES = {"gcl": "GCL", "exact": "exact gradient", "gpc": "GPC", "aging": "directed aging"}
 
 
 def map_panel(fmap: dict, scene, title: str) -> Panel:
