@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from ..document import Document, fmt, quiet
-from ..figures import Panel, Series, heatmap
-from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
+from ...document import Document, fmt, quiet
+from ...figures import Panel, Series, heatmap
+from ...findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
 __all__ = ["ETA_FACTOR", "section"]
 
@@ -404,7 +404,7 @@ def section(doc: Document, result) -> None:
     cells = _cells(result, params)
     _best_worst(doc, cells, params, threshold)
     if scene.kind == "allostery":
-        from .sweep_rates import rate_findings
+        from .rates import rate_findings
 
         rate_findings(doc, result, params)
     else:

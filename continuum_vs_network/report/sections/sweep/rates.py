@@ -22,8 +22,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..document import Document, fmt
-from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
+from ...document import Document, fmt
+from ...findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
 __all__ = ["ETA_FACTOR", "SLOWER", "rate_findings"]
 
