@@ -69,6 +69,14 @@ class Document:
         if level <= 2:
             self._section = text
 
+    def renders_heading(self, level: int = 2) -> bool:
+        """The "Renders" heading, and below it why renders are skipped when ``render`` is
+        false; returns ``render``."""
+        self.heading("Renders", level)
+        if not self.render:
+            self.add(f"Renders skipped: {self.render_reason}.")
+        return self.render
+
     def finding(self, finding: Finding, *, shown: bool = False) -> Finding:
         """Register a finding (it goes to ``report.json`` and the index); return it.
 

@@ -101,11 +101,7 @@ def write_report(
     doc.heading("Settings")
     doc.add("```toml", scene_toml(scene.to_dict()), "```")
     provenance(doc, result)
-    report = write_text_atomic(folder / "report.md", "\n".join(doc.lines).rstrip() + "\n")
-    keep = {p.name for p in doc.files}
-    for old in folder.glob("*.png"):
-        if old.name not in keep:
-            old.unlink(missing_ok=True)
+    report, figures = _write_markdown(doc, folder)
     meta = {
         "name": scene.name,
         "kind": scene.kind,
@@ -116,7 +112,7 @@ def write_report(
         "report_seconds": time.perf_counter() - t0,
         "started": result.provenance.started,
         "commit": result.provenance.commit,
-        "figures": sorted(keep),
+        "figures": figures,
         "findings": [f.to_dict() for f in doc.findings],
         "summaries": doc.summaries,
     }
@@ -155,11 +151,7 @@ def write_sweep_report(result, folder: str | os.PathLike[str], *, command: str =
     sweep_section(doc, result)
     doc.heading("Settings")
     doc.add("```toml", scene_toml(scene.to_dict()), "```")
-    report = write_text_atomic(folder / "report.md", "\n".join(doc.lines).rstrip() + "\n")
-    keep = {p.name for p in doc.files}
-    for old in folder.glob("*.png"):
-        if old.name not in keep:
-            old.unlink(missing_ok=True)
+    report, figures = _write_markdown(doc, folder)
     meta = {
         "name": scene.name,
         "kind": f"{scene.kind} sweep",
@@ -170,11 +162,22 @@ def write_sweep_report(result, folder: str | os.PathLike[str], *, command: str =
         "report_seconds": time.perf_counter() - t0,
         "started": info["started"],
         "commit": info.get("commit", "unknown"),
-        "figures": sorted(keep),
+        "figures": figures,
         "findings": [f.to_dict() for f in doc.findings],
     }
     write_text_atomic(folder / _META, dumps_record(meta, indent=1, sort_keys=True))
     return report
+
+
+def _write_markdown(doc: Document, folder: Path) -> tuple[Path, list[str]]:
+    """Write ``folder/report.md`` from ``doc`` and delete the PNGs in ``folder`` it no longer
+    shows; return its path and the names of its figures, sorted."""
+    report = write_text_atomic(folder / "report.md", "\n".join(doc.lines).rstrip() + "\n")
+    keep = {p.name for p in doc.files}
+    for old in folder.glob("*.png"):
+        if old.name not in keep:
+            old.unlink(missing_ok=True)
+    return report, sorted(keep)
 
 
 def write_index(root: str | os.PathLike[str], *, note: str | None = None) -> Path:

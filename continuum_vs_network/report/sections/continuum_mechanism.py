@@ -461,9 +461,7 @@ def _inverter(doc: Document, inv: dict) -> None:
 
 
 def _renders(doc: Document, m, units) -> None:
-    doc.heading("Renders", 3)
-    if not doc.render:
-        doc.add(f"Renders skipped: {doc.render_reason}.")
+    if not doc.renders_heading(3):
         return
     from ...io.render_continuum import render_continuum
 

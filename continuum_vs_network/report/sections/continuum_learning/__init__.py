@@ -148,13 +148,12 @@ def section(doc: Document, result) -> None:
     _rules_agree(doc, units, L.rules, R)
     _relaxation(doc, units)
     _paper(doc, units, R, L.rules[0])
-    _renders(doc, units, L.rules[0], R, doc.render, doc.render_reason)
+    _renders(doc, units, L.rules[0], R)
 
 
 def _field_figure(doc, units, rule: str, refine: int) -> None:
     """Learned rest-strain magnitude: network on its triangles | continuum at every h."""
-    from ....io.atomic import atomic_path
-    from ...figures import _pyplot
+    from ...figures import _pyplot, _save
 
     plt = _pyplot()
     net = units[f"continuum_learning/network/{rule}"].arrays
@@ -187,9 +186,7 @@ def _field_figure(doc, units, rule: str, refine: int) -> None:
         ax.set_aspect("equal")
         ax.set_axis_off()
     fig.colorbar(m, ax=list(np.atleast_1d(axes)), shrink=0.8, label="|learned rest strain|")
-    dest = doc.folder / f"fig_continuum_fields_{rule}.png"
-    with atomic_path(dest) as tmp:
-        fig.savefig(tmp, format="png", dpi=doc.dpi, metadata={"Software": None})
+    dest = _save(fig, doc.folder / f"fig_continuum_fields_{rule}.png", doc.dpi)
     plt.close(fig)
     doc.image(
         dest,
@@ -199,11 +196,9 @@ def _field_figure(doc, units, rule: str, refine: int) -> None:
     )
 
 
-def _renders(doc, units, rule: str, R: int, render: bool, reason: str) -> None:
+def _renders(doc, units, rule: str, R: int) -> None:
     """pyvista renders of the network's and the finest continuum's learned fields."""
-    doc.heading("Renders", 3)
-    if not render:
-        doc.add(f"Renders skipped: {reason}.")
+    if not doc.renders_heading(3):
         return
     from ....io.render_continuum import render_continuum
 
