@@ -3,7 +3,7 @@
 :func:`write_report` reads a :class:`~continuum_vs_network.scenes.runner.SceneResult` (it
 runs nothing), hands a :class:`~.document.Document` to the section of the scene's kind
 (its ``section`` in the kind registry, :data:`~continuum_vs_network.scenes.schema.KINDS`),
-then adds the meshes, settings and provenance. When the scene
+then adds the meshes, settings and provenance (:mod:`.provenance`). When the scene
 asks for images and off-screen rendering works, sections draw pyvista renders. Every file is
 written atomically; figures of an earlier report that the new one does not use are removed.
 ``report.json`` beside the report holds its metadata and findings;
@@ -25,10 +25,9 @@ from ..io.strict_json import dumps_record, loads_record
 from . import escape
 from .document import Document
 from .findings import Finding
-from .sections.provenance import scene_toml, short_source
-from .sections.provenance import section as provenance
+from .provenance import provenance_table, settings, short_source
 
-__all__ = ["scene_toml", "write_index", "write_report", "write_sweep_report"]
+__all__ = ["write_index", "write_report", "write_sweep_report"]
 
 _META = "report.json"
 
@@ -98,9 +97,8 @@ def write_report(
             except ValueError:
                 shown = p
             doc.add(f"- `{shown}`")
-    doc.heading("Settings")
-    doc.add("```toml", scene_toml(scene.to_dict()), "```")
-    provenance(doc, result)
+    settings(doc, scene)
+    provenance_table(doc, result)
     report, figures = _write_markdown(doc, folder)
     meta = {
         "name": scene.name,
@@ -149,8 +147,7 @@ def write_sweep_report(result, folder: str | os.PathLike[str], *, command: str =
         + (f" Regenerate with `{command}`." if command else ""),
     )
     sweep_section(doc, result)
-    doc.heading("Settings")
-    doc.add("```toml", scene_toml(scene.to_dict()), "```")
+    settings(doc, scene)
     report, figures = _write_markdown(doc, folder)
     meta = {
         "name": scene.name,

@@ -1,4 +1,5 @@
-"""Every report's closing sections: the settings (the scene as TOML) and the provenance."""
+"""Every report's closing sections: the settings (the scene as TOML, :func:`settings`) and
+the provenance of the run (:func:`provenance_table`)."""
 
 from __future__ import annotations
 
@@ -6,12 +7,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from ..document import (
-    Document,
-)
+from .document import Document
 
 
-# -- settings and provenance ---------------------------------------------------------------
 def _toml_value(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -32,7 +30,13 @@ def scene_toml(scene_dict: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def section(doc: Document, result) -> None:
+def settings(doc: Document, scene) -> None:
+    """The "Settings" heading and the scene as TOML."""
+    doc.heading("Settings")
+    doc.add("```toml", scene_toml(scene.to_dict()), "```")
+
+
+def provenance_table(doc: Document, result) -> None:
     """The provenance table of a run."""
     p = result.provenance
     doc.heading("Provenance")
