@@ -1,8 +1,9 @@
 """The report document: Markdown lines, the files written, the findings; number helpers.
 
-A section (one module in :mod:`~continuum_vs_network.report.sections` per scene kind) is a
-function ``section(doc, result)`` that appends headings, tables, figures and findings to a
-:class:`Document`; :func:`~continuum_vs_network.report.writer.write_report` assembles them.
+A section (one module or package in :mod:`~continuum_vs_network.report.sections` per scene
+kind) is a function ``section(doc, result)`` that appends headings, tables, figures and
+findings to a :class:`Document`; :func:`~continuum_vs_network.report.writer.write_report`
+assembles them.
 """
 
 from __future__ import annotations
@@ -190,6 +191,12 @@ def fmt(x: float, digits: int = 3) -> str:
     if x is None or not np.isfinite(x):
         return "-"
     return f"{x:.{digits}g}"
+
+
+def coupling_text(meta) -> str:
+    """A learning run's coupling as the report writes it: "source share (verdict)", from its
+    meta's ``source_share`` and ``coupling``."""
+    return f"{fmt(meta['source_share'], 2)} ({meta['coupling']})"
 
 
 def mesh_name(refine: int) -> str:

@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from ....learning.coupling import MET_AT
-from ...document import fmt
+from ...document import coupling_text, fmt
 from ...figures import COLORS, Panel, Series
 from ...findings import (
     CONTRADICTED,
@@ -97,7 +97,7 @@ def _compare(doc, scene, units) -> None:
             e = np.asarray(units[f"beyond/compare/{task}/{r}"].arrays["error"], dtype=float)
             verdict, reason = rule_verdict(m, o)
             rows.append([
-                r, m["dof"], fmt(m["ratio"]), f"{fmt(m['source_share'], 2)} ({m['coupling']})",
+                r, m["dof"], fmt(m["ratio"]), coupling_text(m),
                 m["outcome"], f"{fmt(o.get('worst_example'))} ({o.get('outcome')})",
                 fmt(m["seconds"]), (m["stop_reason"] or "")[:80],
             ])  # fmt: skip

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....learning.coupling import MET_AT
-from ...document import fmt
+from ...document import coupling_text, fmt
 from ...figures import COLORS, Panel, Series
 from ...findings import (
     CONTRADICTED,
@@ -243,7 +243,7 @@ def _symmetric(doc, units) -> None:
         "source asked for its own strain, as a second example), "
         f"{m['completed']} steps: errors forward / backward "
         f"{fmt(before[0])} / {fmt(before[1])} before, {fmt(after[0])} / {fmt(after[1])} after; "
-        f"coupling {fmt(m['source_share'], 2)} ({m['coupling']}). The optimum of the pair "
+        f"coupling {coupling_text(m)}. The optimum of the pair "
         f"leaves its worst direction at C_e/C_e0 = {fmt(opt.get('worst_example'))} "
         f"({opt.get('outcome')}).",
         "",
@@ -300,7 +300,7 @@ def _regression(doc, units) -> None:
         f"error of {m['n_test']} held-out examples is measured before and after. Training "
         f"C/C0 {fmt(train_ratio)}, held-out C/C0 {fmt(test_ratio)}; coupling of the trained "
         f"network (smallest source share over the training examples) "
-        f"{fmt(m['source_share'], 2)} ({m['coupling']}); {fmt(m['seconds'], 2)} s. The optimum "
+        f"{coupling_text(m)}; {fmt(m['seconds'], 2)} s. The optimum "
         f"of the training set leaves its worst example at C_e/C_e0 = "
         f"{fmt(opt.get('worst_example'))} ({opt.get('outcome')}).",
         "",

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....learning.coupling import MET_AT
-from ...document import fmt
+from ...document import coupling_text, fmt
 from ...figures import COLORS, Panel, Series
 from ...findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding, reasoned, runs_basis
 
@@ -74,7 +74,7 @@ def _nodes(doc, scene, units) -> None:
             e = np.asarray(u.arrays["error"], dtype=float)
             rows.append(
                 [rule, m.get("learns", "-"), fmt(m["ratio"]),
-                 f"{fmt(m['source_share'], 2)} ({m['coupling']})", m["outcome"],
+                 coupling_text(m), m["outcome"],
                  fmt(m["seconds"]), (m["stop_reason"] or "")[:80]]
             )  # fmt: skip
             series.append(Series(np.arange(e.size), e / e[0], rule, color=COLORS[i % len(COLORS)]))

@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from ....learning.coupling import DECOUPLED_BELOW
-from ...document import Document, fmt, mesh_name
+from ...document import Document, coupling_text, fmt, mesh_name
 from ...figures import COLORS, Panel, Series
 from ...findings import NOT_REPRODUCED, REPRODUCED, Finding
 from .findings import (
@@ -78,7 +78,7 @@ def section(doc: Document, result) -> None:
                     fmt(t[int(k)]) if np.isfinite(k) else "-",
                     fmt(float(ratio[-1])),
                     fmt(1e3 * per_step),
-                    f"{fmt(u.meta['source_share'], 2)} ({u.meta['coupling']})",
+                    coupling_text(u.meta),
                     u.meta["outcome"],
                     u.meta["stop_reason"] or "",
                 ]
@@ -326,7 +326,7 @@ def _paper(doc, units, R: int, rule: str) -> None:
                 fmt(u.meta["target_strain"][0]),
                 fmt(steps_to(e)),
                 fmt(e[-1] / e[0]),
-                f"{fmt(u.meta['source_share'], 2)} ({u.meta['coupling']})",
+                coupling_text(u.meta),
             ]
         )
     doc.add(

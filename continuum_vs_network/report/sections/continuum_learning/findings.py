@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from ....fits import power_law
 from ....learning.coupling import DECOUPLED_BELOW
-from ...document import fmt, mesh_name
+from ...document import coupling_text, fmt, mesh_name
 from ...findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
 __all__ = [
@@ -265,7 +265,7 @@ def _rules_agree(doc, units, rules, R: int) -> None:
         "problem within the "
         "range of one Jacobian, so both converge to its minimum-norm solution; the targets' "
         "weighting (effective stiffness for GCL) changes the path, not the end. Source shares "
-        + ", ".join(f"{r} {fmt(m['source_share'], 2)} ({m['coupling']})" for r, m in metas.items())
+        + ", ".join(f"{r} {coupling_text(m)}" for r, m in metas.items())
         + (
             f": **{verdict}** as evidence that the two rules learn alike, since a decoupled "
             "field is prestress, the same minimum-norm solution for any descent."
