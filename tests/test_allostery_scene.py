@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from continuum_vs_network.report import write_report
-from continuum_vs_network.report.sections.allostery_data import (
+from continuum_vs_network.report.sections.allostery.data import (
     LEARNED,
     Group,
     groups,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from continuum_vs_network.report import write_report
-from continuum_vs_network.report.sections.sweep_rates import _nudge, _rate_bracket
+from continuum_vs_network.report.sections.sweep.rates import _nudge, _rate_bracket
 from continuum_vs_network.scenes import SceneError, load_scene, parse_scene, run_scene
 from continuum_vs_network.scenes.sweep_rows import allostery_rows
 from continuum_vs_network.scenes.units_allostery import _rule, runs

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from continuum_vs_network.report.sections.beyond_paper import capacity
+from continuum_vs_network.report.sections.beyond_paper.examples import capacity
 from continuum_vs_network.scenes import SceneError, load_scene, run_scene
 
 TINY = """
@@ -92,17 +92,22 @@ def test_rules_are_the_default_objects_bounded_like_the_optimum(tmp_path):
 
 
 def test_helpers_basis_reason_and_verdicts():
-    from continuum_vs_network.report.findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED
-    from continuum_vs_network.report.sections.beyond_paper_aging import rule_verdict
-    from continuum_vs_network.report.sections.beyond_paper_format import basis, reasoned
-    from continuum_vs_network.report.sections.beyond_paper_thermal import baseline_converged
+    from continuum_vs_network.report.findings import (
+        NOT_COMPARABLE,
+        NOT_REPRODUCED,
+        REPRODUCED,
+        reasoned,
+        runs_basis,
+    )
+    from continuum_vs_network.report.sections.beyond_paper.aging import rule_verdict
+    from continuum_vs_network.report.sections.beyond_paper.thermal import baseline_converged
 
     coupled = {"outcome": "learned (coupled)", "coupling": "coupled"}
     missed = {"outcome": "not met", "coupling": "decoupled"}
     trivial = {"outcome": "met trivially (decoupled)", "coupling": "decoupled"}
-    assert basis([coupled, coupled]) == "coupled"
-    assert basis([coupled, missed]) == "" and basis([]) == ""
-    assert basis([coupled, trivial]) == "met trivially"
+    assert runs_basis([coupled, coupled]) == "coupled"
+    assert runs_basis([coupled, missed]) == "" and runs_basis([]) == ""
+    assert runs_basis([coupled, trivial]) == "met trivially"
     assert reasoned("r", REPRODUCED, "why") == "r"
     assert reasoned("r.", NOT_COMPARABLE, "why") == "r. Not comparable here: why"
     feasible = {"outcome": "feasible", "feasible": True, "worst_example": 1e-5, "dof": "stiffness"}
@@ -178,7 +183,7 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
 
 def test_the_compare_caption_names_exactly_the_curves_drawn_on_top_of_one_another():
     from continuum_vs_network.report.figures import Panel, Series
-    from continuum_vs_network.report.sections.beyond_paper_aging import _hidden
+    from continuum_vs_network.report.sections.beyond_paper.aging import _hidden
 
     x = np.arange(4.0)
     same = Panel([Series(x, [1, 0.5, 0.2, 0.1], "gpc"), Series(x, [1, 0.5, 0.2, 0.1], "aging")])

@@ -9,7 +9,7 @@ from learning_histories import history, stopped
 
 from continuum_vs_network.learning.history import History
 from continuum_vs_network.report.sections.learning import _common_steps, _ends_note
-from continuum_vs_network.report.sections.learning_checks import trial_outcomes
+from continuum_vs_network.report.sections.learning.coupling import trial_outcomes
 from continuum_vs_network.report.verdicts.claims import (
     MIN_STEPS,
     check_claims,

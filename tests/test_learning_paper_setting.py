@@ -11,7 +11,7 @@ import pytest
 from continuum_vs_network.learning.rules import CoupledLearning
 from continuum_vs_network.learning.tasks import paper_task
 from continuum_vs_network.report.sections.learning import MEAN_OVER_MEDIAN, mean_note
-from continuum_vs_network.report.sections.learning_paper import degenerate
+from continuum_vs_network.report.sections.learning.paper import degenerate
 from continuum_vs_network.report.verdicts.claims import MIN_STEPS, diverged
 from continuum_vs_network.scenes.paper_setting import (
     NotebookCoupledLearning,

@@ -14,7 +14,7 @@ from continuum_vs_network.learning.history import History
 from continuum_vs_network.learning.metrics import final_values, normalised
 from continuum_vs_network.report.document import Document
 from continuum_vs_network.report.sections.learning import _held_note, held_at_last
-from continuum_vs_network.report.sections.learning_checks import coupling, trial_outcomes
+from continuum_vs_network.report.sections.learning.coupling import coupling, trial_outcomes
 from continuum_vs_network.report.verdicts.claims import MIN_STEPS, check_claims
 from continuum_vs_network.scenes.replication import paper_experiments
 

@@ -23,8 +23,8 @@ from continuum_vs_network.learning.tasks import AllosteryTask
 from continuum_vs_network.learning.time_media import held_free_state
 from continuum_vs_network.report.document import Document
 from continuum_vs_network.report.findings import NOT_COMPARABLE
-from continuum_vs_network.report.sections.physical_time_findings import _findings
-from continuum_vs_network.report.sections.physical_time_units import _by_rule
+from continuum_vs_network.report.sections.physical_time.findings import _findings
+from continuum_vs_network.report.sections.physical_time.runs import _by_rule
 from continuum_vs_network.scenes.runner import run_scene
 from continuum_vs_network.scenes.units_physics import lattice
 from continuum_vs_network.scenes.units_time_coupling import final_coupling

@@ -1,5 +1,5 @@
 """The linear modes behind physical_time's relaxation times (scenes/units_time_modes.py)
-and their report part (report/sections/physical_time_modes.py)."""
+and their report part (report/sections/physical_time/modes.py)."""
 
 from __future__ import annotations
 
@@ -129,7 +129,7 @@ def _unit(n, draw, tau_net, tau_body, mode_net, mode_body, edges):
 
 def test_report_findings_follow_their_rules():
     from continuum_vs_network.report.findings import NOT_REPRODUCED, REPRODUCED
-    from continuum_vs_network.report.sections.physical_time_modes import _findings
+    from continuum_vs_network.report.sections.physical_time.modes import _findings
 
     tasks = [
         _unit(8, 0, 60.0, 200.0, 50.0, 190.0, 190.0),

@@ -11,12 +11,12 @@ import pytest
 from continuum_vs_network.learning.metrics import PLATEAU, bound, tail_change
 from continuum_vs_network.report.document import Document
 from continuum_vs_network.report.findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED
-from continuum_vs_network.report.sections.beyond_paper_thermal import rises
-from continuum_vs_network.report.sections.continuum_learning import (
+from continuum_vs_network.report.sections.beyond_paper.thermal import rises
+from continuum_vs_network.report.sections.continuum_learning.findings import (
     agreed_coupling,
     fields_agree_verdict,
 )
-from continuum_vs_network.report.sections.learning_checks import (
+from continuum_vs_network.report.sections.learning.checks import (
     EQUILIBRIUM_RESIDUAL,
     not_equilibria,
     residual_range,

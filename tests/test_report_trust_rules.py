@@ -15,9 +15,9 @@ from continuum_vs_network.report.findings import (
     NOT_COMPARABLE,
     REPRODUCED,
 )
-from continuum_vs_network.report.sections.beyond_paper_thermal import _thermal
-from continuum_vs_network.report.sections.continuum_learning_findings import _verdicts
-from continuum_vs_network.report.sections.physical_time_findings import _findings
+from continuum_vs_network.report.sections.beyond_paper.thermal import _thermal
+from continuum_vs_network.report.sections.continuum_learning.findings import _verdicts
+from continuum_vs_network.report.sections.physical_time.findings import _findings
 
 
 # -- physical_time: learning speed needs coupling; the quasi-static limit does not ----------
@@ -74,7 +74,7 @@ def test_learning_speed_claims_need_a_coupling_measurement(tmp_path):
 
 # -- beyond_paper thermal: decoupled runs disclosed, unsettled floors called bounds --------
 def test_decoupled_caveat_counts_and_words():
-    from continuum_vs_network.report.sections.learning_checks_noise import decoupled_caveat
+    from continuum_vs_network.report.sections.learning.noise import decoupled_caveat
 
     verdicts = ["decoupled", "coupled", "decoupled", "decoupled", "decoupled"]
     # final C/C0: met (<= 0.01), coupled, not met twice, not known

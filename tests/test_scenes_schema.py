@@ -7,7 +7,7 @@ import tomllib
 
 import pytest
 
-from continuum_vs_network.report.writer import scene_toml
+from continuum_vs_network.report.provenance import scene_toml
 from continuum_vs_network.scenes.schema import (
     _TABLES,
     KIND_TABLES,

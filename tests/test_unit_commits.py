@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from scene_texts import TRANS
 
-from continuum_vs_network.report.sections.provenance import unit_commits
+from continuum_vs_network.report.provenance import unit_commits
 from continuum_vs_network.scenes import provenance, store
 from continuum_vs_network.scenes.runner import run_scene
 from continuum_vs_network.scenes.schema import load_scene

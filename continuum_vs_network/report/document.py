@@ -1,8 +1,9 @@
 """The report document: Markdown lines, the files written, the findings; number helpers.
 
-A section (one module in :mod:`~continuum_vs_network.report.sections` per scene kind) is a
-function ``section(doc, result)`` that appends headings, tables, figures and findings to a
-:class:`Document`; :func:`~continuum_vs_network.report.writer.write_report` assembles them.
+A section (one module or package in :mod:`~continuum_vs_network.report.sections` per scene
+kind) is a function ``section(doc, result)`` that appends headings, tables, figures and
+findings to a :class:`Document`; :func:`~continuum_vs_network.report.writer.write_report`
+assembles them.
 """
 
 from __future__ import annotations
@@ -68,6 +69,14 @@ class Document:
         self.lines.extend(["", "#" * level + " " + text, ""])
         if level <= 2:
             self._section = text
+
+    def renders_heading(self, level: int = 2) -> bool:
+        """The "Renders" heading, and below it why renders are skipped when ``render`` is
+        false; returns ``render``."""
+        self.heading("Renders", level)
+        if not self.render:
+            self.add(f"Renders skipped: {self.render_reason}.")
+        return self.render
 
     def finding(self, finding: Finding, *, shown: bool = False) -> Finding:
         """Register a finding (it goes to ``report.json`` and the index); return it.
@@ -182,6 +191,17 @@ def fmt(x: float, digits: int = 3) -> str:
     if x is None or not np.isfinite(x):
         return "-"
     return f"{x:.{digits}g}"
+
+
+def coupling_text(meta) -> str:
+    """A learning run's coupling as the report writes it: "source share (verdict)", from its
+    meta's ``source_share`` and ``coupling``."""
+    return f"{fmt(meta['source_share'], 2)} ({meta['coupling']})"
+
+
+def mesh_name(refine: int) -> str:
+    """The element size of a mesh refined ``refine`` times from h: "h", "h/2", "h/4", ..."""
+    return "h" if refine == 0 else f"h/{2**refine}"
 
 
 def summary_text(values: NDArray, completed: NDArray | None = None) -> str:

@@ -21,7 +21,7 @@ from ``measured``.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,6 +34,8 @@ __all__ = [
     "SOURCES",
     "VERDICTS",
     "Finding",
+    "reasoned",
+    "runs_basis",
 ]
 
 #: The claim holds by the stated rule.
@@ -168,3 +170,22 @@ class Finding:
         return ", ".join(
             f"{k} = {v:.{digits}g}" if math.isfinite(v) else f"{k} = -" for k, v in self._values
         )
+
+
+def runs_basis(metas: Iterable[dict]) -> str:
+    """What a verdict rests on, from the metas of the learning runs it reads (``outcome`` and
+    ``coupling``): ``"met trivially"`` when any met its task decoupled, ``"coupled"`` when
+    every one is coupled, ``""`` otherwise (or when there are none)."""
+    metas = list(metas)
+    if any(str(m.get("outcome", "")).startswith("met trivially") for m in metas):
+        return "met trivially"
+    if metas and all(m.get("coupling") == "coupled" for m in metas):
+        return "coupled"
+    return ""
+
+
+def reasoned(rule: str, verdict: str, reason: str) -> str:
+    """``rule``, and for a *not comparable* verdict the one-line ``reason`` it has here."""
+    if verdict != NOT_COMPARABLE:
+        return rule
+    return f"{rule.rstrip('.')}. Not comparable here: {reason}"

@@ -3,7 +3,7 @@
 :func:`write_report` reads a :class:`~continuum_vs_network.scenes.runner.SceneResult` (it
 runs nothing), hands a :class:`~.document.Document` to the section of the scene's kind
 (its ``section`` in the kind registry, :data:`~continuum_vs_network.scenes.schema.KINDS`),
-then adds the meshes, settings and provenance. When the scene
+then adds the meshes, settings and provenance (:mod:`.provenance`). When the scene
 asks for images and off-screen rendering works, sections draw pyvista renders. Every file is
 written atomically; figures of an earlier report that the new one does not use are removed.
 ``report.json`` beside the report holds its metadata and findings;
@@ -25,10 +25,9 @@ from ..io.strict_json import dumps_record, loads_record
 from . import escape
 from .document import Document
 from .findings import Finding
-from .sections.provenance import scene_toml, short_source
-from .sections.provenance import section as provenance
+from .provenance import provenance_table, settings, short_source
 
-__all__ = ["scene_toml", "write_index", "write_report", "write_sweep_report"]
+__all__ = ["write_index", "write_report", "write_sweep_report"]
 
 _META = "report.json"
 
@@ -98,14 +97,9 @@ def write_report(
             except ValueError:
                 shown = p
             doc.add(f"- `{shown}`")
-    doc.heading("Settings")
-    doc.add("```toml", scene_toml(scene.to_dict()), "```")
-    provenance(doc, result)
-    report = write_text_atomic(folder / "report.md", "\n".join(doc.lines).rstrip() + "\n")
-    keep = {p.name for p in doc.files}
-    for old in folder.glob("*.png"):
-        if old.name not in keep:
-            old.unlink(missing_ok=True)
+    settings(doc, scene)
+    provenance_table(doc, result)
+    report, figures = _write_markdown(doc, folder)
     meta = {
         "name": scene.name,
         "kind": scene.kind,
@@ -116,7 +110,7 @@ def write_report(
         "report_seconds": time.perf_counter() - t0,
         "started": result.provenance.started,
         "commit": result.provenance.commit,
-        "figures": sorted(keep),
+        "figures": figures,
         "findings": [f.to_dict() for f in doc.findings],
         "summaries": doc.summaries,
     }
@@ -153,13 +147,8 @@ def write_sweep_report(result, folder: str | os.PathLike[str], *, command: str =
         + (f" Regenerate with `{command}`." if command else ""),
     )
     sweep_section(doc, result)
-    doc.heading("Settings")
-    doc.add("```toml", scene_toml(scene.to_dict()), "```")
-    report = write_text_atomic(folder / "report.md", "\n".join(doc.lines).rstrip() + "\n")
-    keep = {p.name for p in doc.files}
-    for old in folder.glob("*.png"):
-        if old.name not in keep:
-            old.unlink(missing_ok=True)
+    settings(doc, scene)
+    report, figures = _write_markdown(doc, folder)
     meta = {
         "name": scene.name,
         "kind": f"{scene.kind} sweep",
@@ -170,11 +159,22 @@ def write_sweep_report(result, folder: str | os.PathLike[str], *, command: str =
         "report_seconds": time.perf_counter() - t0,
         "started": info["started"],
         "commit": info.get("commit", "unknown"),
-        "figures": sorted(keep),
+        "figures": figures,
         "findings": [f.to_dict() for f in doc.findings],
     }
     write_text_atomic(folder / _META, dumps_record(meta, indent=1, sort_keys=True))
     return report
+
+
+def _write_markdown(doc: Document, folder: Path) -> tuple[Path, list[str]]:
+    """Write ``folder/report.md`` from ``doc`` and delete the PNGs in ``folder`` it no longer
+    shows; return its path and the names of its figures, sorted."""
+    report = write_text_atomic(folder / "report.md", "\n".join(doc.lines).rstrip() + "\n")
+    keep = {p.name for p in doc.files}
+    for old in folder.glob("*.png"):
+        if old.name not in keep:
+            old.unlink(missing_ok=True)
+    return report, sorted(keep)
 
 
 def write_index(root: str | os.PathLike[str], *, note: str | None = None) -> Path:

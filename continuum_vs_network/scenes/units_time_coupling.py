@@ -20,7 +20,7 @@ state the run itself reads:
   (:func:`~..learning.coupling.body_source_share`).
 
 The unit's verdict (meta ``"coupling"``, read by
-:func:`~..report.sections.physical_time_findings.coupling_reason`) is
+:func:`~..report.sections.physical_time.findings.coupling_reason`) is
 :func:`~..learning.coupling.coupling_verdict` of the smallest source share over its runs
 measured (grid and bisection): the findings compare learning times across every ratio, so
 a run decoupled at any ratio makes the unit's claims about learning not comparable. None

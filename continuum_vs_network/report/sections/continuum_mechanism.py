@@ -14,7 +14,7 @@ import numpy as np
 
 from ...learning.coupling import MET_AT
 from ...scenes.units_mechanism import LEVEL
-from ..document import Document, fmt
+from ..document import Document, fmt, mesh_name
 from ..figures import Panel, Series
 from ..findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
@@ -62,10 +62,6 @@ def refinement_changes(units: dict, prefix: str, levels: int) -> list[float]:
     return [change(fields[r + 1], fields[r], area) for r in range(levels)]
 
 
-def _h(r: int) -> str:
-    return "h" if r == 0 else f"h/{2**r}"
-
-
 def section(doc: Document, result) -> None:
     """The section (see the module docstring); pyvista renders when ``doc.render``."""
     m = result.scene.mechanism
@@ -74,7 +70,8 @@ def section(doc: Document, result) -> None:
     doc.heading("A material that learns a mechanism", 2)
     doc.add(
         f"**Body.** A {m.width:g} x {m.height:g} linear-elastic plate (plane stress, E = 1, "
-        f"nu = 0.3, P1 triangles of size h = {m.h:g}, refined to {_h(R)}). **Task** (1 -> 1): "
+        f"nu = 0.3, P1 triangles of size h = {m.h:g}, refined to {mesh_name(R)}). "
+        "**Task** (1 -> 1): "
         f"the source is a material spring between two discs of radius {m.end_radius:g} a "
         f"distance {m.gap:g} apart at {tuple(m.source)}, clamped at strain {m.source_strain:g}; "
         f"the target, the same at {tuple(m.target)}, should follow at ratio {m.ratio:g}; with "
@@ -119,7 +116,7 @@ def section(doc: Document, result) -> None:
             for rate in m.rates:
                 u = units[f"continuum_mechanism/learn/refine{r}/{rule}/{rate}"].meta
                 rows.append([
-                    f"{RULES[rule]}, {rate}", _h(r), u["n_elements"], fmt(u["ratio"]),
+                    f"{RULES[rule]}, {rate}", mesh_name(r), u["n_elements"], fmt(u["ratio"]),
                     u["first_below"] if u["first_below"] is not None else "-", int(u["solves"]),
                     fmt(u["seconds"]), fmt(u["response"]), u["coupling"], u["outcome"],
                 ])  # fmt: skip
@@ -128,7 +125,8 @@ def section(doc: Document, result) -> None:
             if dk in units:
                 u = units[dk].meta
                 rows.append([
-                    f"GCL of {DOFS[name]}, raw alpha {m.dof_alpha:g}", _h(r), u["n_elements"],
+                    f"GCL of {DOFS[name]}, raw alpha {m.dof_alpha:g}", mesh_name(r),
+                    u["n_elements"],
                     fmt(u["ratio"]), u["first_below"] if u["first_below"] is not None else "-",
                     int(u["solves"]), fmt(u["seconds"]), fmt(u["response"]), u["coupling"],
                     dof_verdict(u, _dof_opt(units, r, name)),
@@ -137,7 +135,7 @@ def section(doc: Document, result) -> None:
             if o is not None:
                 rows.append([
                     f"exact optimum of {DOFS[name]} (L-BFGS-B, {o['evaluations']} evaluations)",
-                    _h(r), o["n_elements"], fmt(o["ratio"]), "-", o["solves"],
+                    mesh_name(r), o["n_elements"], fmt(o["ratio"]), "-", o["solves"],
                     fmt(o["seconds"]), fmt(o["response"]), "-",
                     "feasible" if o["feasible"] else "infeasible",
                 ])  # fmt: skip
@@ -145,7 +143,7 @@ def section(doc: Document, result) -> None:
         if lk in units:
             u = units[lk].meta
             rows.append([
-                "network: triangular lattice, GCL of k, adaptive", f"a = {_h(r)}",
+                "network: triangular lattice, GCL of k, adaptive", f"a = {mesh_name(r)}",
                 f"{u['n_springs']} springs", fmt(u["ratio"]),
                 u["first_below"] if u["first_below"] is not None else "-", int(u["solves"]),
                 fmt(u["seconds"]), "-", u["coupling"], u["outcome"],
@@ -154,7 +152,7 @@ def section(doc: Document, result) -> None:
         if o is None:
             continue
         rows.append([
-            "exact optimum (L-BFGS-B)", _h(r), o["n_elements"], fmt(o["ratio"]), "-",
+            "exact optimum (L-BFGS-B)", mesh_name(r), o["n_elements"], fmt(o["ratio"]), "-",
             o["solves"], fmt(o["seconds"]), fmt(o["response"]), "-", "-",
         ])  # fmt: skip
     for simp, solid in simps:
@@ -219,10 +217,10 @@ def _findings_learning(doc: Document, m, units, opt) -> None:
         doc.finding(
             Finding(
                 claim=f"modulus-field GCL ({rate} rate) learns the continuum 1 -> 1 task with "
-                f"the coupled verdict on every mesh h .. {_h(m.refine)}",
+                f"the coupled verdict on every mesh h .. {mesh_name(m.refine)}",
                 metric="final C/C0 per mesh, the optimum's, and the coupling verdict",
-                measured={f"C/C0 {_h(r)}": u["ratio"] for r, u in enumerate(metas)}
-                | {f"optimum {_h(r)}": opt[r]["ratio"] for r in opt},
+                measured={f"C/C0 {mesh_name(r)}": u["ratio"] for r, u in enumerate(metas)}
+                | {f"optimum {mesh_name(r)}": opt[r]["ratio"] for r in opt},
                 verdict=REPRODUCED if all(ok) else NOT_REPRODUCED,
                 rule=f"reproduced when on every mesh C/C0 <= {LEVEL:g} or <= {WITHIN:g} x the "
                 "optimum's, and the verdict is coupled",
@@ -255,7 +253,7 @@ def _findings_dofs(doc: Document, m, units) -> None:
     doc.add(
         "",
         "**Eigenstrain and both beside the modulus** (GCL on the same filtered medium, "
-        f"meshes h .. {_h(m.dof_refine)}). The eigenstrain design passes through the same "
+        f"meshes h .. {mesh_name(m.dof_refine)}). The eigenstrain design passes through the same "
         f"filter and is measured in units of {_unit_text(m, units, keys)}. These runs use "
         "the raw rate (alpha "
         f"{m.dof_alpha:g}, about the scaled rate's first-step gain for the modulus): the "
@@ -275,7 +273,7 @@ def _findings_dofs(doc: Document, m, units) -> None:
             doc.finding(
                 Finding(
                     claim=f"GCL of {DOFS[name]} learns the task with the coupled verdict on "
-                    f"{_h(r)}",
+                    f"{mesh_name(r)}",
                     metric="final C/C0, and the exact optimum's C/C0 of the same dof and "
                     "objective",
                     measured={"C/C0": u["ratio"], "optimum C/C0": o["ratio"],
@@ -292,13 +290,15 @@ def _findings_dofs(doc: Document, m, units) -> None:
             basis = "met trivially" if good else ""
             claim = (
                 f"without the rest example, eigenstrain GCL meets the task by prestress "
-                f"(decoupled) on {_h(r)}"
+                f"(decoupled) on {mesh_name(r)}"
             )
             rule = f"reproduced when C/C0 <= {MET_AT:g} and the verdict is decoupled"
         else:
             good, source = met and u["coupling"] == "coupled", "field"
             basis = "coupled" if good else ""
-            claim = f"GCL of {DOFS[name]} learns the task with the coupled verdict on {_h(r)}"
+            claim = (
+                f"GCL of {DOFS[name]} learns the task with the coupled verdict on {mesh_name(r)}"
+            )
             rule = f"reproduced when C/C0 <= {MET_AT:g} and the verdict is coupled"
         doc.finding(
             Finding(
@@ -327,7 +327,7 @@ def _findings_lattice(doc: Document, m, units) -> None:
             claim="the triangular lattice learns the same 1 -> 1 task by GCL of its "
             "stiffnesses with the coupled verdict at every lattice constant",
             metric="final C/C0 per lattice constant and the coupling verdict",
-            measured={f"C/C0 a = {_h(u['refine'])}": u["ratio"] for u in metas},
+            measured={f"C/C0 a = {mesh_name(u['refine'])}": u["ratio"] for u in metas},
             verdict=REPRODUCED if all(ok) else NOT_REPRODUCED,
             rule=f"reproduced when on every lattice C/C0 <= {LEVEL:g} and the verdict is coupled",
             basis="coupled",
@@ -350,7 +350,10 @@ def _refinement(doc: Document, m, units) -> None:
         falling = all(b < a for a, b in itertools.pairwise(ch))
         rows.append([name, *(fmt(c) for c in ch), "yes" if falling else "no"])
         found.append((name, ch, falling))
-    doc.table(["field", *(f"{_h(r)} -> {_h(r + 1)}" for r in range(m.refine)), "falling"], rows)
+    doc.table(
+        ["field", *(f"{mesh_name(r)} -> {mesh_name(r + 1)}" for r in range(m.refine)), "falling"],
+        rows,
+    )
     doc.add(
         "",
         "Change: the relative area-weighted L2 difference of log10(modulus) between two "
@@ -398,7 +401,7 @@ def _curves(doc: Document, m, units) -> None:
         [
             Panel(
                 by_step,
-                title=f"C/C0 against steps ({_h(R)})",
+                title=f"C/C0 against steps ({mesh_name(R)})",
                 xlabel="step / evaluation",
                 ylabel="C/C0",
                 yscale="log",
@@ -406,7 +409,7 @@ def _curves(doc: Document, m, units) -> None:
             ),
             Panel(
                 by_time,
-                title=f"C/C0 against seconds ({_h(R)})",
+                title=f"C/C0 against seconds ({mesh_name(R)})",
                 xlabel="seconds",
                 ylabel="C/C0",
                 xscale="log",
@@ -414,7 +417,7 @@ def _curves(doc: Document, m, units) -> None:
                 hlines=(LEVEL, MET_AT),
             ),
         ],
-        f"C/C0 of the modulus field on the finest mesh ({_h(R)}) against learning steps "
+        f"C/C0 of the modulus field on the finest mesh ({mesh_name(R)}) against learning steps "
         "(optimum: evaluations) and wall-clock seconds; dotted: 1e-3 and 1e-2.",
     )
 
@@ -458,9 +461,7 @@ def _inverter(doc: Document, inv: dict) -> None:
 
 
 def _renders(doc: Document, m, units) -> None:
-    doc.heading("Renders", 3)
-    if not doc.render:
-        doc.add(f"Renders skipped: {doc.render_reason}.")
+    if not doc.renders_heading(3):
         return
     from ...io.render_continuum import render_continuum
 
@@ -469,9 +470,9 @@ def _renders(doc: Document, m, units) -> None:
     shown = [
         (f"{rule}_{m.rates[0]}",
          units[f"continuum_mechanism/learn/refine{R}/{rule}/{m.rates[0]}"].arrays,
-         f"log10 modulus learned by {rule} ({m.rates[0]}, {_h(R)})"),
+         f"log10 modulus learned by {rule} ({m.rates[0]}, {mesh_name(R)})"),
         ("optimum", units[f"continuum_mechanism/optimum/refine{m.optimum_refine}"].arrays,
-         f"log10 modulus, exact optimum ({_h(m.optimum_refine)})"),
+         f"log10 modulus, exact optimum ({mesh_name(m.optimum_refine)})"),
         ("simp", units["continuum_mechanism/simp"].arrays,
          "log10 modulus, SIMP over the learning's range (h)"),
     ]  # fmt: skip

@@ -11,13 +11,10 @@ from ..document import (
 
 def learning_renders(doc: Document, result) -> None:
     """The initial and trained networks of the first exported trial (pyvista)."""
-    render, reason = doc.render, doc.render_reason
     units = result.select("fields/")
     if not units:
         return
-    doc.heading("Renders")
-    if not render:
-        doc.add(f"Renders skipped: {reason}.")
+    if not doc.renders_heading():
         return
     from ...io.render import render_networks
     from ...network.model import SpringNetwork
@@ -73,13 +70,10 @@ def learning_renders(doc: Document, result) -> None:
 
 def side_by_side(doc: Document, result, prefix: str, what: str) -> None:
     """Network (and continuum, when solved) of the last unit under ``prefix`` (pyvista)."""
-    render, reason = doc.render, doc.render_reason
     units = [u for u in result.select(prefix).values() if "net/x" in u.arrays]
     if not units:
         return
-    doc.heading("Renders")
-    if not render:
-        doc.add(f"Renders skipped: {reason}.")
+    if not doc.renders_heading():
         return
     from ...io.render import render_network
     from ...io.render_continuum import render_side_by_side
