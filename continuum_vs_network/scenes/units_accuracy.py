@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from .results import FiniteElementResult, IntegratorResult
 from .schema import Scene
 from .timing import single_threaded
 from .units import Unit, UnitContext
@@ -130,11 +131,11 @@ def lame_error(element: str, h: float, poisson: float) -> dict[str, Any]:
 
 
 @single_threaded
-def fe_unit(scene: Scene, params: dict, ctx: UnitContext):
+def fe_unit(scene: Scene, params: dict, ctx: UnitContext) -> FiniteElementResult:
     """One element type at one mesh size on Lamé's cylinder."""
     lame_error("P2_curved", 0.5, 0.3)  # warm-up: imports and first calls are not timed
     out = lame_error(params["element"], params["h"], scene.accuracy.poisson)
-    return {}, {**params, **out}
+    return FiniteElementResult(element=params["element"], h=params["h"], **out)
 
 
 # -- network time integrators ---------------------------------------------------------------
@@ -205,7 +206,7 @@ def _network_problem(size: int, problem: str) -> dict[str, Any]:
 
 
 @single_threaded
-def network_unit(scene: Scene, params: dict, ctx: UnitContext):
+def network_unit(scene: Scene, params: dict, ctx: UnitContext) -> IntegratorResult:
     """One network scheme at one step count against the DOP853 reference."""
     from ..network.dynamics import simulate, stability_limit
 
@@ -222,16 +223,14 @@ def network_unit(scene: Scene, params: dict, ctx: UnitContext):
         tol=1e-10,
     )
     simulate(P["net"], dt=P["t_end"] / 4, t_end=P["t_end"] / 2, scheme="implicit", **kw)
-    meta = {**params, "dt": dt, "dt_limit": limit, "t_end": P["t_end"], "refused": ""}
+    run = functools.partial(IntegratorResult, **params, dt=dt, dt_limit=limit, t_end=P["t_end"])
     try:
         tr = simulate(P["net"], dt=dt, t_end=P["t_end"], scheme=scheme, **kw)
     except (ValueError, RuntimeError) as err:
-        meta.update(error=math.nan, seconds=math.nan, refused=f"{type(err).__name__}: {err}")
-        return {}, meta
+        return run(error=math.nan, seconds=math.nan, refused=f"{type(err).__name__}: {err}")
     ref = P["ref"](tr.times)[: P["m"]].T.reshape(len(tr.times), -1, 2)
     dev = np.linalg.norm(tr.positions[:, P["fi"]] - ref, axis=2)
-    meta.update(error=float(dev.max() / P["scale"]), seconds=float(tr.seconds[-1]))
-    return {}, meta
+    return run(error=float(dev.max() / P["scale"]), seconds=float(tr.seconds[-1]), refused="")
 
 
 # -- continuum time integrators -------------------------------------------------------------
@@ -264,7 +263,7 @@ def _continuum_problem(problem: str) -> dict[str, Any]:
 
 
 @single_threaded
-def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
+def continuum_unit(scene: Scene, params: dict, ctx: UnitContext) -> IntegratorResult:
     """One continuum scheme at one step count against the lowest mode's closed form."""
     from ..continuum.viscoelastic import Damping, simulate_body
 
@@ -279,4 +278,4 @@ def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
     run(dt=P["t_end"] / 2, t_end=P["t_end"], scheme=params["scheme"])  # warm-up
     tr = run(dt=P["t_end"] / n, t_end=P["t_end"], scheme=params["scheme"])
     err = float(np.max(np.abs(tr.u - P["exact"] * P["mode"])))
-    return {}, {**params, "dt": P["t_end"] / n, "error": err, "seconds": float(tr.seconds)}
+    return IntegratorResult(**params, dt=P["t_end"] / n, error=err, seconds=float(tr.seconds))

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from ...fits import power_law
+from ...scenes.results import FiniteElementResult, IntegratorResult, from_stored
 from ..document import Document, fmt
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
@@ -92,24 +93,27 @@ def _finite_elements(doc: Document, result, a) -> None:
     )
     rows, dof_s, time_s, summary = [], [], [], []
     for j, element in enumerate(a.elements):
-        units = [result.units[f"accuracy/fe/{element}/h{h:g}"].meta for h in a.mesh_sizes]
-        h = np.array([m["h"] for m in units])
-        err = np.array([m["error"] for m in units])
-        dofs = np.array([m["dofs"] for m in units], dtype=float)
-        secs = np.array([m["seconds"] for m in units])
+        runs = [
+            from_stored(result.units[f"accuracy/fe/{element}/h{h:g}"], FiniteElementResult)
+            for h in a.mesh_sizes
+        ]
+        h = np.array([r.h for r in runs])
+        err = np.array([r.error for r in runs])
+        dofs = np.array([r.dofs for r in runs], dtype=float)
+        secs = np.array([r.seconds for r in runs])
         rate = convergence_order(h, err)
         label = f"{_ELEMENT_NAMES[element]} (h^{rate:.2f})"
         dof_s.append(Series(dofs, err, label, marker="o", color=COLORS[j]))
         time_s.append(Series(secs, err, _ELEMENT_NAMES[element], marker="o", color=COLORS[j]))
-        for m in units:
+        for r in runs:
             rows.append(
                 [
                     _ELEMENT_NAMES[element],
-                    fmt(m["h"]),
-                    m["dofs"],
-                    fmt(m["error"]),
-                    fmt(m["seconds"]),
-                    "yes" if m["warned"] else "no",
+                    fmt(r.h),
+                    r.dofs,
+                    fmt(r.error),
+                    fmt(r.seconds),
+                    "yes" if r.warned else "no",
                 ]
             )
         fine = int(np.argmin(h))
@@ -117,7 +121,7 @@ def _finite_elements(doc: Document, result, a) -> None:
             [
                 _ELEMENT_NAMES[element],
                 f"{rate:.2f}",
-                units[fine]["dofs"],
+                runs[fine].dofs,
                 fmt(err[fine]),
                 fmt(secs[fine], 2),
             ]
@@ -191,35 +195,39 @@ def _integrators(doc: Document, result, a) -> None:
             for j, scheme in enumerate(a.schemes):
                 if medium == "continuum" and scheme == "explicit":
                     continue
-                metas = [
-                    result.units[f"accuracy/{medium}/{problem}/{scheme}/n{n}"].meta for n in a.steps
+                runs = [
+                    from_stored(
+                        result.units[f"accuracy/{medium}/{problem}/{scheme}/n{n}"],
+                        IntegratorResult,
+                    )
+                    for n in a.steps
                 ]
-                dt = np.array([m["dt"] for m in metas])
-                err = np.array([m["error"] for m in metas], dtype=float)
-                secs = np.array([m["seconds"] for m in metas], dtype=float)
+                dt = np.array([r.dt for r in runs])
+                err = np.array([r.error for r in runs], dtype=float)
+                secs = np.array([r.seconds for r in runs], dtype=float)
                 rate = convergence_order(dt, err)
                 name = _SCHEME_NAMES[scheme]
                 dt_s.append(Series(dt, err, f"{name} (dt^{rate:.2f})", marker="o", color=COLORS[j]))
                 time_s.append(Series(secs, err, name, marker="o", color=COLORS[j]))
-                for m in metas:
-                    if "dt_limit" in m:
-                        limit = m["dt_limit"]
+                for r in runs:
+                    if r.dt_limit is not None:
+                        limit = r.dt_limit
                     rows.append(
                         [
                             medium,
                             problem,
                             name,
-                            m["steps"],
-                            fmt(m["dt"]),
-                            fmt(m["dt"] / m["dt_limit"]) if "dt_limit" in m else "-",
-                            fmt(m["error"]),
-                            fmt(m["seconds"]),
-                            m.get("refused", "")[:110],
+                            r.steps,
+                            fmt(r.dt),
+                            fmt(r.dt / r.dt_limit) if r.dt_limit is not None else "-",
+                            fmt(r.error),
+                            fmt(r.seconds),
+                            (r.refused or "")[:110],
                         ]
                     )
                     if scheme == "explicit":
-                        above = m["dt"] > m["dt_limit"]
-                        refused_ok.append(above == bool(m["refused"]))
+                        above = r.dt > r.dt_limit
+                        refused_ok.append(above == bool(r.refused))
                 ok = np.isfinite(err)
                 best = int(np.flatnonzero(ok)[np.argmin(dt[ok])]) if ok.any() else 0
                 summary.append(
