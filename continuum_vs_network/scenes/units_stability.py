@@ -36,12 +36,14 @@ lattice with stiff springs; completed steps, stop reason, error ratio.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from typing import Any
 
 import numpy as np
 
+from .results import EquilibriumCaseResult, LockingResult, StepResult, StiffLearningResult
 from .schema import Scene
 from .timing import single_threaded
 from .units import Unit, UnitContext
@@ -217,7 +219,7 @@ def _equilibrium_problem(scene: Scene, kind: str, value: float):
 
 
 @single_threaded
-def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
+def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext) -> EquilibriumCaseResult:
     """One method on one case; an error raised is recorded, not raised."""
     from ..network.constraints import default_pins
     from ..network.equilibrium import EquilibriumError, relax
@@ -251,20 +253,10 @@ def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
         net = SpringNetwork(
             solve_net.positions, net.springs, solve_net.stiffness, solve_net.rest_length
         )
-    meta: dict[str, Any] = {
-        "case": kind,
-        "value": value,
-        "method": method,
-        "n_nodes": net.n_nodes,
-        "error": "",
-        "converged": False,
-        "imbalance": math.nan,
-        "clamp_error": math.nan,
-        "seconds": math.nan,
-        "iterations": 0,
-        "check": math.nan,
-        "check_name": "",
-    }
+    case = functools.partial(
+        EquilibriumCaseResult, case=kind, value=value, method=method, n_nodes=net.n_nodes
+    )
+    error = ""
     t0 = time.perf_counter()
     try:
         eq = relax(
@@ -278,10 +270,9 @@ def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
         )
     except EquilibriumError as err:
         eq = err.state
-        meta["error"] = f"EquilibriumError: {err.reason}"
+        error = f"EquilibriumError: {err.reason}"
     except Exception as err:  # a stability table reports every failure, with its type
-        meta.update(error=f"{type(err).__name__}: {err}", seconds=time.perf_counter() - t0)
-        return {}, meta
+        return case(error=f"{type(err).__name__}: {err}", seconds=time.perf_counter() - t0)
     x = np.asarray(eq.positions)
     if kind == "collinear":
         check = abs(abs(float(x[2, 1])) - math.sqrt(1.2**2 - 1.0))
@@ -295,7 +286,8 @@ def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
         clamp_err = abs(float(net.lengths(x, j)) - clamped[j]) / float(net.rest_length[j])
     else:
         clamp_err = 0.0
-    meta.update(
+    return case(
+        error=error,
         converged=bool(eq.converged),
         imbalance=local_imbalance(net, x, ~np.asarray(pins, dtype=bool), list(clamped)),
         clamp_error=clamp_err,
@@ -304,12 +296,11 @@ def equilibrium_unit(scene: Scene, params: dict, ctx: UnitContext):
         check=check,
         check_name=check_name,
     )
-    return {}, meta
 
 
 # -- dynamics ------------------------------------------------------------------------------
 @single_threaded
-def dynamics_unit(scene: Scene, params: dict, ctx: UnitContext):
+def dynamics_unit(scene: Scene, params: dict, ctx: UnitContext) -> StepResult:
     """One scheme at ``f`` times the explicit stability limit; refusal or failure recorded."""
     from ..network.dynamics import simulate, stability_limit
 
@@ -328,17 +319,7 @@ def dynamics_unit(scene: Scene, params: dict, ctx: UnitContext):
     limit = float(stability_limit(net, damping=1.0, inertia=True))
     dt = f * limit
     steps = 200 if scheme == "explicit" else 20
-    meta: dict[str, Any] = {
-        **params,
-        "dt": dt,
-        "dt_limit": limit,
-        "steps": steps,
-        "error": "",
-        "energy_start": math.nan,
-        "energy_end": math.nan,
-        "imbalance": math.nan,
-        "seconds": math.nan,
-    }
+    run = functools.partial(StepResult, **params, dt=dt, dt_limit=limit, steps=steps)
     try:
         tr = simulate(
             net,
@@ -352,31 +333,29 @@ def dynamics_unit(scene: Scene, params: dict, ctx: UnitContext):
             record_every=steps,
         )
     except (ValueError, RuntimeError) as err:
-        meta["error"] = f"{type(err).__name__}: {err}"
-        return {}, meta
+        return run(error=f"{type(err).__name__}: {err}")
     mech = tr.energy + tr.kinetic
-    meta.update(
+    return run(
         energy_start=float(mech[0]),
         energy_end=float(mech[-1]),
         imbalance=local_imbalance(net, tr.positions[-1], tr.free),
         seconds=float(tr.seconds[-1]),
     )
-    return {}, meta
 
 
 # -- continuum locking ---------------------------------------------------------------------
 @single_threaded
-def locking_unit(scene: Scene, params: dict, ctx: UnitContext):
+def locking_unit(scene: Scene, params: dict, ctx: UnitContext) -> LockingResult:
     """Lamé's cylinder at one Poisson's ratio: error, DOFs, whether a warning was raised."""
     from .units_accuracy import lame_error
 
     out = lame_error(params["element"], scene.stability.locking_h, params["poisson"])
-    return {}, {**params, **out}
+    return LockingResult(**params, **out)
 
 
 # -- learning with stiff springs -----------------------------------------------------------
 @single_threaded
-def learning_unit(scene: Scene, params: dict, ctx: UnitContext):
+def learning_unit(scene: Scene, params: dict, ctx: UnitContext) -> StiffLearningResult:
     """Coupled learning on a lattice with stiff springs: steps done, stop reason, C/C0."""
     from ..learning.rules import CoupledLearning
     from ..learning.tasks import stern_task
@@ -390,25 +369,23 @@ def learning_unit(scene: Scene, params: dict, ctx: UnitContext):
     task = stern_task(net, 3, 2, np.random.default_rng([scene.seed, 4]))
     rule = CoupledLearning(1e-3, 0.1, strain_reference="initial")
     t0 = time.perf_counter()
-    meta: dict[str, Any] = {**params, "steps": st.learning_steps, "error": ""}
+    run = functools.partial(StiffLearningResult, **params, steps=st.learning_steps)
     try:
         hist = train(net, task, rule, st.learning_steps, seeds=(scene.seed,), progress=False)
     except Exception as err:  # recorded: the table says what was raised
-        meta.update(
+        return run(
             error=f"{type(err).__name__}: {err}",
             completed=0,
             ratio_error=math.nan,
             seconds=time.perf_counter() - t0,
             finite=True,
         )
-        return {}, meta
     err = np.asarray(hist.error_initial, dtype=float)[0]
     done = int(hist.completed[0])
-    meta.update(
+    return run(
         completed=done,
         error=hist.stop_reason[0],
         ratio_error=float(err[done] / err[0]) if err[0] > 0 else math.nan,
         seconds=time.perf_counter() - t0,
         finite=bool(np.all(np.isfinite(err[: done + 1]))),
     )
-    return {}, meta

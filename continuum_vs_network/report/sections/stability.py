@@ -12,6 +12,13 @@ import math
 
 import numpy as np
 
+from ...scenes.results import (
+    EquilibriumCaseResult,
+    LockingResult,
+    StepResult,
+    StiffLearningResult,
+    from_stored,
+)
 from ..document import Document, fmt
 from ..figures import heatmap
 from ..findings import CONTRADICTED, NOT_REPRODUCED, REPRODUCED, Finding
@@ -36,15 +43,15 @@ _GROUPS = {
 }
 
 
-def _outcome(m: dict, tol: float) -> tuple[str, bool]:
+def _outcome(m: EquilibriumCaseResult, tol: float) -> tuple[str, bool]:
     """(outcome text, honest): honest unless reported converged above SLACK * tol (or a
     floppy network solved instead of refused)."""
-    if m["case"] == "floppy" and not m["error"]:
+    if m.case == "floppy" and not m.error:
         return "SILENT: a floppy network solved", False
-    if m["error"] and not m["converged"]:
-        return "raised " + m["error"].split(":", 1)[0], True
-    if m["converged"]:
-        ok = np.isfinite(m["imbalance"]) and m["imbalance"] <= SLACK * tol
+    if m.error and not m.converged:
+        return "raised " + m.error.split(":", 1)[0], True
+    if m.converged:
+        ok = np.isfinite(m.imbalance) and m.imbalance <= SLACK * tol
         return ("converged" if ok else "SILENT: converged above tolerance"), bool(ok)
     return "SILENT: not converged, nothing raised", False
 
@@ -87,35 +94,35 @@ def _equilibria(doc: Document, result) -> None:
         f"converged with a local imbalance above {SLACK:g} x tol is a silent failure."
     )
     rows, names, values, text = [], [], [], []
-    metas: dict[tuple[str, str], dict] = {}
+    metas: dict[tuple[str, str], EquilibriumCaseResult] = {}
     for kind, value in cases(scene):
         name = case_name(kind, value)
         names.append(name)
         vrow, trow = [], []
         for method in methods:
-            m = result.units[f"stability/{name}/{method}"].meta
+            m = from_stored(result.units[f"stability/{name}/{method}"], EquilibriumCaseResult)
             metas[name, method] = m
             outcome, honest = _outcome(m, tol)
-            check = f"{m['check_name']} {fmt(m['check'])}" if m.get("check_name") else ""
+            check = f"{m.check_name} {fmt(m.check)}" if m.check_name else ""
             rows.append(
                 [
                     name,
                     method,
                     outcome,
-                    fmt(m["imbalance"]),
-                    fmt(m["clamp_error"]),
+                    fmt(m.imbalance),
+                    fmt(m.clamp_error),
                     check,
-                    fmt(m["seconds"]),
-                    m["iterations"],
-                    m["error"][:110],
+                    fmt(m.seconds),
+                    m.iterations,
+                    m.error[:110],
                 ]
             )
-            r = m["imbalance"]
+            r = m.imbalance
             vrow.append(
                 math.log10(r) if np.isfinite(r) and r > 0 else (-17.0 if r == 0 else np.nan)
             )
             word = "ok" if outcome == "converged" else ("raised" if honest else "SILENT")
-            trow.append(f"{word} {fmt(m['seconds'], 2)} s" if np.isfinite(m["seconds"]) else word)
+            trow.append(f"{word} {fmt(m.seconds, 2)} s" if np.isfinite(m.seconds) else word)
         values.append(vrow)
         text.append(trow)
     path = heatmap(
@@ -152,13 +159,13 @@ def _equilibria(doc: Document, result) -> None:
     if "newton" in methods:
         for kind, group in _GROUPS.items():
             cells = [
-                (n, m) for (n, meth), m in metas.items() if meth == "newton" and m["case"] == kind
+                (n, m) for (n, meth), m in metas.items() if meth == "newton" and m.case == kind
             ]
             if not cells:
                 continue
-            worst = max((m["imbalance"] for _, m in cells), default=math.nan)
+            worst = max((m.imbalance for _, m in cells), default=math.nan)
             ok = [
-                m["converged"] and np.isfinite(m["imbalance"]) and m["imbalance"] <= SLACK * tol
+                m.converged and np.isfinite(m.imbalance) and m.imbalance <= SLACK * tol
                 for _, m in cells
             ]
             silent = [not _outcome(m, tol)[1] for _, m in cells]
@@ -181,9 +188,9 @@ def _equilibria(doc: Document, result) -> None:
                     )
                 )
             )
-    floppy = [m for (n, _), m in metas.items() if m["case"] == "floppy"]
+    floppy = [m for (n, _), m in metas.items() if m.case == "floppy"]
     if floppy:
-        raised = [m["error"].startswith("ValueError") and "floppy" in m["error"] for m in floppy]
+        raised = [m.error.startswith("ValueError") and "floppy" in m.error for m in floppy]
         found.append(
             doc.finding(
                 Finding(
@@ -230,36 +237,36 @@ def _dynamics(doc: Document, result) -> None:
     keys = [f"explicit_{f:g}" for f in st.explicit_dt]
     keys += [f"{s}_{f:g}" for s in ("implicit", "newmark") for f in st.implicit_dt]
     for key in keys:
-        m = result.units[f"stability/dynamics/{key}"].meta
+        m = from_stored(result.units[f"stability/dynamics/{key}"], StepResult)
         name = {"implicit": "backward Euler", "newmark": "Newmark", "explicit": "explicit"}[
-            m["scheme"]
+            m.scheme
         ]
-        outcome = "raised " + m["error"].split(":", 1)[0] if m["error"] else "ran"
+        outcome = "raised " + m.error.split(":", 1)[0] if m.error else "ran"
         rows.append(
             [
                 name,
-                fmt(m["f"]),
-                fmt(m["dt"]),
-                m["steps"],
+                fmt(m.f),
+                fmt(m.dt),
+                m.steps,
                 outcome,
-                fmt(m["energy_start"]),
-                fmt(m["energy_end"]),
-                fmt(m["imbalance"]),
-                fmt(m["seconds"]),
-                m["error"][:110],
+                fmt(m.energy_start),
+                fmt(m.energy_end),
+                fmt(m.imbalance),
+                fmt(m.seconds),
+                m.error[:110],
             ]
         )
-        if m["scheme"] == "explicit":
-            if m["f"] > 1:
-                explicit_ok.append(m["error"].startswith("ValueError"))
+        if m.scheme == "explicit":
+            if m.f > 1:
+                explicit_ok.append(m.error.startswith("ValueError"))
             else:
-                explicit_ok.append(not m["error"] and m["energy_end"] <= m["energy_start"])
+                explicit_ok.append(not m.error and m.energy_end <= m.energy_start)
         else:
-            implicit_ran.append(not m["error"] and np.isfinite(m["imbalance"]))
-            if not m["error"] and m["energy_start"] > 0:
-                growth.append((m["energy_end"] / m["energy_start"], name, m["f"]))
-            if m["scheme"] == "implicit" and not m["error"]:
-                be_energy.append(m["energy_end"] / m["energy_start"])
+            implicit_ran.append(not m.error and np.isfinite(m.imbalance))
+            if not m.error and m.energy_start > 0:
+                growth.append((m.energy_end / m.energy_start, name, m.f))
+            if m.scheme == "implicit" and not m.error:
+                be_energy.append(m.energy_end / m.energy_start)
     doc.table(
         [
             "scheme",
@@ -378,27 +385,30 @@ def _locking(doc: Document, result) -> None:
     )
     rows, calls = [], []
     for element in ("P1", "P2_curved"):
-        metas = [result.units[f"stability/locking/{element}_nu{nu:g}"].meta for nu in st.poisson]
-        base = metas[int(np.argmin([m["poisson"] for m in metas]))]["error"]
+        metas = [
+            from_stored(result.units[f"stability/locking/{element}_nu{nu:g}"], LockingResult)
+            for nu in st.poisson
+        ]
+        base = metas[int(np.argmin([m.poisson for m in metas]))].error
         for m in metas:
-            nu = m["poisson"]
-            ratio = m["error"] / base
+            nu = m.poisson
+            ratio = m.error / base
             rows.append(
                 [
                     element,
                     fmt(nu),
                     fmt(2 * nu / (1 - 2 * nu)),
-                    m["dofs"],
-                    fmt(m["error"]),
+                    m.dofs,
+                    fmt(m.error),
                     fmt(ratio),
-                    "yes" if m["warned"] else "no",
+                    "yes" if m.warned else "no",
                 ]
             )
             if element == "P1":
                 if ratio >= LOCKED:
-                    calls.append(m["warned"])
+                    calls.append(m.warned)
                 elif ratio < UNLOCKED:
-                    calls.append(not m["warned"])
+                    calls.append(not m.warned)
     doc.table(
         ["element", "nu", "lam / mu", "DOFs", "L2 error", "error / error at smallest nu", "warned"],
         rows,
@@ -435,17 +445,17 @@ def _learning(doc: Document, result) -> None:
     )
     rows, ok = [], []
     for r in st.learning_stiffness_ratios:
-        m = result.units[f"stability/learning/stiff_{r:g}"].meta
+        m = from_stored(result.units[f"stability/learning/stiff_{r:g}"], StiffLearningResult)
         rows.append(
             [
                 fmt(r),
-                f"{m['completed']} / {m['steps']}",
-                fmt(m["ratio_error"]),
-                m["error"][:110] or "-",
-                fmt(m["seconds"]),
+                f"{m.completed} / {m.steps}",
+                fmt(m.ratio_error),
+                m.error[:110] or "-",
+                fmt(m.seconds),
             ]
         )
-        ok.append(bool(m["finite"]) and (m["completed"] == m["steps"] or bool(m["error"])))
+        ok.append(bool(m.finite) and (m.completed == m.steps or bool(m.error)))
     doc.table(["stiffness ratio", "steps done", "final C / C0", "stop reason", "seconds"], rows)
     doc.findings_table(
         [
