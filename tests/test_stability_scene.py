@@ -112,6 +112,6 @@ def test_newmark_far_above_the_explicit_limit_on_the_stiff_lattice_completes():
     from continuum_vs_network.scenes.schema import load_scene
     from continuum_vs_network.scenes.units_stability import dynamics_unit
 
-    _, meta = dynamics_unit(load_scene("stability"), {"scheme": "newmark", "f": 1e5}, None)
-    assert meta["error"] == ""
-    assert np.isfinite(meta["energy_end"])
+    run = dynamics_unit(load_scene("stability"), {"scheme": "newmark", "f": 1e5}, None)
+    assert run.error == ""
+    assert np.isfinite(run.energy_end)
