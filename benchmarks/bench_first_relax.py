@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import pathlib
 import subprocess
 import sys
 import time
@@ -45,18 +46,12 @@ def measure(sizes: list[int], seeds: int) -> dict[str, list[float]]:
 
     import continuum_vs_network as cvn
 
+    sys.path.insert(0, str(pathlib.Path(__file__).parents[1] / "tests"))
+    from pulled_lattices import pulled_apart  # bench_jaxmd's problem
+
     def pins(n_nodes: int, seed: int, strain: float = 0.05):
         side = round(float(np.sqrt(n_nodes)))
-        net = cvn.triangular_lattice(side, side, noise=0.1, rng=np.random.default_rng(seed))
-        mid = net.positions[net.springs].mean(axis=1)
-        c = int(np.argmin(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1)))
-        a, b = net.springs[c]
-        x0 = net.positions.copy()
-        grow = strain * (x0[b] - x0[a])
-        x0[a] -= 0.5 * grow
-        x0[b] += 0.5 * grow
-        pinned = cvn.default_pins(net, avoid=[c])
-        pinned[[a, b]] = True
+        net, pinned, x0 = pulled_apart(side, strain, seed)
         return net, {"pinned": pinned, "x0": x0}
 
     def clamp(n_nodes: int, seed: int):

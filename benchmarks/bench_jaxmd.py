@@ -82,19 +82,11 @@ def main() -> None:
         have_jax = False
         print("# jax / jax-md not importable: timing the package's methods only")
 
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(__file__)), "tests"))
+    from pulled_lattices import pulled_apart
+
     def setup(n_nodes: int, strain: float):
-        side = round(float(np.sqrt(n_nodes)))
-        net = cvn.triangular_lattice(side, side, noise=0.1, rng=np.random.default_rng(0))
-        mid = net.positions[net.springs].mean(axis=1)
-        c = int(np.argmin(np.linalg.norm(mid - net.positions.mean(axis=0), axis=1)))
-        a, b = net.springs[c]
-        x0 = net.positions.copy()
-        d = x0[b] - x0[a]
-        grow = strain * d
-        x0[a] -= 0.5 * grow
-        x0[b] += 0.5 * grow
-        pins = cvn.default_pins(net, avoid=[c])
-        pins[[a, b]] = True
+        net, pins, x0 = pulled_apart(round(float(np.sqrt(n_nodes))), strain)
         return net, x0, pins
 
     def jax_fire(net, x0, pins, tol):
