@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from continuum_vs_network.scenes.results import TransmissionResult, from_stored, to_stored
+from continuum_vs_network.scenes.results import from_stored, to_stored
+from continuum_vs_network.scenes.results.physics import TransmissionResult
 from continuum_vs_network.scenes.store import _read_unit, _save_unit
 from continuum_vs_network.scenes.units import Unit, UnitResult
 

@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .results import FiniteElementResult, IntegratorResult
+from .results.accuracy import FiniteElementResult, IntegratorResult
 from .schema import Scene
 from .timing import single_threaded
 from .units import Unit, UnitContext

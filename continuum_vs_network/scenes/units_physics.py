@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .results import RelaxationResult, TransmissionResult
+from .results.physics import RelaxationResult, TransmissionResult
 from .schema import Scene
 from .units import Unit, UnitContext
 

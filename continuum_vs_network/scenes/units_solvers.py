@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .results import SolverResult
+from .results.solvers import SolverResult
 from .schema import Scene
 from .timing import single_threaded
 from .units import Unit, UnitContext

@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from .results import EquilibriumCaseResult, LockingResult, StepResult, StiffLearningResult
+from .results.stability import EquilibriumCaseResult, LockingResult, StepResult, StiffLearningResult
 from .schema import Scene
 from .timing import single_threaded
 from .units import Unit, UnitContext

@@ -12,7 +12,8 @@ import math
 import numpy as np
 
 from ...fits import power_law
-from ...scenes.results import FiniteElementResult, IntegratorResult, from_stored
+from ...scenes.results import from_stored
+from ...scenes.results.accuracy import FiniteElementResult, IntegratorResult
 from ..document import Document, fmt
 from ..figures import COLORS, Panel, Series
 from ..findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ...fits import against, power_law
-from ...scenes.results import RelaxationResult, from_stored
+from ...scenes.results import from_stored
+from ...scenes.results.physics import RelaxationResult
 from ..document import (
     Document,
     fmt,

@@ -7,7 +7,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from ...scenes.results import SolverResult, from_stored
+from ...scenes.results import from_stored
+from ...scenes.results.solvers import SolverResult
 from ..document import (
     Document,
     fmt,

@@ -12,12 +12,12 @@ import math
 
 import numpy as np
 
-from ...scenes.results import (
+from ...scenes.results import from_stored
+from ...scenes.results.stability import (
     EquilibriumCaseResult,
     LockingResult,
     StepResult,
     StiffLearningResult,
-    from_stored,
 )
 from ..document import Document, fmt
 from ..figures import heatmap

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...scenes.results import TransmissionResult, from_stored
+from ...scenes.results import from_stored
+from ...scenes.results.physics import TransmissionResult
 from ..document import (
     Document,
     above,

@@ -1,0 +1,80 @@
+"""Typed unit results: a unit returns a frozen dataclass, a report section reads it back.
+
+One codec for every result class. A result is a frozen dataclass whose fields hold plain
+values (numbers, strings, lists: the unit's JSON record), arrays (annotated ``np.ndarray``:
+the unit's ``.npz`` payload) or, in one field named ``fields``, a mapping of further
+arrays whose names carry a ``/`` (``"net/x"``, ``"cont/strain"``: what mesh export reads).
+Each is stored under the field's name, or under ``field(metadata={"stored": name})``
+(an array and a record value may share a stored name). A field with a default may be
+absent from a stored unit (a continuum part a scene leaves out). The stored layout is the
+one untyped units write, so results computed before a kind was typed read back as its
+class.
+
+    arrays, meta = to_stored(TransmissionResult(...))   # what the store writes
+    result = from_stored(unit, TransmissionResult)      # what a section reads
+
+The result classes live in one module per kind: :mod:`.physics` (transmission,
+relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any, TypeVar
+
+import numpy as np
+
+from ..units import UnitResult
+
+__all__ = ["from_stored", "is_result", "to_stored"]
+
+T = TypeVar("T")
+
+
+def is_result(output: Any) -> bool:
+    """True for an instance of a result dataclass (not a class, not a History)."""
+    return dataclasses.is_dataclass(output) and not isinstance(output, type)
+
+
+def _stored(f: dataclasses.Field) -> tuple[str, bool]:
+    """A field's stored name and whether it is an array (in the payload, not the record)."""
+    kind = str(f.type)
+    return f.metadata.get("stored", f.name), "ndarray" in kind and "Mapping" not in kind
+
+
+def to_stored(result: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """``(arrays, meta)`` of a result dataclass: array fields and the ``fields`` mapping
+    to ``arrays``, every other field to ``meta``; fields left at None are not stored."""
+    arrays: dict[str, np.ndarray] = {}
+    meta: dict[str, Any] = {}
+    for f in dataclasses.fields(result):
+        value = getattr(result, f.name)
+        name, is_array = _stored(f)
+        if value is None:
+            continue
+        if f.name == "fields":
+            arrays.update(value)
+        elif is_array:
+            arrays[name] = np.asarray(value)
+        else:
+            meta[name] = value
+    return arrays, meta
+
+
+def from_stored(unit: UnitResult, cls: type[T]) -> T:
+    """``unit``'s arrays and record read as ``cls`` (a result dataclass).
+
+    Raises KeyError naming the unit and the field when a field without a default is not
+    stored (a result of another kind, or of an older layout).
+    """
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        name, is_array = _stored(f)
+        stored = unit.arrays if is_array else unit.meta
+        if f.name == "fields":
+            values["fields"] = {k: v for k, v in unit.arrays.items() if "/" in k}
+        elif name in stored:
+            values[f.name] = stored[name]
+        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+            raise KeyError(f"unit {unit.key!r} stores no {name!r} for {cls.__name__}")
+    return cls(**values)
