@@ -70,25 +70,24 @@ def test_an_unknown_rule_and_a_foreign_table_are_rejected():
 
 
 def _opt(feasible: bool, ratio: float):
-    return SimpleNamespace(meta={"feasible": feasible, "ratio": ratio})
+    return SimpleNamespace(feasible=feasible, ratio=ratio)
 
 
 def _train(outcome: str, ratio: float, steps_to=None):
-    meta = {
-        "outcome": outcome,
-        "ratio": ratio,
-        "rule_seconds": 1.0,
-        "contrast": 2.0,
-        "steps_to": steps_to or {"0.01": 5, "0.001": None},
-    }
-    return SimpleNamespace(meta=meta)
+    return SimpleNamespace(
+        outcome=outcome,
+        ratio=ratio,
+        rule_seconds=1.0,
+        contrast=2.0,
+        steps_to=steps_to or {"0.01": 5, "0.001": None},
+    )
 
 
 def test_an_infeasible_draw_is_flagged_and_counted_apart():
-    assert verdict({"outcome": LEARNED}, {"feasible": False, "ratio": 0.4}).startswith(
+    assert verdict(_train(LEARNED, 1e-4), _opt(False, 0.4)).startswith(
         "infeasible (optimum C/C0 = 0.4"
     )
-    assert verdict({"outcome": "not met"}, {"feasible": True, "ratio": 1e-5}) == "not met"
+    assert verdict(_train("not met", 0.5), _opt(True, 1e-5)) == "not met"
     g = Group(
         64,
         "1to1",

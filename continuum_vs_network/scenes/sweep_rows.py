@@ -53,6 +53,8 @@ def allostery_rows(result, threshold: float) -> list[dict[str, Any]]:
     ``relative_error`` is the run's final C/C0 (its rest example included); a draw whose
     bounded optimum shows it infeasible gets the outcome ``"infeasible"``.
     """
+    from .results import from_stored
+    from .results.allostery import AllosteryOptimumResult, AllosteryTrainResult
     from .units_allostery import runs
 
     scene = result.scene
@@ -64,13 +66,17 @@ def allostery_rows(result, threshold: float) -> list[dict[str, Any]]:
                 for i in range(a.draws):
                     base = f"n{n}/{task}/{dof}/draw{i}"
                     opt = result.units.get(f"allostery/opt/{base}")
-                    feasible = None if opt is None else bool(opt.meta["feasible"])
+                    feasible = (
+                        None
+                        if opt is None
+                        else bool(from_stored(opt, AllosteryOptimumResult).feasible)
+                    )
                     for run in runs(scene):
                         u = result.units[f"allostery/train/{base}/{run.name}"]
-                        m = u.meta
-                        r = np.asarray(u.arrays["error"], dtype=float)
+                        m = from_stored(u, AllosteryTrainResult)
+                        r = np.asarray(m.error, dtype=float)
                         r = r / r[0] if r[0] > 0 else r * np.nan
-                        below = np.flatnonzero(r[: m["completed"] + 1] <= threshold)
+                        below = np.flatnonzero(r[: m.completed + 1] <= threshold)
                         rows.append(
                             {
                                 "solver": "newton",
@@ -79,20 +85,20 @@ def allostery_rows(result, threshold: float) -> list[dict[str, Any]]:
                                 "trial": i,
                                 "seed": int(scene.seed),
                                 "strain_reference": "initial",
-                                "initial_error": _finite(u.arrays["error"][0]),
-                                "final_error": _finite(u.arrays["error"][m["completed"]]),
-                                "relative_error": _finite(m["ratio"]),
+                                "initial_error": _finite(m.error[0]),
+                                "final_error": _finite(m.error[m.completed]),
+                                "relative_error": _finite(m.ratio),
                                 "steps_to_threshold": int(below[0]) if below.size else None,
-                                "completed": int(m["completed"]),
-                                "stop_reason": m["stop_reason"],
+                                "completed": int(m.completed),
+                                "stop_reason": m.stop_reason,
                                 "wall_seconds": float(u.seconds),
                                 "solves": None,
                                 "iterations": None,
                                 "factorisations": None,
                                 "max_residual": None,
-                                "source_share": _finite(m["share"]),
-                                "coupling": m["coupling"],
-                                "outcome": "infeasible" if feasible is False else m["outcome"],
+                                "source_share": _finite(m.share),
+                                "coupling": m.coupling,
+                                "outcome": "infeasible" if feasible is False else m.outcome,
                             }
                         )
     return rows

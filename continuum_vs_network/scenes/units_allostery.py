@@ -37,6 +37,11 @@ from typing import Any
 import numpy as np
 
 from ..learning.metrics import first_below
+from .results.allostery import (
+    AllosteryOptimumResult,
+    AllosteryTrainResult,
+    FeasibilityMapResult,
+)
 from .schema import Scene
 from .units import Unit, UnitContext
 
@@ -239,7 +244,7 @@ def contrast(k0, k, mask) -> float:
     return float(np.max(r) / np.min(r)) if r.size else 1.0
 
 
-def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict[str, Any]]:
+def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> AllosteryTrainResult:
     """One rule on one draw (see the module)."""
     from ..learning import measure_coupling, train
     from ..learning.coupling import outcome
@@ -273,40 +278,37 @@ def train_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict
     mask = rule.learning_mask(net, task)
     seconds = np.asarray(h.seconds[0], dtype=float)
     measured = np.asarray(h.data["measure_seconds"][0], dtype=float)
-    arrays = {
-        "error": e,
-        "seconds": seconds,
-        "rule_seconds": seconds - measured,
-        "sweep": sweep,
-        "positions": net.positions,
-        "springs": net.springs,
-        "k0": net.stiffness,
-        "k": final.stiffness,
-        "L0": net.rest_length,
-        "L": final.rest_length,
-        "sources": task.sources,
-        "targets": task.targets,
-    }
-    meta = {
-        "ratio": ratio,
-        "floor": _floor(r, done),
-        "noise": noise,
-        "eta": getattr(rule, "eta", float("nan")),
-        "steps": steps,
-        "completed": int(h.completed[0]),
-        "stop_reason": h.stop_reason[0],
-        "steps_to": {f"{lv:g}": first_below(r, lv) for lv in LEVELS},
-        "share": share,
-        "coupling": verdict,
-        "outcome": outcome(ratio, None if verdict == "not measured" else verdict),
-        "contrast": contrast(net.stiffness, final.stiffness, mask),
-        "seconds": float(np.nanmax(seconds)),
-        "rule_seconds": float(np.nanmax(seconds - measured)),
-        "n_nodes": int(net.n_nodes),
-        "n_springs": int(net.n_springs),
-        "task_ratio": float(task.target_strain[0] / task.source_strain[0]),
-    }
-    return arrays, meta
+    return AllosteryTrainResult(
+        error=e,
+        seconds_trace=seconds,
+        rule_seconds_trace=seconds - measured,
+        sweep=sweep,
+        positions=net.positions,
+        springs=net.springs,
+        k0=net.stiffness,
+        k=final.stiffness,
+        L0=net.rest_length,
+        L=final.rest_length,
+        sources=task.sources,
+        targets=task.targets,
+        ratio=ratio,
+        floor=_floor(r, done),
+        noise=noise,
+        eta=getattr(rule, "eta", float("nan")),
+        steps=steps,
+        completed=int(h.completed[0]),
+        stop_reason=h.stop_reason[0],
+        steps_to={f"{lv:g}": first_below(r, lv) for lv in LEVELS},
+        share=share,
+        coupling=verdict,
+        outcome=outcome(ratio, None if verdict == "not measured" else verdict),
+        contrast=contrast(net.stiffness, final.stiffness, mask),
+        seconds=float(np.nanmax(seconds)),
+        rule_seconds=float(np.nanmax(seconds - measured)),
+        n_nodes=int(net.n_nodes),
+        n_springs=int(net.n_springs),
+        task_ratio=float(task.target_strain[0] / task.source_strain[0]),
+    )
 
 
 def _floor(r: np.ndarray, done: bool, fraction: float = 0.25) -> float:
@@ -318,7 +320,7 @@ def _floor(r: np.ndarray, done: bool, fraction: float = 0.25) -> float:
     return float(noise_floor(r[None, :], completed, fraction=fraction, statistic=np.median)[0])
 
 
-def optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict[str, Any]]:
+def optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> AllosteryOptimumResult:
     """The bounded optimum of one draw and the untrained network's sweep."""
     from ..learning import measure_coupling
     from ..network.equilibrium import EquilibriumError
@@ -332,28 +334,25 @@ def optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, di
         share = float(measure_coupling(net, opt.net, task, scales=SCALES).share)
     except EquilibriumError:
         share = float("nan")
-    arrays = {
-        "sweep0": c0.sweep,
-        "desired": c0.desired,
-        "rest": c0.initial_off,
-        "example_ratio": opt.example_ratio,
-    }
-    meta = {
-        "ratio": float(opt.ratio),
-        "feasible": bool(opt.ratio <= FEASIBLE),
-        "evaluations": int(opt.evaluations),
-        "iterations": int(opt.iterations),
-        "converged": bool(opt.converged),
-        "seconds": seconds,
-        "contrast": float(opt.contrast),
-        "share": share,
-        "n_nodes": int(net.n_nodes),
-        "n_springs": int(net.n_springs),
-    }
-    return arrays, meta
+    return AllosteryOptimumResult(
+        sweep0=c0.sweep,
+        desired=c0.desired,
+        rest=c0.initial_off,
+        example_ratio=opt.example_ratio,
+        ratio=float(opt.ratio),
+        feasible=bool(opt.ratio <= FEASIBLE),
+        evaluations=int(opt.evaluations),
+        iterations=int(opt.iterations),
+        converged=bool(opt.converged),
+        seconds=seconds,
+        contrast=float(opt.contrast),
+        share=share,
+        n_nodes=int(net.n_nodes),
+        n_springs=int(net.n_springs),
+    )
 
 
-def map_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict[str, Any]]:
+def map_unit(scene: Scene, params: dict, ctx: UnitContext) -> FeasibilityMapResult:
     """The feasibility map of one map draw: the optimum at every distance and ratio."""
     from ..learning.allostery import spring_distances
 
@@ -370,5 +369,6 @@ def map_unit(scene: Scene, params: dict, ctx: UnitContext) -> tuple[dict, dict[s
             out["contrast"][di, ri] = opt.contrast
             near = spring_distances(net, task.sources)[task.targets]
             out["distance"][di, ri] = float(np.min(near))
-    out["feasible"] = out["ratio"] <= FEASIBLE
-    return out, {"dof": a.dofs[0], "n_nodes": int(net.n_nodes)}
+    return FeasibilityMapResult(
+        **out, feasible=out["ratio"] <= FEASIBLE, dof=a.dofs[0], n_nodes=int(net.n_nodes)
+    )

@@ -46,9 +46,9 @@ def _rates(rules, step=None, alpha=None) -> str:
 
 def _intro(doc: Document, scene, grps) -> None:
     a = scene.allostery
-    first = {g.n: g.opt[0].meta for g in reversed(grps)}  # draw 0 of each size
+    first = {g.n: g.opt[0] for g in reversed(grps)}  # draw 0 of each size
     sizes = ", ".join(
-        f"N = {n} discs: {first[n]['n_nodes']} nodes, {first[n]['n_springs']} springs in draw 0"
+        f"N = {n} discs: {first[n].n_nodes} nodes, {first[n].n_springs} springs in draw 0"
         for n in a.n_nodes
     )
     dz = "" if a.dz is None else f", pruned to Z = Z_iso + {a.dz:g}"
@@ -221,8 +221,8 @@ def _group(doc: Document, scene, g) -> None:
         [
             [
                 i,
-                f"{g.train[a.rules[0]][i].meta['task_ratio']:+.2g}",
-                fmt(g.opt[i].meta["ratio"], 2),
+                f"{g.train[a.rules[0]][i].task_ratio:+.2g}",
+                fmt(g.opt[i].ratio, 2),
                 *(t.verdicts[i] for t in tallies),
             ]
             for i in range(o["draws"])
@@ -287,11 +287,11 @@ def _render(doc: Document, g, rules, tallies) -> None:
     rule, i = pick
     u = g.train[rule][i]
     path = doc.folder / f"fig_allostery_n{g.n}_{g.task}_{g.dof}_render.png"
-    title = f"{RULE_NAMES[rule]}, draw {i}: {g.train[rule][i].meta['outcome']}"
+    title = f"{RULE_NAMES[rule]}, draw {i}: {u.outcome}"
     doc.image(
         render(u, path, title, doc.dpi),
         f"Trained network ({RULE_NAMES[rule]}, draw {i}, ratio "
-        f"{u.meta['task_ratio']:+.2g}, final C/C0 {fmt(u.meta['ratio'], 2)}): springs "
+        f"{u.task_ratio:+.2g}, final C/C0 {fmt(u.ratio, 2)}): springs "
         "coloured by their learned change log10(k/k0) (red stiffer, blue softer), "
         "source green, target black.",
     )

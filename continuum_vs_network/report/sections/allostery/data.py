@@ -12,6 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ....scenes.results import from_stored
+from ....scenes.results.allostery import (
+    AllosteryOptimumResult,
+    AllosteryTrainResult,
+    FeasibilityMapResult,
+)
 from ....scenes.units_allostery import LEVELS, Run, runs
 from ...document import quiet
 
@@ -35,25 +41,25 @@ LEARNED = "learned (coupled)"
 RULE_NAMES = {"gcl": "GCL", "exact": "exact gradient", "gpc": "GPC", "aging": "directed aging"}
 
 
-def verdict(train_meta, opt_meta) -> str:
+def verdict(run: AllosteryTrainResult, opt: AllosteryOptimumResult | None) -> str:
     """The verdict of one rule on one draw: ``"infeasible (optimum C/C0 = x)"`` when the
     optimum (None: not computed) shows the draw infeasible, else the rule's outcome
     (coupling vocabulary)."""
-    if opt_meta is not None and not opt_meta["feasible"]:
-        return f"infeasible (optimum C/C0 = {opt_meta['ratio']:.2g})"
-    return str(train_meta["outcome"])
+    if opt is not None and not opt.feasible:
+        return f"infeasible (optimum C/C0 = {opt.ratio:.2g})"
+    return str(run.outcome)
 
 
 @dataclass(frozen=True)
 class Group:
-    """The units of one (size, task, dof): ``opt[i]`` the optimum unit of draw ``i``,
-    ``train[rule][i]`` the rule's unit of draw ``i``."""
+    """The results of one (size, task, dof): ``opt[i]`` the optimum of draw ``i``,
+    ``train[rule][i]`` the rule's run on draw ``i``."""
 
     n: int
     task: str
     dof: str
-    opt: list
-    train: dict[str, list]
+    opt: list[AllosteryOptimumResult]
+    train: dict[str, list[AllosteryTrainResult]]
     runs: dict[str, Run] = field(default_factory=dict)
 
     @property
@@ -66,7 +72,7 @@ class Group:
         no optimum: then nothing is known to be infeasible)."""
         if not self.opt:
             return [True] * len(next(iter(self.train.values())))
-        return [bool(u.meta["feasible"]) for u in self.opt]
+        return [bool(o.feasible) for o in self.opt]
 
 
 def groups(scene, units) -> list[Group]:
@@ -77,9 +83,19 @@ def groups(scene, units) -> list[Group]:
         for task in a.tasks:
             for dof in a.dofs:
                 base = f"allostery/%s/n{n}/{task}/{dof}/draw"
-                opt = [units[f"{base % 'opt'}{i}"] for i in range(a.draws)] if a.optimum else []
+                opt = [
+                    from_stored(units[f"{base % 'opt'}{i}"], AllosteryOptimumResult)
+                    for i in range(a.draws)
+                    if a.optimum
+                ]
                 rs = {r.name: r for r in runs(scene)}
-                train = {r: [units[f"{base % 'train'}{i}/{r}"] for i in range(a.draws)] for r in rs}
+                train = {
+                    r: [
+                        from_stored(units[f"{base % 'train'}{i}/{r}"], AllosteryTrainResult)
+                        for i in range(a.draws)
+                    ]
+                    for r in rs
+                }
                 out.append(Group(n, task, dof, opt, train, rs))
     return out
 
@@ -120,11 +136,11 @@ def tally(group: Group, rule: str) -> Tally:
     units = group.train[rule]
     ok = group.feasible
     opts = group.opt or [None] * len(units)
-    verdicts = [verdict(u.meta, o and o.meta) for u, o in zip(units, opts, strict=True)]
+    verdicts = [verdict(u, o) for u, o in zip(units, opts, strict=True)]
     good = [u for u, f in zip(units, ok, strict=True) if f]
     steps_to, reached = {}, {}
     for level in LEVELS:
-        hits = [u.meta["steps_to"][f"{level:g}"] for u in good]
+        hits = [u.steps_to[f"{level:g}"] for u in good]
         hits = [h for h in hits if h is not None]
         steps_to[f"{level:g}"] = nan_median(hits)
         reached[f"{level:g}"] = len(hits)
@@ -134,24 +150,24 @@ def tally(group: Group, rule: str) -> Tally:
         feasible=sum(ok),
         learned=sum(v == LEARNED for v in verdicts),
         verdicts=verdicts,
-        ratio=nan_median([u.meta["ratio"] for u in good]),
+        ratio=nan_median([u.ratio for u in good]),
         steps_to=steps_to,
         reached=reached,
-        seconds=nan_median([u.meta["rule_seconds"] for u in good]),
-        contrast=nan_median([u.meta["contrast"] for u in good]),
+        seconds=nan_median([u.rule_seconds for u in good]),
+        contrast=nan_median([u.contrast for u in good]),
     )
 
 
 def optimum_summary(group: Group) -> dict[str, float]:
     """Medians of the optimum over the draws: C/C0, evaluations, seconds, contrast; counts."""
-    o = [u.meta for u in group.opt]
+    o = group.opt
     return {
         "feasible": sum(group.feasible),
         "draws": len(o),
-        "ratio": nan_median([m["ratio"] for m in o]),
-        "evaluations": nan_median([m["evaluations"] for m in o]),
-        "seconds": nan_median([m["seconds"] for m in o]),
-        "contrast": nan_median([m["contrast"] for m in o]),
+        "ratio": nan_median([m.ratio for m in o]),
+        "evaluations": nan_median([m.evaluations for m in o]),
+        "seconds": nan_median([m.seconds for m in o]),
+        "contrast": nan_median([m.contrast for m in o]),
     }
 
 
@@ -162,9 +178,10 @@ def feasibility_map(scene, units, n: int, task: str) -> dict[str, np.ndarray] | 
     keys = [f"allostery/map/n{n}/{task}/draw{j}" for j in range(a.map_draws)]
     if not keys or not a.map_distances or not a.map_ratios:
         return None
-    feasible = np.stack([np.asarray(units[k].arrays["feasible"], dtype=float) for k in keys])
-    dist = np.stack([np.asarray(units[k].arrays["distance"], dtype=float) for k in keys])
-    ratio = np.stack([np.asarray(units[k].arrays["ratio"], dtype=float) for k in keys])
+    maps = [from_stored(units[k], FeasibilityMapResult) for k in keys]
+    feasible = np.stack([np.asarray(m.feasible, dtype=float) for m in maps])
+    dist = np.stack([np.asarray(m.distance, dtype=float) for m in maps])
+    ratio = np.stack([np.asarray(m.ratio, dtype=float) for m in maps])
     return {
         "share": feasible.mean(axis=0),
         "distance": quiet(np.nanmedian, dist, axis=0),

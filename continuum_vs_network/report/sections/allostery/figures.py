@@ -40,8 +40,9 @@ def map_panel(fmap: dict, scene, title: str) -> Panel:
 
 
 def _curve(u, x_key: str) -> tuple[np.ndarray, np.ndarray]:
-    e = np.asarray(u.arrays["error"], dtype=float)
-    x = np.arange(e.size, dtype=float) if x_key == "steps" else np.asarray(u.arrays[x_key])
+    """C/C0 of a run against its steps (``x_key`` "steps") or a trace of it."""
+    e = np.asarray(u.error, dtype=float)
+    x = np.arange(e.size, dtype=float) if x_key == "steps" else np.asarray(getattr(u, x_key))
     return x, e / e[0]
 
 
@@ -57,7 +58,7 @@ def curve_panels(group: Group, rules, opt_ratio: float) -> list[Panel]:
     """C/C0 against steps (first row) and against the rule's own seconds (second row): one
     thin line per feasible draw and rule, the median bold, the optimum's median dashed."""
     panels = []
-    for x_key, label in (("steps", "learning step"), ("rule_seconds", "wall-clock time (s)")):
+    for x_key, label in (("steps", "learning step"), ("rule_seconds_trace", "wall-clock time (s)")):
         series, xmax, xmin = [], 1.0, np.inf
         for r, rule in enumerate(rules):
             color = COLORS[r % len(COLORS)]
@@ -116,12 +117,12 @@ def sweep_panels(group: Group, rules) -> list[Panel]:
         for u, o, ok in zip(group.train[rule], group.opt, group.feasible, strict=True):
             if not ok:
                 continue
-            rest, desired = np.asarray(o.arrays["rest"]), np.asarray(o.arrays["desired"])
+            rest, desired = np.asarray(o.rest), np.asarray(o.desired)
             first = not series
             series.append(
                 Series(
                     lam,
-                    _normalised(o.arrays["sweep0"], rest, desired),
+                    _normalised(o.sweep0, rest, desired),
                     "untrained" if first else "",
                     color="0.6",
                     width=0.8,
@@ -131,7 +132,7 @@ def sweep_panels(group: Group, rules) -> list[Panel]:
             series.append(
                 Series(
                     lam,
-                    _normalised(u.arrays["sweep"], rest, desired),
+                    _normalised(u.sweep, rest, desired),
                     "trained" if first else "",
                     color=COLORS[r % len(COLORS)],
                     width=1.2,
@@ -157,9 +158,8 @@ def render(unit, path: Path, title: str, dpi: int) -> Path:
     from matplotlib.colors import TwoSlopeNorm
 
     plt = _pyplot()
-    a = unit.arrays
-    pos, springs = np.asarray(a["positions"]), np.asarray(a["springs"])
-    change = np.log10(np.asarray(a["k"], dtype=float) / np.asarray(a["k0"], dtype=float))
+    pos, springs = np.asarray(unit.positions), np.asarray(unit.springs)
+    change = np.log10(np.asarray(unit.k, dtype=float) / np.asarray(unit.k0, dtype=float))
     lim = max(float(np.max(np.abs(change))), 1e-6)
     segs = pos[springs]
     fig, ax = plt.subplots(figsize=(5.6, 4.8), layout="constrained")
@@ -168,8 +168,8 @@ def render(unit, path: Path, title: str, dpi: int) -> Path:
         lc.set_array(change)
         ax.add_collection(lc)
         for idx, color, label in (
-            (a["sources"], "tab:green", "source"),
-            (a["targets"], "black", "target"),
+            (unit.sources, "tab:green", "source"),
+            (unit.targets, "black", "target"),
         ):
             ax.add_collection(
                 LineCollection(segs[np.asarray(idx)], colors=color, lw=4.0, label=label)

@@ -61,16 +61,16 @@ def _floor_points(g: Group, fams) -> tuple[dict, list[str]]:
         clean_units = g.train[by_noise[0.0]]
         clean_t = tally(g, by_noise[0.0])
         clean_verdicts += clean_t.verdicts
-        eta = runs[0].eta if runs[0].eta is not None else clean_units[0].meta["eta"]
+        eta = runs[0].eta if runs[0].eta is not None else clean_units[0].eta
         for sigma, name in by_noise.items():
             if sigma == 0:
                 continue
             for i, u in enumerate(g.train[name]):
-                if clean_t.verdicts[i] != LEARNED or not u.meta["floor"] <= SATURATED:
+                if clean_t.verdicts[i] != LEARNED or not u.floor <= SATURATED:
                     continue
                 pts["ratio"].append(sigma / eta)
-                pts["floor"].append(u.meta["floor"])
-                pts["clean"].append(clean_units[i].meta["floor"])
+                pts["floor"].append(u.floor)
+                pts["clean"].append(clean_units[i].floor)
                 pts["eta"].append(eta)
                 pts["draw"].append(i)
     return {k: np.asarray(v, dtype=float) for k, v in pts.items()}, clean_verdicts
@@ -85,9 +85,7 @@ def _table(doc: Document, g: Group, fams, sigmas) -> dict:
         for sigma in sigmas:
             t = tally(g, by_noise[sigma])
             ok = [f for f in g.feasible]
-            floors = [
-                u.meta["floor"] for u, f in zip(g.train[by_noise[sigma]], ok, strict=True) if f
-            ]
+            floors = [u.floor for u, f in zip(g.train[by_noise[sigma]], ok, strict=True) if f]
             med[fam, sigma] = nan_median(floors)
             cells.append(f"{fmt(med[fam, sigma], 2)} ({t.learned}/{t.feasible})")
         rows.append([fam, *cells])
