@@ -17,6 +17,9 @@ from continuum_vs_network.report.sections.learning import _held_note, held_at_la
 from continuum_vs_network.report.sections.learning.coupling import coupling, trial_outcomes
 from continuum_vs_network.report.verdicts.claims import MIN_STEPS, check_claims
 from continuum_vs_network.scenes.replication import paper_experiments
+from continuum_vs_network.scenes.results import to_stored
+from continuum_vs_network.scenes.results.learning import CouplingResult
+from continuum_vs_network.scenes.units import UnitResult
 
 STEPS = MIN_STEPS
 
@@ -97,15 +100,17 @@ def _coupling_result(trials: int, final: float):
     targets = 1
     scales = np.array([0.0, 0.5, 1.0, 1.5, 2.0])
     sweep = np.outer(np.ones(trials), scales)[:, :, None] * np.ones(targets)
-    unit = SimpleNamespace(
-        arrays={
-            "share": np.full(trials, 0.9),
-            "sweep": sweep,
-            "scales": scales,
-            "desired": np.ones((trials, targets)),
-        },
-        meta={"verdicts": ["coupled"] * trials},
+    measured = CouplingResult(
+        scales=scales,
+        sweep=sweep,
+        initial_off=np.zeros((trials, targets)),
+        initial_on=np.zeros((trials, targets)),
+        desired=np.ones((trials, targets)),
+        share=np.full(trials, 0.9),
+        verdicts=["coupled"] * trials,
+        failed=[],
     )
+    unit = UnitResult("coupling/paper/gcl/noise0", *to_stored(measured), 0.0)
     return SimpleNamespace(
         units={"coupling/paper/gcl/noise0": unit}, scene=SimpleNamespace(name="scene")
     )

@@ -108,6 +108,8 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
     """Table rows of a learning scene's result: one per learning run and trial (an
     allostery scene's: :func:`allostery_rows`)."""
     from ..learning.coupling import outcome
+    from .results import from_stored
+    from .results.learning import CouplingResult
 
     scene = result.scene
     if scene.kind == "allostery":
@@ -115,7 +117,8 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
     L = scene.learning
     rows = []
     for group, h in result.histories.items():
-        coupling = result.units.get(f"coupling/{group}")
+        stored = result.units.get(f"coupling/{group}")
+        coupling = None if stored is None else from_stored(stored, CouplingResult)
         solver, rule, noise_key = group.split("/")
         noise = L.noise[int(noise_key[len("noise") :])]
         err = np.asarray(h.task_error(h.strain_reference), dtype=float)
@@ -130,8 +133,8 @@ def point_rows(result, threshold: float) -> list[dict[str, Any]]:
             residual = h.data.get("residual")
             share, verdict = None, "not measured"
             if coupling is not None:
-                share = _finite(coupling.arrays["share"][k])
-                verdict = coupling.meta["verdicts"][k]
+                share = _finite(coupling.share[k])
+                verdict = coupling.verdicts[k]
             ratio = _finite(last / first) if first > 0 else None
             rows.append(
                 {

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from .results.learning import CouplingResult, FieldsResult, GradientResult, SweepsResult
 from .schema import Scene
 from .units import UnitContext
 from .units_learning_build import build_rules, task_example
@@ -23,7 +24,7 @@ from .units_learning_train import _load_frames, frames_file
 __all__ = ["coupling_unit", "feasibility_unit", "fields_unit", "gradient_unit", "sweeps_unit"]
 
 
-def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
+def coupling_unit(scene: Scene, params: dict, ctx: UnitContext) -> CouplingResult:
     """Coupling of every trial's trained network (sources on / off, a source sweep)."""
     from ..learning.coupling import SCALES, measure_coupling
     from ..network.equilibrium import EquilibriumError
@@ -55,18 +56,19 @@ def coupling_unit(scene: Scene, params: dict, ctx: UnitContext):
         sweep[i], initial_off[i], initial_on[i] = c.sweep, c.initial_off, c.initial_on
         share[i] = c.share
         verdicts.append(c.verdict)
-    arrays = {
-        "scales": np.array(SCALES),
-        "sweep": sweep,
-        "initial_off": initial_off,
-        "initial_on": initial_on,
-        "desired": desired,
-        "share": share,
-    }
-    return arrays, {"verdicts": verdicts, "failed": failed}
+    return CouplingResult(
+        scales=np.array(SCALES),
+        sweep=sweep,
+        initial_off=initial_off,
+        initial_on=initial_on,
+        desired=desired,
+        share=share,
+        verdicts=verdicts,
+        failed=failed,
+    )
 
 
-def sweeps_unit(scene: Scene, params: dict, ctx: UnitContext):
+def sweeps_unit(scene: Scene, params: dict, ctx: UnitContext) -> SweepsResult:
     """Source sweeps of every trial's final network (exact equilibria)."""
     from .replication import exact_solver, sweeps
 
@@ -76,15 +78,16 @@ def sweeps_unit(scene: Scene, params: dict, ctx: UnitContext):
     )
     desired = np.array([t.target_strain[0] for t in history.tasks])
     source = np.array([t.source_strain[0] for t in history.tasks])
-    return {
-        "source_strain": strains,
-        "target_strain": target,
-        "desired": desired,
-        "task_source": source,
-    }, {"failed": int(np.sum(np.isnan(target).all(axis=1)))}
+    return SweepsResult(
+        source_strain=strains,
+        target_strain=target,
+        desired=desired,
+        task_source=source,
+        failed=int(np.sum(np.isnan(target).all(axis=1))),
+    )
 
 
-def gradient_unit(scene: Scene, params: dict, ctx: UnitContext):
+def gradient_unit(scene: Scene, params: dict, ctx: UnitContext) -> GradientResult:
     """Cosine of the rule's step with the exact gradient step (same masks, exact states)."""
     from ..learning.metrics import cosine
     from ..learning.rules import ExactGradient, LearningError
@@ -113,7 +116,7 @@ def gradient_unit(scene: Scene, params: dict, ctx: UnitContext):
                 continue
             if np.linalg.norm(a) > 0 and np.linalg.norm(b) > 0:
                 out[i, j] = cosine(a, b)
-    return {"cosine": out}, {"rule": params["rule"], "cost": cost}
+    return GradientResult(cosine=out, rule=params["rule"], cost=cost)
 
 
 def _free_state(net, task, strain_reference: str, x0=None):
@@ -128,7 +131,7 @@ def _free_state(net, task, strain_reference: str, x0=None):
     )
 
 
-def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
+def fields_unit(scene: Scene, params: dict, ctx: UnitContext) -> FieldsResult:
     """Free states (positions) of the exported trials, and of their trajectory frames."""
     from ..network.equilibrium import EquilibriumError
 
@@ -181,7 +184,7 @@ def fields_unit(scene: Scene, params: dict, ctx: UnitContext):
                 arrays[f"t{k}/series/x"] = np.array(xs)
                 arrays[f"t{k}/series/rest_length"] = np.array(rest)
                 arrays[f"t{k}/series/stiffness"] = np.array(stiff)
-    return arrays, meta
+    return FieldsResult(trials=meta["trials"], failed=meta["failed"], fields=arrays)
 
 
 def feasibility_unit(scene: Scene, params: dict, ctx: UnitContext):

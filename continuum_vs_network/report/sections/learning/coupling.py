@@ -8,6 +8,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ....scenes.results import from_stored
+from ....scenes.results.learning import CouplingResult
 from ...document import Document, fmt, quiet
 from ...figures import COLORS, Panel, Series
 from ...findings import Finding
@@ -15,14 +17,16 @@ from ...findings import Finding
 __all__ = ["coupling", "coupling_verdicts", "trial_outcomes"]
 
 
-def _coupling_unit(result, group: str):
-    return result.units.get(f"coupling/{group}")
+def _coupling(result, group: str) -> CouplingResult | None:
+    """The coupling of a run's trials (None: not measured)."""
+    u = result.units.get(f"coupling/{group}")
+    return None if u is None else from_stored(u, CouplingResult)
 
 
 def coupling_verdicts(result, group: str) -> list[str]:
     """Per-trial coupling verdicts of a run (empty when not measured)."""
-    u = _coupling_unit(result, group)
-    return list(u.meta["verdicts"]) if u is not None else []
+    c = _coupling(result, group)
+    return list(c.verdicts) if c is not None else []
 
 
 def coupling(
@@ -77,11 +81,11 @@ def coupling(
             med = (
                 float(np.median(final[np.isfinite(final)])) if np.isfinite(final).any() else np.nan
             )
-            u = _coupling_unit(result, group)
-            if u is None:
+            c = _coupling(result, group)
+            if c is None:
                 continue
-            share = u.arrays["share"]
-            verdicts = list(u.meta["verdicts"])
+            share = c.share
+            verdicts = list(c.verdicts)
             median_share = quiet(np.nanmedian, share)
             major = coupling_verdict(median_share) if np.isfinite(median_share) else None
             ran = last_measured(hist) >= MIN_STEPS
@@ -91,7 +95,7 @@ def coupling(
                 for v in ("coupled", "partially coupled", "decoupled", "not measured")
                 if verdicts.count(v)
             )
-            sweep = u.arrays["sweep"]
+            sweep = c.sweep
             on, off = sweep[:, 2, :], sweep[:, 0, :]
             rows.append(
                 [
@@ -222,18 +226,17 @@ def trial_outcomes(final: NDArray, verdicts: list[str], *, ran: NDArray | None =
 def _sweep_figure(doc: Document, result, solver: str, names, noise_index: int) -> None:
     panels = []
     for name in names:
-        u = _coupling_unit(result, f"{solver}/{name}/noise{noise_index}")
-        if u is None:
+        c = _coupling(result, f"{solver}/{name}/noise{noise_index}")
+        if c is None:
             continue
-        a = u.arrays
-        scales, sweep = a["scales"], a["sweep"]
+        scales, sweep = c.scales, c.sweep
         series = []
         for i in range(sweep.shape[0]):
             for t in range(sweep.shape[2]):
                 series.append(
                     Series(
                         scales,
-                        sweep[i, :, t] - a["desired"][i, t],
+                        sweep[i, :, t] - c.desired[i, t],
                         "trained" if i == t == 0 else "",
                         marker="o",
                         width=1.0,

@@ -9,6 +9,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
+from ....scenes.results import from_stored
+from ....scenes.results.learning import GradientResult, SweepsResult
 from ...document import (
     Document,
     fmt,
@@ -29,19 +31,18 @@ def sweeps(doc: Document, result, solver: str) -> None:
         "met task's curve passes)."
     )
     for rule in result.scene.learning.rules:
-        u = result.units[f"sweeps/{solver}/{rule}"]
-        a = u.arrays
+        sw = from_stored(result.units[f"sweeps/{solver}/{rule}"], SweepsResult)
         panels = []
-        for i in range(a["source_strain"].shape[0]):
-            s, t = a["source_strain"][i], a["target_strain"][i]
+        for i in range(sw.source_strain.shape[0]):
+            s, t = sw.source_strain[i], sw.target_strain[i]
             panels.append(
                 Panel(
                     [
                         Series(s, t, "network", marker="o"),
-                        Series(s, np.full_like(s, a["desired"][i]), "decoupled", style="--"),
+                        Series(s, np.full_like(s, sw.desired[i]), "decoupled", style="--"),
                         Series(
-                            [a["task_source"][i]],
-                            [a["desired"][i]],
+                            [sw.task_source[i]],
+                            [sw.desired[i]],
                             "task",
                             style="",
                             marker="o",
@@ -73,8 +74,9 @@ def gradient(doc: Document, result, h) -> None:
     )
     rows = []
     for u in result.select("gradient/").values():
-        c = u.arrays["cosine"]
-        rows.append([u.meta["rule"], _cos_text(c[:, 0]), _cos_text(c[:, 1]), u.meta["cost"]])
+        g = from_stored(u, GradientResult)
+        c = g.cosine
+        rows.append([g.rule, _cos_text(c[:, 0]), _cos_text(c[:, 1]), g.cost])
     doc.table(
         [
             "rule",
