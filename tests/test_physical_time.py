@@ -23,6 +23,8 @@ from continuum_vs_network.learning.physical_time import (
 )
 from continuum_vs_network.network.dynamics import simulate_viscous
 from continuum_vs_network.network.viscous import Viscosity
+from continuum_vs_network.scenes.results import from_stored
+from continuum_vs_network.scenes.results.physical_time import TimeRunResult, TimeTaskResult
 from continuum_vs_network.scenes.units_time import critical_bracket, crossing_time, rebound
 
 BULK = {"strain_reference": "initial", "learn_sources": False, "learn_targets": False}
@@ -283,19 +285,17 @@ def test_physical_time_scene_runs_and_judges(tmp_path):
         "physical_time/n6/d0/gpc",
         "physical_time/n6/d0/task",
     ]
-    for u in (u for u in units.values() if u.meta["kind"] == "run"):
-        assert u.meta["tau"] > 0
-        for r in u.meta["runs"]:
+    runs = {k: from_stored(u, TimeRunResult) for k, u in units.items() if not k.endswith("/task")}
+    for u in runs.values():
+        assert u.tau > 0
+        for r in u.runs:
             # at the smallest ratio the run is quasi-static to a few percent
             if r["ratio"] == 0.3:
                 assert abs(r["error_at_qs_end"] - r["error_qs_end"]) < 0.05
     # two draws of one size: two tasks on the same lattice, each with its own tau
-    d0, d1 = (units[f"physical_time/n5/d{d}/task"] for d in (0, 1))
-    assert not (
-        np.array_equal(d0.arrays["sources"], d1.arrays["sources"])
-        and np.array_equal(d0.arrays["targets"], d1.arrays["targets"])
-    )
-    assert units["physical_time/n5/d1/gpc"].meta["tau"] == d1.meta["network"]["tau"] > 0
+    d0, d1 = (from_stored(units[f"physical_time/n5/d{d}/task"], TimeTaskResult) for d in (0, 1))
+    assert not (np.array_equal(d0.sources, d1.sources) and np.array_equal(d0.targets, d1.targets))
+    assert runs["physical_time/n5/d1/gpc"].tau == d1.network["tau"] > 0
     path = write_report(result, tmp_path / "report", render=False)
     text = path.read_text()
     assert "N = 25: 2, N = 36: 1" in text and "Fewer draws at N = 36" in text

@@ -94,6 +94,8 @@ def test_physical_time_scene_exports_the_continuum_series(tmp_path):
 
     from continuum_vs_network.io.export import read_series_index
     from continuum_vs_network.scenes.meshes import export_meshes
+    from continuum_vs_network.scenes.results import from_stored
+    from continuum_vs_network.scenes.results.physical_time import TimeRunResult
     from continuum_vs_network.scenes.runner import run_scene
 
     scene = tiny_physical_time(
@@ -101,8 +103,12 @@ def test_physical_time_scene_exports_the_continuum_series(tmp_path):
         arm_stiffness=0.5, arm_dashpot=2.0, frames=4, series=True,
     )  # fmt: skip
     result = run_scene(scene, tmp_path / "results")
-    (unit,) = [u for u in result.select("physical_time/").values() if u.meta["kind"] == "run"]
-    a = unit.arrays
+    (unit,) = [
+        from_stored(u, TimeRunResult)
+        for k, u in result.select("physical_time/").items()
+        if not k.endswith("/task")
+    ]
+    a = unit.fields
     written = export_meshes(result, tmp_path / "meshes")
     (index,) = [p for p in written if p.name == "gpc_n5_continuum_physical_time.pvd"]
     frames = read_series_index(index)
@@ -112,4 +118,4 @@ def test_physical_time_scene_exports_the_continuum_series(tmp_path):
     np.testing.assert_allclose(
         last.point_data["displacement"][:, :2], a["series/x"][-1] - a["body/points"]
     )
-    assert a["series/times"][-1] == pytest.approx(unit.meta["runs"][0]["duration"])
+    assert a["series/times"][-1] == pytest.approx(unit.runs[0]["duration"])

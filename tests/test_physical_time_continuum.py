@@ -183,6 +183,8 @@ def test_continuum_scene_bisects_the_critical_ratio(tmp_path):
     pytest.importorskip("matplotlib")
 
     from continuum_vs_network.report.writer import write_report
+    from continuum_vs_network.scenes.results import from_stored
+    from continuum_vs_network.scenes.results.physical_time import TimeRunResult
     from continuum_vs_network.scenes.runner import run_scene
     from continuum_vs_network.scenes.units_time import OSCILLATION, SLOWDOWN
 
@@ -191,17 +193,20 @@ def test_continuum_scene_bisects_the_critical_ratio(tmp_path):
         bisections=3, relaxation_times=1.5, learning_times=3.0,
     )  # fmt: skip
     result = run_scene(scene, tmp_path / "results")
-    (unit,) = [u for u in result.select("physical_time/").values() if u.meta["kind"] == "run"]
-    m = unit.meta
-    assert m["medium"] == "continuum" and m["tau"] > 0
-    assert len(m["bisection"]) == 3
-    rows = sorted(m["runs"] + m["bisection"], key=lambda r: r["ratio"])
+    (m,) = [
+        from_stored(u, TimeRunResult)
+        for k, u in result.select("physical_time/").items()
+        if not k.endswith("/task")
+    ]
+    assert m.medium == "continuum" and m.tau > 0
+    assert len(m.bisection) == 3
+    rows = sorted(m.runs + m.bisection, key=lambda r: r["ratio"])
     past = [r["slowdown"] >= SLOWDOWN or r["rebound"] >= OSCILLATION for r in rows]
     # the bracket rule: lo the largest ratio run not past, hi the next; all above hi past
     j = max(i for i, p in enumerate(past) if not p)
-    assert (m["critical_low"], m["critical_high"]) == (rows[j]["ratio"], rows[j + 1]["ratio"])
+    assert (m.critical_low, m.critical_high) == (rows[j]["ratio"], rows[j + 1]["ratio"])
     assert all(past[j + 1 :])
-    assert m["critical_low"] < m["critical_ratio"] < m["critical_high"]
-    assert m["critical_high"] / m["critical_low"] < (100 / 0.3) ** (1 / 8) * 1.0001
+    assert m.critical_low < m.critical_ratio < m.critical_high
+    assert m.critical_high / m.critical_low < (100 / 0.3) ** (1 / 8) * 1.0001
     text = write_report(result, tmp_path / "report", render=False).read_text()
     assert "GCL, twin continua" in text

@@ -6,6 +6,7 @@ when no size or draw is decoupled."""
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -25,6 +26,8 @@ from continuum_vs_network.report.document import Document
 from continuum_vs_network.report.findings import NOT_COMPARABLE
 from continuum_vs_network.report.sections.physical_time.findings import _findings
 from continuum_vs_network.report.sections.physical_time.runs import _by_rule
+from continuum_vs_network.scenes.results import from_stored
+from continuum_vs_network.scenes.results.physical_time import TimeRunResult, TimeTaskResult
 from continuum_vs_network.scenes.runner import run_scene
 from continuum_vs_network.scenes.units_physics import lattice
 from continuum_vs_network.scenes.units_time_coupling import final_coupling
@@ -36,13 +39,13 @@ def _run(tmp_path, media):
         relaxation_times=1.0, learning_times=3.0,
     )  # fmt: skip
     result = run_scene(scene, tmp_path / "results")
-    stored = result.select("physical_time/n5/d0/task")["physical_time/n5/d0/task"].arrays
+    units = result.select("physical_time/")
+    t = from_stored(units["physical_time/n5/d0/task"], TimeTaskResult)
     net = lattice(scene, 5)
     task = AllosteryTask.create(
-        net, stored["sources"], stored["source_strain"], stored["targets"],
-        stored["target_strain"], pinned=stored["pinned"],
-    )  # fmt: skip
-    runs = [u for u in result.select("physical_time/").values() if u.meta["kind"] == "run"]
+        net, t.sources, t.source_strain, t.targets, t.target_strain, pinned=t.pinned
+    )
+    runs = [from_stored(u, TimeRunResult) for k, u in units.items() if not k.endswith("/task")]
     return scene, result, net, task, runs
 
 
@@ -78,13 +81,12 @@ def test_final_share_tells_a_trivial_network_from_an_untrained_one():
 def test_network_unit_carries_the_coupling_of_its_final_learned_network(network_scene):
     _, _, net, task, runs = network_scene
     off = task.with_source_strain(np.zeros(task.n_sources))
-    assert {u.meta["rule"] for u in runs} == {"gpc", "gcl"}
-    for u in runs:
-        m = u.meta
-        every = m["runs"] + m["bisection"]
+    assert {u.rule for u in runs} == {"gpc", "gcl"}
+    for m in runs:
+        every = m.runs + m.bisection
         assert not any(r["diverged"] for r in every)
-        for i, row in enumerate(m["runs"]):
-            rest, stiff = u.arrays[f"r{i}/rest_length"], u.arrays[f"r{i}/stiffness"]
+        for i, row in enumerate(m.runs):
+            rest, stiff = m.fields[f"r{i}/rest_length"], m.fields[f"r{i}/stiffness"]
             assert np.max(np.abs(rest - net.rest_length)) > 1e-6  # it learned something
             trained = net.with_rest_length(rest).with_stiffness(stiff)
             on, base_on = _held_strains(trained, task), _held_strains(net, task)
@@ -94,13 +96,13 @@ def test_network_unit_carries_the_coupling_of_its_final_learned_network(network_
             # the measured states are the run's: Eq. 26 at them is the run's first and last
             # recorded error
             desired = task.target_strain
-            assert m["error0"] == pytest.approx(0.5 * np.sum((base_on - desired) ** 2), rel=1e-8)
-            final = m["error0"] * u.arrays[f"r{i}/error"][-1]
+            assert m.error0 == pytest.approx(0.5 * np.sum((base_on - desired) ** 2), rel=1e-8)
+            final = m.error0 * m.fields[f"r{i}/error"][-1]
             assert 0.5 * np.sum((on - desired) ** 2) == pytest.approx(final, rel=1e-5)
             # length clamps (measure_coupling, another boundary condition) agree on the verdict
             assert measure_coupling(net, trained, task).verdict == row["coupling"]
         share = min(r["source_share"] for r in every)
-        assert m["source_share"] == share and m["coupling"] == coupling_verdict(share)
+        assert m.source_share == share and m.coupling == coupling_verdict(share)
 
 
 def test_learning_speed_findings_are_judged_only_without_decoupled_units(network_scene, tmp_path):
@@ -117,7 +119,7 @@ def test_learning_speed_findings_are_judged_only_without_decoupled_units(network
     measured = verdicts(rules)
     for name, units in rules.items():
         claims = [f for f in measured if name.upper() in f.claim]
-        decoupled = sum(u.meta["coupling"] == "decoupled" for u in units)
+        decoupled = sum(u.coupling == "decoupled" for u in units)
         for f in claims:
             assert (f.verdict == NOT_COMPARABLE) == (decoupled > 0)
             if decoupled:
@@ -126,8 +128,7 @@ def test_learning_speed_findings_are_judged_only_without_decoupled_units(network
     # the same units relabelled: decoupled -> not comparable, coupled -> judged
     for label, comparable in (("decoupled", False), ("coupled", True)):
         relabelled = {
-            k: [SimpleNamespace(meta={**u.meta, "coupling": label}) for u in v]
-            for k, v in rules.items()
+            k: [dataclasses.replace(u, coupling=label) for u in v] for k, v in rules.items()
         }
         for f in verdicts(relabelled):
             assert (f.verdict != NOT_COMPARABLE) == comparable, (label, f.claim)
@@ -141,27 +142,26 @@ def test_continuum_unit_carries_the_source_share_of_its_final_learned_body(tmp_p
     _, _, net, task, runs = _run(tmp_path, ["continuum"])
     body, mtask = _body(net, task)
     assert body_source_share(body, body, mtask) == pytest.approx(1.0)  # untrained
-    for u in runs:
-        m = u.meta
-        assert m["medium"] == "continuum"
-        for i, row in enumerate(m["runs"]):
-            field = u.arrays[f"r{i}/rest_length"]
+    for m in runs:
+        assert m.medium == "continuum"
+        for i, row in enumerate(m.runs):
+            field = m.fields[f"r{i}/rest_length"]
             assert field.shape == body.eigenstrain.shape and np.any(field != 0)
-            trained = body.with_eigenstrain(field).with_modulus(u.arrays[f"r{i}/stiffness"])
+            trained = body.with_eigenstrain(field).with_modulus(m.fields[f"r{i}/stiffness"])
             share = body_source_share(body, trained, mtask)
             assert row["source_share"] == pytest.approx(share, abs=1e-12)
             final = mtask.error(trained.free_state(mtask).target_strain)
-            assert final == pytest.approx(m["error0"] * u.arrays[f"r{i}/error"][-1], rel=1e-6)
-        every = m["runs"] + m["bisection"]
+            assert final == pytest.approx(m.error0 * m.fields[f"r{i}/error"][-1], rel=1e-6)
+        every = m.runs + m.bisection
         share = min(r["source_share"] for r in every if r["source_share"] is not None)
-        assert m["coupling"] == coupling_verdict(share)
+        assert m.coupling == coupling_verdict(share)
 
 
 def test_the_report_opens_with_the_measured_coupling_of_every_unit():
     from continuum_vs_network.report.sections.physical_time import _coupling_summary
 
     def unit(verdict, share):
-        return SimpleNamespace(meta={"coupling": verdict, "source_share": share})
+        return SimpleNamespace(coupling=verdict, source_share=share)
 
     text = _coupling_summary({"gcl": [unit("decoupled", 0.0), unit("decoupled", 2e-4)]})
     assert "2 of 2 decoupled, shares 0 to 0.0002" in text and "not comparable" in text

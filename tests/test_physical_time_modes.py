@@ -4,7 +4,6 @@ and their report part (report/sections/physical_time/modes.py)."""
 from __future__ import annotations
 
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -16,6 +15,7 @@ from continuum_vs_network.learning.physical_time import network_relaxation_time
 from continuum_vs_network.network.energy import hessian
 from continuum_vs_network.network.viscous import Viscosity
 from continuum_vs_network.scenes import units_time_modes as um
+from continuum_vs_network.scenes.results.physical_time import TimeTaskResult
 from continuum_vs_network.scenes.units_time import _body, _lattice_task
 
 DRAG = Viscosity(drag=1.0)
@@ -116,14 +116,18 @@ def _unit(n, draw, tau_net, tau_body, mode_net, mode_body, edges):
         "cancellation": 5.0,
     }
     body = {**modes, "tau_mode": mode_body, "tau_modal": tau_body}
-    return SimpleNamespace(
-        meta={
-            "n": n,
-            "n_nodes": n * n,
-            "draw": draw,
-            "network": {"tau": tau_net, "tau_force": 1.0, "modes": modes},
-            "continuum": {"tau": tau_body, "tau_force": 1.0, "modes": body},
-        }
+    none = np.empty(0)  # the task's arrays: not read by the findings
+    return TimeTaskResult(
+        n=n,
+        draw=draw,
+        n_nodes=n * n,
+        sources=none,
+        source_strain=none,
+        targets=none,
+        target_strain=none,
+        pinned=none,
+        network={"tau": tau_net, "tau_force": 1.0, "modes": modes},
+        continuum={"tau": tau_body, "tau_force": 1.0, "modes": body},
     )
 
 
@@ -140,12 +144,12 @@ def test_report_findings_follow_their_rules():
     assert agree.verdict == REPRODUCED and modal.verdict == REPRODUCED
     assert spread.verdict == REPRODUCED  # network N = 64: 1.2 / 0.4 = 3 > 2
     assert grows.verdict == REPRODUCED  # (200 / 50) over a factor 2 in n: p = 2
-    tasks[2].meta["continuum"]["modes"]["tau_mode"] = 1200.0  # 50 % off the matched network
+    tasks[2].continuum["modes"]["tau_mode"] = 1200.0  # 50 % off the matched network
     assert _findings(tasks, ["network", "continuum"], True)[0].verdict == NOT_REPRODUCED
     # a draw whose modes cancel at the target is shown apart, not judged
-    tasks[1].meta["network"]["tau"] = 40.0
+    tasks[1].network["tau"] = 40.0
     assert _findings(tasks, ["network", "continuum"], True)[1].verdict == NOT_REPRODUCED
-    tasks[1].meta["network"]["modes"]["cancellation"] = 500.0
+    tasks[1].network["modes"]["cancellation"] = 500.0
     modal = _findings(tasks, ["network", "continuum"], True)[1]
     assert modal.verdict == REPRODUCED
     assert modal.measured["draws apart (sum of weights > 100)"] == 1

@@ -18,6 +18,7 @@ from continuum_vs_network.report.findings import (
 from continuum_vs_network.report.sections.beyond_paper.thermal import _thermal
 from continuum_vs_network.report.sections.continuum_learning.findings import _verdicts
 from continuum_vs_network.report.sections.physical_time.findings import _findings
+from continuum_vs_network.scenes.results.physical_time import TimeRunResult
 
 
 # -- physical_time: learning speed needs coupling; the quasi-static limit does not ----------
@@ -29,19 +30,19 @@ def _time_unit(n, coupling=None):
         {"ratio": r, "T": T, "diverged": False, "error_at_qs_end": 0.01, "error_qs_end": 0.01}
         for r, T in ((0.01, 100.0), (0.1, 10.0), (1.0, 1.0), (10.0, 50.0))
     ]
-    meta = {
-        "runs": runs,
-        "n_nodes": n,
-        "critical_low": 1.0,
-        "critical_high": 10.0,
-        "critical_ratio": 3.16,
-        "critical_by": "oscillation",
-        "tau": 1.0,
-        "tau_force": 0.1,
-    }
-    if coupling is not None:
-        meta["coupling"] = coupling
-    return SimpleNamespace(meta=meta)
+    return TimeRunResult(
+        runs=runs,
+        n=n,
+        n_nodes=n,
+        rule="gcl",
+        critical_low=1.0,
+        critical_high=10.0,
+        critical_ratio=3.16,
+        critical_by="oscillation",
+        tau=1.0,
+        tau_force=0.1,
+        coupling=coupling,
+    )
 
 
 def _time_verdicts(tmp_path, couplings):

@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .results import from_stored
+from .results.physical_time import TimeRunResult
 from .runner import SceneResult
 
 __all__ = ["export_meshes"]
@@ -73,6 +75,24 @@ def _learned_field_mesh(key: str, a: dict, folder: Path) -> Path:
     return write_mesh(mesh, folder / f"learned_{name}.vtu")
 
 
+def _time_series(run: TimeRunResult, folder: Path) -> Path:
+    """The frames of a physical_time run (its ``series/*`` fields): the moving body, or the
+    moving network with its sources and targets."""
+    from ..io.export import body_history_series, time_history_series
+
+    a = run.fields
+    frames = (a["series/times"], a["series/x"], a["series/rest_length"], a["series/stiffness"])
+    if "body/points" in a:
+        return body_history_series(
+            a["body/points"], a["body/triangles"], *frames, folder,
+            f"{run.rule}_n{run.n}_continuum_physical_time",
+        )  # fmt: skip
+    return time_history_series(
+        _net(a, "net/"), *frames, folder, f"{run.rule}_n{run.n}_physical_time",
+        sources=a["net/sources"], targets=a["net/targets"],
+    )  # fmt: skip
+
+
 def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[Path]:
     """Write the meshes of ``result`` to ``folder``; returns the files written (indices of
     series, not their frames). Nothing is written when the scene has no ``[export]``."""
@@ -86,37 +106,9 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
     for key, unit in result.units.items():
         a = unit.arrays
         if key.startswith("physical_time/"):
-            if export.series and "body/points" in a:
-                from ..io.export import body_history_series
-
-                written.append(
-                    body_history_series(
-                        a["body/points"],
-                        a["body/triangles"],
-                        a["series/times"],
-                        a["series/x"],
-                        a["series/rest_length"],
-                        a["series/stiffness"],
-                        folder,
-                        f"{unit.meta['rule']}_n{unit.meta['n']}_continuum_physical_time",
-                    )
-                )
-            elif export.series and "series/x" in a:
-                from ..io.export import time_history_series
-
-                written.append(
-                    time_history_series(
-                        _net(a, "net/"),
-                        a["series/times"],
-                        a["series/x"],
-                        a["series/rest_length"],
-                        a["series/stiffness"],
-                        folder,
-                        f"{unit.meta['rule']}_n{unit.meta['n']}_physical_time",
-                        sources=a["net/sources"],
-                        targets=a["net/targets"],
-                    )
-                )
+            if export.series and "series/x" in a:
+                written.append(_time_series(from_stored(unit, TimeRunResult), folder))
+            continue
         if key.startswith("continuum_mechanism/"):
             if "triangles" in a:
                 from .meshes_mechanism import mechanism_field_mesh

@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from .results.physical_time import TimeRunResult
 from .schema import Scene
 from .units import Unit, UnitContext
 
@@ -248,15 +249,17 @@ def _medium(scene: Scene, params: dict, ctx: UnitContext):
     lattice, or its continuum, and the medium's stored times (``tau``, ``tau_force`` and,
     learning stiffnesses, the reference's ``steps_qs`` and ``learned``)."""
     from ..learning.tasks import AllosteryTask
+    from .results import from_stored
+    from .results.physical_time import TimeTaskResult
     from .units_physics import lattice
 
     stored = ctx.read_unit(f"physical_time/n{params['n']}/d{params['draw']}/task")
-    a, times = stored.arrays, stored.meta[params["medium"]]
+    t = from_stored(stored, TimeTaskResult)
+    times = t.medium_times(params["medium"])
     net = lattice(scene, params["n"])
     task = AllosteryTask.create(
-        net, a["sources"], a["source_strain"], a["targets"], a["target_strain"],
-        pinned=a["pinned"],
-    )  # fmt: skip
+        net, t.sources, t.source_strain, t.targets, t.target_strain, pinned=t.pinned
+    )
     learner, learn_task = (net, task) if params["medium"] == "network" else _body(net, task)
     return learner, learn_task, times, net.n_nodes
 
@@ -265,7 +268,7 @@ def _past(row: dict) -> bool:
     return row["slowdown"] >= SLOWDOWN or row["rebound"] >= OSCILLATION
 
 
-def time_unit(scene: Scene, params: dict, ctx: UnitContext):
+def time_unit(scene: Scene, params: dict, ctx: UnitContext) -> TimeRunResult:
     """Learning in physical time against the ratio, for one size, draw, rule and medium."""
     from ..learning.physical_time import learn_in_time
     from ..learning.rules import LearningError
@@ -278,9 +281,9 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     tau, tau_force = times_meta["tau"], times_meta["tau_force"]
     adaptive = spec.dof == "stiffness"
     if adaptive and not times_meta.get("learned", False):
-        from .units_time_reference import not_learned_meta
+        from .units_time_reference import not_learned_result
 
-        return {}, not_learned_meta(params, n_nodes, name, medium, times_meta)
+        return not_learned_result(params, n_nodes, name, medium, times_meta)
     # the learning time unit: 1 / (alpha k) (raw rate, k = 1: rho = alpha k tau = tau /
     # unit) or the time of one adaptive step, whose largest relative change of k is
     # ``step`` (rho = step tau / unit: tau over the time in which a stiffness may change
@@ -390,7 +393,7 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
             )
         return row, {"times": times, "error": e, "times_qs": times_qs, "error_qs": e_qs, "run": run}
 
-    arrays: dict[str, Any] = {}
+    arrays: dict[str, np.ndarray] = {}
     rows = []
     series_ratio = float(min(spec.ratios, key=lambda r: abs(math.log(r))))
     for i, ratio in enumerate(spec.ratios):
@@ -423,33 +426,32 @@ def time_unit(scene: Scene, params: dict, ctx: UnitContext):
     else:
         slow, osc = first["slowdown"] >= SLOWDOWN, first["rebound"] >= OSCILLATION
         which = "both" if slow and osc else ("slowdown" if slow else "oscillation")
-    meta = {
-        "kind": "run",
-        "critical_low": lo,
-        "critical_high": hi,
-        "critical_ratio": math.sqrt(lo * hi)
+    return TimeRunResult(
+        critical_low=lo,
+        critical_high=hi,
+        critical_ratio=math.sqrt(lo * hi)
         if lo > 0 and math.isfinite(hi)
         else (math.inf if lo > 0 else hi),
-        "critical_by": which,
-        "non_monotone": exceptions,
-        "n": n,
-        "draw": params.get("draw", 0),
-        "n_nodes": n_nodes,
-        "rule": name,
-        "medium": medium,
-        "tau": tau,
-        "tau_force": tau_force,
-        "dof": spec.dof,
-        "steps_qs": times_meta.get("steps_qs"),
-        "learned_qs": times_meta.get("learned", True),
-        "reference_coupling": times_meta.get("coupling"),
-        "error0": rows[0]["error0"],
-        "series_ratio": series_ratio if params["series"] else None,
-        "runs": rows,
-        "bisection": extra,
+        critical_by=which,
+        non_monotone=exceptions,
+        n=n,
+        draw=params.get("draw", 0),
+        n_nodes=n_nodes,
+        rule=name,
+        medium=medium,
+        tau=tau,
+        tau_force=tau_force,
+        dof=spec.dof,
+        steps_qs=times_meta.get("steps_qs"),
+        learned_qs=times_meta.get("learned", True),
+        reference_coupling=times_meta.get("coupling"),
+        error0=rows[0]["error0"],
+        series_ratio=series_ratio if params["series"] else None,
+        runs=rows,
+        bisection=extra,
         **unit_coupling(rows + extra),
-    }
-    return arrays, meta
+        fields=arrays,
+    )
 
 
 def _series_arrays(net, task, run, idx, medium: str) -> dict[str, Any]:

@@ -21,7 +21,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["REFERENCE_STEPS", "not_learned_meta", "reference_run"]
+from .results.physical_time import TimeRunResult
+
+__all__ = ["REFERENCE_STEPS", "not_learned_result", "reference_run"]
 
 #: Adaptive steps of the quasi-static reference run (the learning window that decides
 #: whether a draw is learned).
@@ -59,31 +61,32 @@ def reference_run(scene, learner, task, medium: str, vis) -> dict[str, Any]:
     return out
 
 
-def not_learned_meta(params: dict, n_nodes: int, rule: str, medium: str, ref: dict) -> dict:
+def not_learned_result(
+    params: dict, n_nodes: int, rule: str, medium: str, ref: dict
+) -> TimeRunResult:
     """A run unit of a draw whose quasi-static reference did not learn
     (:func:`reference_run`): no ratio is run, the unit counts apart."""
-    return {
-        "kind": "run",
-        "learned_qs": False,
-        "n": params["n"],
-        "draw": params.get("draw", 0),
-        "n_nodes": n_nodes,
-        "rule": rule,
-        "medium": medium,
-        "dof": "stiffness",
-        "tau": ref["tau"],
-        "tau_force": ref["tau_force"],
-        "steps_qs": ref.get("steps_qs"),
-        "error_qs": ref.get("error_qs"),
-        "reference_coupling": ref.get("coupling"),
-        "coupling": ref.get("coupling"),
-        "source_share": ref.get("source_share"),
-        "runs": [],
-        "bisection": [],
-        "critical_low": math.nan,
-        "critical_high": math.nan,
-        "critical_ratio": math.nan,
-        "critical_by": "not learned",
-        "non_monotone": 0,
-        "series_ratio": None,
-    }
+    return TimeRunResult(
+        learned_qs=False,
+        n=params["n"],
+        draw=params.get("draw", 0),
+        n_nodes=n_nodes,
+        rule=rule,
+        medium=medium,
+        dof="stiffness",
+        tau=ref["tau"],
+        tau_force=ref["tau_force"],
+        steps_qs=ref.get("steps_qs"),
+        error_qs=ref.get("error_qs"),
+        reference_coupling=ref.get("coupling"),
+        coupling=ref.get("coupling"),
+        source_share=ref.get("source_share"),
+        runs=[],
+        bisection=[],
+        critical_low=math.nan,
+        critical_high=math.nan,
+        critical_ratio=math.nan,
+        critical_by="not learned",
+        non_monotone=0,
+        series_ratio=None,
+    )

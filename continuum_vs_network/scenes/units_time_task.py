@@ -17,13 +17,14 @@ from __future__ import annotations
 
 from typing import Any
 
+from .results.physical_time import TimeTaskResult
 from .schema import Scene
 from .units import UnitContext
 
 __all__ = ["task_unit"]
 
 
-def task_unit(scene: Scene, params: dict, ctx: UnitContext):
+def task_unit(scene: Scene, params: dict, ctx: UnitContext) -> TimeTaskResult:
     """The task of one size and draw, and each medium's ``tau``, ``tau_force`` and modes."""
     from ..learning.physical_time import network_relaxation_time
     from .units_time import _body, _lattice_task, _viscosity
@@ -32,7 +33,7 @@ def task_unit(scene: Scene, params: dict, ctx: UnitContext):
     n, draw = params["n"], params["draw"]
     net, task = _lattice_task(scene, n, draw)
     vis = _viscosity(scene)
-    meta: dict[str, Any] = {"n": n, "draw": draw, "n_nodes": net.n_nodes, "kind": "task"}
+    media: dict[str, dict[str, Any]] = {}
     stiffness = scene.physical_time.dof == "stiffness"
     for medium in scene.physical_time.media:
         reference: dict[str, Any] = {}
@@ -59,15 +60,18 @@ def task_unit(scene: Scene, params: dict, ctx: UnitContext):
                 from .units_time_reference import reference_run
 
                 reference = reference_run(scene, body, mtask, medium, vis)
-        meta[medium] = {"tau": float(tau), "tau_force": float(tau_force), "modes": modes}
-        meta[medium].update(reference)
-    if draw == 0 and not vis.has_arm:
-        meta["global"] = global_step_share(net, vis)
-    arrays = {
-        "sources": task.sources,
-        "source_strain": task.source_strain,
-        "targets": task.targets,
-        "target_strain": task.target_strain,
-        "pinned": task.pinned,
-    }
-    return arrays, meta
+        media[medium] = {"tau": float(tau), "tau_force": float(tau_force), "modes": modes}
+        media[medium].update(reference)
+    return TimeTaskResult(
+        n=n,
+        draw=draw,
+        n_nodes=net.n_nodes,
+        sources=task.sources,
+        source_strain=task.source_strain,
+        targets=task.targets,
+        target_strain=task.target_strain,
+        pinned=task.pinned,
+        network=media.get("network"),
+        continuum=media.get("continuum"),
+        global_step=global_step_share(net, vis) if draw == 0 and not vis.has_arm else None,
+    )

@@ -6,15 +6,16 @@ the unit's ``.npz`` payload) or, in one field named ``fields``, a mapping of fur
 arrays whose names carry a ``/`` (``"net/x"``, ``"cont/strain"``: what mesh export reads).
 Each is stored under the field's name, or under ``field(metadata={"stored": name})``
 (an array and a record value may share a stored name). A field with a default may be
-absent from a stored unit (a continuum part a scene leaves out). The stored layout is the
-one untyped units write, so results computed before a kind was typed read back as its
-class.
+absent from a stored unit (a continuum part a scene leaves out). A field left at None is
+not stored, unless its metadata is :data:`KEEP_NONE` (a value the record holds as null).
+The stored layout is the one untyped units write, so results computed before a kind was
+typed read back as its class.
 
     arrays, meta = to_stored(TransmissionResult(...))   # what the store writes
     result = from_stored(unit, TransmissionResult)      # what a section reads
 
 The result classes live in one module per kind: :mod:`.physics` (transmission,
-relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`.
+relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`, :mod:`.physical_time`.
 """
 
 from __future__ import annotations
@@ -26,9 +27,12 @@ import numpy as np
 
 from ..units import UnitResult
 
-__all__ = ["from_stored", "is_result", "to_stored"]
+__all__ = ["KEEP_NONE", "from_stored", "is_result", "to_stored"]
 
 T = TypeVar("T")
+
+#: Field metadata of a record value stored even when None (``null`` in the record).
+KEEP_NONE = {"keep_none": True}
 
 
 def is_result(output: Any) -> bool:
@@ -44,13 +48,14 @@ def _stored(f: dataclasses.Field) -> tuple[str, bool]:
 
 def to_stored(result: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """``(arrays, meta)`` of a result dataclass: array fields and the ``fields`` mapping
-    to ``arrays``, every other field to ``meta``; fields left at None are not stored."""
+    to ``arrays``, every other field to ``meta``; fields left at None are not stored
+    (unless their metadata is :data:`KEEP_NONE`)."""
     arrays: dict[str, np.ndarray] = {}
     meta: dict[str, Any] = {}
     for f in dataclasses.fields(result):
         value = getattr(result, f.name)
         name, is_array = _stored(f)
-        if value is None:
+        if value is None and not f.metadata.get("keep_none"):
             continue
         if f.name == "fields":
             arrays.update(value)

@@ -112,16 +112,16 @@ def _after_intro(doc: Document, scene, spec, rules, result) -> None:
     rows = []
     for name, units in rules.items():
         for u in first_draws(units):
-            m = u.meta
-            for r in m["runs"]:
+            m = u
+            for r in m.runs:
                 rows.append(
                     [
                         _NAMES[name],
-                        m["n_nodes"],
-                        fmt(m["tau"]),
+                        m.n_nodes,
+                        fmt(m.tau),
                         fmt(r["ratio"]),
-                        fmt(r["T"] / m["tau"]),
-                        fmt(r["T_qs"] / m["tau"]),
+                        fmt(r["T"] / m.tau),
+                        fmt(r["T_qs"] / m.tau),
                         fmt(r["slowdown"]),
                         fmt(r["error_at_qs_end"]),
                         fmt(r["error_qs_end"]),
@@ -160,17 +160,17 @@ def _after_intro(doc: Document, scene, spec, rules, result) -> None:
     crit_rows = []
     for name, units in rules.items():
         for u in units:
-            m = u.meta
+            m = u
             crit_rows.append(
                 [
                     _NAMES[name],
-                    m["n_nodes"],
-                    m.get("draw", 0),
-                    fmt(m["tau"]),
-                    fmt(m["tau_force"]),
+                    m.n_nodes,
+                    m.draw,
+                    fmt(m.tau),
+                    fmt(m.tau_force),
                     _bracket(m),
-                    m["critical_by"],
-                    m.get("non_monotone", 0),
+                    m.critical_by,
+                    m.non_monotone,
                 ]
             )
     doc.add("Critical ratio per size and task draw:")
@@ -195,7 +195,7 @@ def _coupling_summary(rules: dict[str, list]) -> str:
             "and critical-ratio findings are not comparable (a task met by prestress alone "
             "would look learned)."
         )
-    shares = [u.meta["source_share"] for u in units]
+    shares = [u.source_share for u in units]
     return (
         f"Coupling of the final learned states (learning.coupling; per size, draw, rule and "
         f"medium the least source share over the ratios run): {decoupled} of {len(units)} "
@@ -211,17 +211,17 @@ def _coupling_summary(rules: dict[str, list]) -> str:
 
 def _all_runs(units) -> list[dict]:
     """Every ratio run of the units (grid and bisection)."""
-    return [r for u in units for r in (*u.meta["runs"], *u.meta.get("bisection", []))]
+    return [r for u in units for r in (*u.runs, *u.bisection)]
 
 
 def _phase_text(rules: dict) -> str:
     """The GCL phase length as the runs used it (half the learning step), per ratio."""
     c = [
-        0.5 * r["dt_learn"] * r["ratio"] / u.meta["tau"]
+        0.5 * r["dt_learn"] * r["ratio"] / u.tau
         for name, units in rules.items()
         if name.startswith("gcl_phases")
         for u in units
-        for r in (*u.meta["runs"], *u.meta.get("bisection", []))
+        for r in (*u.runs, *u.bisection)
     ]
     if not c:
         return ""
@@ -264,9 +264,9 @@ def _steps_text(rules: dict) -> str:
 def _tau_ratio_text(result) -> str:
     """Range of continuum tau / network tau over every task draw of the run."""
     q = [
-        u.meta["continuum"]["tau"] / u.meta["network"]["tau"]
+        u.continuum["tau"] / u.network["tau"]
         for u in _tasks(result)
-        if "continuum" in u.meta and "network" in u.meta
+        if u.medium_times("continuum") is not None and u.medium_times("network") is not None
     ]
     if not q:
         return ""
@@ -285,7 +285,7 @@ def _draws_text(doc: Document, tasks: list) -> None:
     """How many task draws each size has (from the task units)."""
     counts: dict[int, int] = {}
     for u in tasks:
-        counts[u.meta["n_nodes"]] = counts.get(u.meta["n_nodes"], 0) + 1
+        counts[u.n_nodes] = counts.get(u.n_nodes, 0) + 1
     if not counts:
         return
     text = ", ".join(f"N = {n}: {c}" for n, c in counts.items())
@@ -363,13 +363,12 @@ def stiffness_intro(doc: Document, scene, rules: dict, not_learned: list, vis: s
         + (
             f" ({len(not_learned)} run units of draws not learned are counted apart: "
             + ", ".join(
-                f"N = {u.meta['n_nodes']} draw {u.meta['draw']} {u.meta['medium']} "
-                f"({fmt(u.meta.get('error_qs'))})"
+                f"N = {u.n_nodes} draw {u.draw} {u.medium} ({fmt(u.error_qs)})"
                 for u in sorted(
                     not_learned,
-                    key=lambda u: (u.meta["n_nodes"], u.meta["draw"], u.meta["medium"]),
+                    key=lambda u: (u.n_nodes, u.draw, u.medium),
                 )
-                if u.meta["rule"] == spec.rules[0]
+                if u.rule == spec.rules[0]
             )
             + ", final quasi-static C/C0 in brackets)."
             if not_learned

@@ -32,11 +32,11 @@ def _speedups(units, *, below_critical: bool = False) -> list[float]:
     the ratios up to the bracket's low end (not past)."""
     out = []
     for u in units:
-        runs = sorted([*u.meta["runs"], *u.meta.get("bisection", [])], key=lambda r: r["ratio"])
+        runs = sorted([*u.runs, *u.bisection], key=lambda r: r["ratio"])
         T = np.array([r["T"] for r in runs], float)
-        if below_critical and math.isfinite(u.meta.get("critical_high", math.inf)):
+        if below_critical and math.isfinite(u.critical_high):
             ratio = np.array([r["ratio"] for r in runs], float)
-            T = T[ratio <= u.meta["critical_low"]]
+            T = T[ratio <= u.critical_low]
         out.append(float(T[0] / np.min(T)) if T.size and np.isfinite(T[0]) else math.nan)
     return out
 
@@ -44,11 +44,7 @@ def _speedups(units, *, below_critical: bool = False) -> list[float]:
 def _lo_force(units) -> dict[str, float]:
     """Smallest and largest bracket low end in units of the net-force time, lo tau_force / tau
     (units with a low end above 0)."""
-    v = [
-        u.meta["critical_low"] * u.meta["tau_force"] / u.meta["tau"]
-        for u in units
-        if u.meta["critical_low"] > 0
-    ]
+    v = [u.critical_low * u.tau_force / u.tau for u in units if u.critical_low > 0]
     if not v:
         return {}
     return {"smallest lo x tau_force/tau": min(v), "largest lo x tau_force/tau": max(v)}
@@ -57,7 +53,7 @@ def _lo_force(units) -> dict[str, float]:
 def decoupled_count(units) -> int | None:
     """How many of ``units`` (physical_time run units) are decoupled (meta ``"coupling"``);
     None when there are none or any has no coupling measurement."""
-    verdicts = [u.meta.get("coupling") for u in units]
+    verdicts = [u.coupling for u in units]
     if not verdicts or None in verdicts:
         return None
     return verdicts.count("decoupled")
@@ -84,7 +80,7 @@ def coupling_reason(units) -> str:
 def _shares(units) -> dict[str, float]:
     """Smallest and largest unit source share (units with one; a unit's share is the least
     over its ratios), for the measured numbers."""
-    v = [u.meta["source_share"] for u in units if u.meta.get("source_share") is not None]
+    v = [u.source_share for u in units if u.source_share is not None]
     if not v:
         return {}
     return {
@@ -109,7 +105,7 @@ def basis(units) -> str:
     """What a claim about learning over ``units`` rests on: "coupled" when every unit's
     verdict (least source share over its runs) is coupled, "met trivially" when any is
     decoupled, "" otherwise (partially coupled or not measured)."""
-    verdicts = [u.meta.get("coupling") for u in units]
+    verdicts = [u.coupling for u in units]
     if verdicts and all(v == "coupled" for v in verdicts):
         return "coupled"
     if "decoupled" in verdicts:
@@ -119,7 +115,7 @@ def basis(units) -> str:
 
 def _counts(units) -> dict[str, float]:
     """Coupled and decoupled run units (size x draw) a verdict counts."""
-    v = [u.meta.get("coupling") for u in units]
+    v = [u.coupling for u in units]
     return {"coupled units": v.count("coupled"), "decoupled units": v.count("decoupled")}
 
 
@@ -140,9 +136,9 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
             verdict = REPRODUCED
         else:
             verdict = NOT_REPRODUCED
-        sizes = sorted({u.meta["n_nodes"] for u in units})
+        sizes = sorted({u.n_nodes for u in units})
         measured = {
-            f"smallest speed-up N={n}": min(s for u, s in zip(units, sp) if u.meta["n_nodes"] == n)
+            f"smallest speed-up N={n}": min(s for u, s in zip(units, sp) if u.n_nodes == n)
             for n in sizes
         }
         findings.append(
@@ -174,13 +170,13 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                 ),
             )
         )
-        by = [u.meta["critical_by"] for u in units]
+        by = [u.critical_by for u in units]
         below = _speedups(units, below_critical=True)
         worst_below = min(below) if below and all(np.isfinite(below)) else math.nan
         osc = ("oscillation", "both")
-        ok = all(bracket_closed(u.meta) for u in units) and all(b in osc for b in by)
+        ok = all(bracket_closed(u) for u in units) and all(b in osc for b in by)
         ok = ok and np.isfinite(worst_below) and worst_below >= SPEEDUP_YES
-        closed = [u.meta["critical_ratio"] for u in units if bracket_closed(u.meta)]
+        closed = [u.critical_ratio for u in units if bracket_closed(u)]
         ok = ok and all(ORDER_ONE[0] <= r <= ORDER_ONE[1] for r in closed)
         findings.append(
             Finding(
@@ -197,14 +193,14 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
                     **{
                         f"median rho* N={n}": _median(
                             [
-                                u.meta["critical_ratio"]
+                                u.critical_ratio
                                 for u in units
-                                if u.meta["n_nodes"] == n and bracket_closed(u.meta)
+                                if u.n_nodes == n and bracket_closed(u)
                             ]
                         )
                         for n in sizes
                     },
-                    "closed brackets": sum(bracket_closed(u.meta) for u in units),
+                    "closed brackets": sum(bracket_closed(u) for u in units),
                     "met by oscillation": sum(b in osc for b in by),
                     "sizes x draws": len(units),
                     "smallest speed-up below rho*": worst_below,
@@ -227,8 +223,8 @@ def _findings(doc: Document, rules: dict, ratios: np.ndarray) -> None:
         )
         gaps = [
             math.inf
-            if u.meta["runs"][0]["diverged"]
-            else abs(u.meta["runs"][0]["error_at_qs_end"] - u.meta["runs"][0]["error_qs_end"])
+            if u.runs[0]["diverged"]
+            else abs(u.runs[0]["error_at_qs_end"] - u.runs[0]["error_qs_end"])
             for u in units
         ]
         findings.append(

@@ -39,39 +39,39 @@ def _with_modes(tasks) -> list:
     return [
         u
         for u in tasks
-        if any(u.meta.get(m, {}).get("modes") for m in _MEDIA)
-        and all(u.meta[m].get("modes") for m in _MEDIA if m in u.meta)
+        if any((u.medium_times(m) or {}).get("modes") for m in _MEDIA)
+        and all(u.medium_times(m).get("modes") for m in _MEDIA if u.medium_times(m) is not None)
     ]
 
 
 def _exponent(tasks, medium: str, key: str) -> float:
     """Least-squares slope of log(geometric mean over draws of ``key``) on log n; nan with
     fewer than two sizes."""
-    sizes = sorted({u.meta["n"] for u in tasks})
+    sizes = sorted({u.n for u in tasks})
     if len(sizes) < 2:
         return math.nan
     gm = [
-        float(np.exp(np.mean([np.log(_get(u, medium, key)) for u in tasks if u.meta["n"] == n])))
+        float(np.exp(np.mean([np.log(_get(u, medium, key)) for u in tasks if u.n == n])))
         for n in sizes
     ]
     return float(np.polyfit(np.log(sizes), np.log(gm), 1)[0])
 
 
 def _get(u, medium: str, key: str) -> float:
-    m = u.meta[medium]
+    m = u.medium_times(medium)
     return float(m[key] if key in ("tau", "tau_force") else m["modes"][key])
 
 
 def _mode_table(doc: Document, tasks, both: bool) -> None:
     rows = []
     for u in tasks:
-        net = u.meta.get("network", {}).get("modes", {})
-        body = u.meta.get("continuum", {}).get("modes", {})
-        glob = u.meta.get("global", {})
+        net = (u.network or {}).get("modes", {})
+        body = (u.continuum or {}).get("modes", {})
+        glob = u.global_step or {}
         rows.append(
             [
-                u.meta["n_nodes"],
-                u.meta["draw"],
+                u.n_nodes,
+                u.draw,
                 fmt(net.get("tau_mode_nodes", math.nan)),
                 fmt(net.get("tau_mode_constraint", math.nan)),
                 fmt(net.get("tau_mode_edges", math.nan)),
@@ -99,13 +99,13 @@ def _settling_table(doc: Document, tasks, media) -> None:
     rows = []
     for medium in media:
         for u in tasks:
-            m = u.meta[medium]
+            m = u.medium_times(medium)
             d = m["modes"]
             rows.append(
                 [
                     medium,
-                    u.meta["n_nodes"],
-                    u.meta["draw"],
+                    u.n_nodes,
+                    u.draw,
                     fmt(m["tau"]),
                     fmt(d["tau_modal"]),
                     fmt(d["tau_mode"]),
@@ -117,12 +117,12 @@ def _settling_table(doc: Document, tasks, media) -> None:
                 ]
             )
     for u in tasks:
-        g = u.meta.get("global")
+        g = u.global_step
         if g:
             rows.append(
                 [
                     "relaxation scene's drive (network)",
-                    u.meta["n_nodes"],
+                    u.n_nodes,
                     "-",
                     "-",
                     fmt(g["tau_modal"]),
@@ -158,7 +158,7 @@ def modes_section(doc: Document, tasks) -> None:
     tasks = _with_modes(tasks)
     if not tasks:
         return
-    media = [m for m in _MEDIA if m in tasks[0].meta]
+    media = [m for m in _MEDIA if tasks[0].medium_times(m) is not None]
     both = len(media) == 2
     doc.add(
         "Relaxation times against the `relaxation` scene. That scene holds one side of the "
@@ -201,8 +201,8 @@ def _ratios(tasks, medium: str) -> dict[int, list[float]]:
     """tau / tau_mode per size."""
     out: dict[int, list[float]] = {}
     for u in tasks:
-        out.setdefault(u.meta["n_nodes"], []).append(
-            u.meta[medium]["tau"] / u.meta[medium]["modes"]["tau_mode"]
+        out.setdefault(u.n_nodes, []).append(
+            u.medium_times(medium)["tau"] / u.medium_times(medium)["modes"]["tau_mode"]
         )
     return out
 
@@ -212,14 +212,14 @@ def _verdict_text(tasks, media) -> str:
     parts = []
     for medium in media:
         r = [x for v in _ratios(tasks, medium).values() for x in v]
-        w = [u.meta[medium]["modes"]["slow_weight"] for u in tasks]
+        w = [u.medium_times(medium)["modes"]["slow_weight"] for u in tasks]
         parts.append(
             f"{medium}: tau_mode ~ n^{fmt(_exponent(tasks, medium, 'tau_mode'))}, tau ~ "
             f"n^{fmt(_exponent(tasks, medium, 'tau'))}; tau / tau_mode {fmt(min(r))} to "
             f"{fmt(max(r))}; the slowest mode's weight {fmt(min(w))} to {fmt(max(w))}"
         )
     grows = all(EXPONENT[0] <= _exponent(tasks, m, "tau_mode") <= EXPONENT[1] for m in media)
-    cancel = max(u.meta[m]["modes"]["cancellation"] for m in media for u in tasks)
+    cancel = max(u.medium_times(m)["modes"]["cancellation"] for m in media for u in tasks)
     return (
         "Over sizes and draws (exponents from the geometric means over draws per size): "
         + "; ".join(parts)
@@ -246,16 +246,11 @@ def _findings(tasks, media, both: bool) -> list[Finding]:
     out = []
     if both:
         matched = [
-            u.meta["continuum"]["modes"]["tau_mode"] / u.meta["network"]["modes"]["tau_mode_edges"]
-            for u in tasks
+            u.continuum["modes"]["tau_mode"] / u.network["modes"]["tau_mode_edges"] for u in tasks
         ]
-        as_run = [
-            u.meta["continuum"]["modes"]["tau_mode"] / u.meta["network"]["modes"]["tau_mode"]
-            for u in tasks
-        ]
+        as_run = [u.continuum["modes"]["tau_mode"] / u.network["modes"]["tau_mode"] for u in tasks]
         clamp = [
-            u.meta["network"]["modes"]["tau_mode_constraint"]
-            / u.meta["network"]["modes"]["tau_mode_nodes"]
+            u.network["modes"]["tau_mode_constraint"] / u.network["modes"]["tau_mode_nodes"]
             for u in tasks
         ]
         dev = max(abs(x - 1.0) for x in matched)
@@ -289,11 +284,11 @@ def _findings(tasks, media, both: bool) -> list[Finding]:
 
     def gaps(resolved: bool) -> list[float]:
         return [
-            abs(u.meta[m]["modes"]["tau_modal"] / u.meta[m]["tau"] - 1.0)
+            abs(u.medium_times(m)["modes"]["tau_modal"] / u.medium_times(m)["tau"] - 1.0)
             for m in media
             for u in tasks
-            if math.isfinite(u.meta[m]["modes"]["tau_modal"])
-            and (u.meta[m]["modes"]["cancellation"] <= CANCELLING) == resolved
+            if math.isfinite(u.medium_times(m)["modes"]["tau_modal"])
+            and (u.medium_times(m)["modes"]["cancellation"] <= CANCELLING) == resolved
         ]
 
     errs, apart = gaps(True), gaps(False)

@@ -11,6 +11,8 @@ import math
 import numpy as np
 
 from ....learning.coupling import COUPLED_AT, DECOUPLED_BELOW
+from ....scenes.results import from_stored
+from ....scenes.results.physical_time import MEDIA, TimeRunResult, TimeTaskResult
 from ...document import Document, fmt
 from ...figures import COLORS, Panel, Series
 
@@ -24,40 +26,46 @@ _NAMES = {
 }
 
 
-def _not_learned(result) -> list:
-    """Run units of draws whose quasi-static reference did not learn (stiffness learning,
-    :mod:`....scenes.units_time_reference`): no ratio was run."""
+def _runs(result) -> list[TimeRunResult]:
+    """Every run unit of the scene, as :class:`TimeRunResult`."""
     return [
-        u
-        for u in result.select("physical_time/").values()
-        if u.meta.get("kind") == "run" and u.meta.get("learned_qs") is False
+        from_stored(u, TimeRunResult)
+        for key, u in result.select("physical_time/").items()
+        if not key.endswith("/task")
     ]
 
 
-def _by_rule(result) -> dict[str, list]:
+def _not_learned(result) -> list[TimeRunResult]:
+    """Run units of draws whose quasi-static reference did not learn (stiffness learning,
+    :mod:`....scenes.units_time_reference`): no ratio was run."""
+    return [u for u in _runs(result) if u.learned_qs is False]
+
+
+def _by_rule(result) -> dict[str, list[TimeRunResult]]:
     """Run units per rule (``"gcl"``, ``"gcl/continuum"``, ...), by size then draw; units
     of draws not learned quasi-statically (:func:`_not_learned`) are left out."""
-    out: dict[str, list] = {}
-    for u in result.select("physical_time/").values():
-        if u.meta.get("kind") == "task" or u.meta.get("learned_qs") is False:
-            continue
-        medium = u.meta.get("medium", "network")
-        key = u.meta["rule"] if medium == "network" else f"{u.meta['rule']}/{medium}"
-        out.setdefault(key, []).append(u)
+    out: dict[str, list[TimeRunResult]] = {}
+    for u in _runs(result):
+        if u.learned_qs is not False:
+            out.setdefault(u.rule_key, []).append(u)
     for units in out.values():
-        units.sort(key=lambda u: (u.meta["n_nodes"], u.meta.get("draw", 0)))
+        units.sort(key=lambda u: (u.n_nodes, u.draw))
     return out
 
 
-def _tasks(result) -> list:
+def _tasks(result) -> list[TimeTaskResult]:
     """Task units (one per size and draw), by size then draw."""
-    units = [u for u in result.select("physical_time/").values() if u.meta.get("kind") == "task"]
-    return sorted(units, key=lambda u: (u.meta["n_nodes"], u.meta["draw"]))
+    units = [
+        from_stored(u, TimeTaskResult)
+        for key, u in result.select("physical_time/").items()
+        if key.endswith("/task")
+    ]
+    return sorted(units, key=lambda u: (u.n_nodes, u.draw))
 
 
-def _bracket(m) -> str:
+def _bracket(m: TimeRunResult) -> str:
     """``"(lo, hi]"`` of a run unit's critical ratio."""
-    lo, hi = m.get("critical_low", math.nan), m.get("critical_high", math.nan)
+    lo, hi = m.critical_low, m.critical_high
     if not math.isfinite(hi):
         return f"> {fmt(lo)}"
     if lo == 0:
@@ -75,15 +83,15 @@ def _spread(values) -> str:
 
 def _summary(doc: Document, rules: dict, tasks: list) -> None:
     """Median and range over draws per size, and the fits over all draws."""
-    media = [m for m in ("network", "continuum") if any(m in u.meta for u in tasks)]
-    sizes = sorted({u.meta["n_nodes"] for u in tasks})
+    media = [m for m in MEDIA if any(u.medium_times(m) is not None for u in tasks)]
+    sizes = sorted({u.n_nodes for u in tasks})
     rows = []
     for medium in media:
         for key in ("tau", "tau_force"):
             rows.append(
                 [f"{medium} {key}"]
                 + [
-                    _spread([u.meta[medium][key] for u in tasks if u.meta["n_nodes"] == n])
+                    _spread([u.medium_times(medium)[key] for u in tasks if u.n_nodes == n])
                     for n in sizes
                 ]
             )
@@ -91,13 +99,7 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
         rows.append(
             [f"rho*, {_NAMES[name]}"]
             + [
-                _spread(
-                    [
-                        u.meta["critical_ratio"]
-                        for u in units
-                        if u.meta["n_nodes"] == n and bracket_closed(u.meta)
-                    ]
-                )
+                _spread([u.critical_ratio for u in units if u.n_nodes == n and bracket_closed(u)])
                 for n in sizes
             ]
         )
@@ -106,11 +108,7 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
             [f"source share, {_NAMES[name]}"]
             + [
                 _spread(
-                    [
-                        u.meta["source_share"]
-                        for u in units
-                        if u.meta["n_nodes"] == n and u.meta.get("source_share") is not None
-                    ]
+                    [u.source_share for u in units if u.n_nodes == n and u.source_share is not None]
                 )
                 for n in sizes
             ]
@@ -126,9 +124,9 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
     doc.table(["quantity"] + [f"N = {n}" for n in sizes], rows)
     parts = []
     for medium in media:
-        N = [u.meta["n_nodes"] for u in tasks]
+        N = [u.n_nodes for u in tasks]
         for key in ("tau", "tau_force"):
-            t = [u.meta[medium][key] for u in tasks]
+            t = [u.medium_times(medium)[key] for u in tasks]
             parts.append(f"{medium} {key}: {_fit(N, t, key)}")
     if parts:
         doc.add(
@@ -141,16 +139,14 @@ def _summary(doc: Document, rules: dict, tasks: list) -> None:
         )
     fits = []
     for name, units in rules.items():
-        ok = [u.meta for u in units if bracket_closed(u.meta)]
+        ok = [u for u in units if bracket_closed(u)]
         open_ = [
-            f"N = {u.meta['n_nodes']} draw {u.meta.get('draw', 0)} ({_bracket(u.meta)})"
-            for u in units
-            if not bracket_closed(u.meta)
+            f"N = {u.n_nodes} draw {u.draw} ({_bracket(u)})" for u in units if not bracket_closed(u)
         ]
         left = f"; left out, bracket open: {', '.join(open_)}" if open_ else ""
-        if len({m["n_nodes"] for m in ok}) >= 2:
-            N = [m["n_nodes"] for m in ok]
-            c = [m["critical_ratio"] for m in ok]
+        if len({m.n_nodes for m in ok}) >= 2:
+            N = [m.n_nodes for m in ok]
+            c = [m.critical_ratio for m in ok]
             fits.append(f"{_NAMES[name]} ({len(ok)} points{left}): {_fit(N, c, 'rho*')}")
         elif open_:
             fits.append(f"{_NAMES[name]}: fewer than two sizes with a closed bracket{left}")
@@ -182,12 +178,12 @@ ERROR_CAP = 1e6
 
 def first_draws(units: list) -> list:
     """The first draw of every size."""
-    return [u for u in units if u.meta.get("draw", 0) == 0]
+    return [u for u in units if u.draw == 0]
 
 
-def bracket_closed(m) -> bool:
+def bracket_closed(m: TimeRunResult) -> bool:
     """Whether a run unit's critical ratio is bracketed on both sides."""
-    return m.get("critical_low", 0) > 0 and np.isfinite(m.get("critical_high", np.inf))
+    return m.bracket_closed()
 
 
 def figures(doc: Document, rules: dict, tasks: list, ratios: np.ndarray, names: dict) -> None:
@@ -197,14 +193,12 @@ def figures(doc: Document, rules: dict, tasks: list, ratios: np.ndarray, names: 
     for name, units in rules.items():
         series = []
         for j, u in enumerate(first_draws(units)):
-            m = u.meta
-            T = np.array([r["T"] for r in m["runs"]]) / m["tau"]
-            Tq = np.array([r["T_qs"] for r in m["runs"]]) / m["tau"]
+            m = u
+            T = np.array([r["T"] for r in m.runs]) / m.tau
+            Tq = np.array([r["T_qs"] for r in m.runs]) / m.tau
             c = COLORS[j % len(COLORS)]
-            series.append(Series(ratios, T, f"N={m['n_nodes']}", marker="o", color=c))
-            series.append(
-                Series(ratios, Tq, f"N={m['n_nodes']}, quasi-static", style="--", color=c)
-            )
+            series.append(Series(ratios, T, f"N={m.n_nodes}", marker="o", color=c))
+            series.append(Series(ratios, Tq, f"N={m.n_nodes}, quasi-static", style="--", color=c))
         panels.append(
             Panel(series, names[name], "rho = alpha k tau", "T / tau", xscale="log", yscale="log")
         )
@@ -220,18 +214,18 @@ def figures(doc: Document, rules: dict, tasks: list, ratios: np.ndarray, names: 
         u = first_draws(units)[-1]
         series = []
         for i, ratio in enumerate(ratios):
-            a = u.arrays
+            a = u.curve(i)
             c = COLORS[i % len(COLORS)]
-            t = a[f"r{i}/times"] / u.meta["tau"]
-            e = np.asarray(a[f"r{i}/error"], float)
+            t = a["times"] / u.tau
+            e = np.asarray(a["error"], float)
             e = np.where(e <= ERROR_CAP, e, np.nan)  # diverging runs: drawn up to the cap
             series.append(Series(t, e, f"rho={ratio:g}", color=c))
-            tq = a[f"r{i}/times_qs"] / u.meta["tau"]
-            series.append(Series(tq, a[f"r{i}/error_qs"], "", style=":", color=c))
+            tq = a["times_qs"] / u.tau
+            series.append(Series(tq, a["error_qs"], "", style=":", color=c))
         panels.append(
             Panel(
                 series,
-                f"{names[name]}, N={u.meta['n_nodes']}",
+                f"{names[name]}, N={u.n_nodes}",
                 "t / tau",
                 "error / initial",
                 xscale="log",
@@ -249,27 +243,27 @@ def figures(doc: Document, rules: dict, tasks: list, ratios: np.ndarray, names: 
     for medium in ("network", "continuum"):
         series = []
         for j, (name, units) in enumerate(rules.items()):
-            if units[0].meta.get("medium", "network") != medium:
+            if units[0].medium != medium:
                 continue
             c = COLORS[j % len(COLORS)]
-            ok = [u.meta for u in units if bracket_closed(u.meta)]
-            sizes = sorted({m["n_nodes"] for m in ok})
-            per = [[m for m in ok if m["n_nodes"] == n] for n in sizes]
+            ok = [u for u in units if bracket_closed(u)]
+            sizes = sorted({m.n_nodes for m in ok})
+            per = [[m for m in ok if m.n_nodes == n] for n in sizes]
             series.append(
                 Series(
                     sizes,
-                    [np.median([m["critical_ratio"] for m in p]) for p in per],
+                    [np.median([m.critical_ratio for m in p]) for p in per],
                     names[name],
-                    lo=[min(m["critical_low"] for m in p) for p in per],
-                    hi=[max(m["critical_high"] for m in p) for p in per],
+                    lo=[min(m.critical_low for m in p) for p in per],
+                    hi=[max(m.critical_high for m in p) for p in per],
                     marker="s",
                     color=c,
                 )
             )
             series.append(
                 Series(
-                    [m["n_nodes"] for m in ok],
-                    [m["critical_ratio"] for m in ok],
+                    [m.n_nodes for m in ok],
+                    [m.critical_ratio for m in ok],
                     "",
                     style="",
                     marker=".",
@@ -299,16 +293,16 @@ def figures(doc: Document, rules: dict, tasks: list, ratios: np.ndarray, names: 
         )
     series = []
     for j, medium in enumerate(("network", "continuum")):
-        have = [u for u in tasks if medium in u.meta]
+        have = [u for u in tasks if u.medium_times(medium) is not None]
         if not have:
             continue
         c = COLORS[j % len(COLORS)]
-        sizes = sorted({u.meta["n_nodes"] for u in have})
+        sizes = sorted({u.n_nodes for u in have})
         series.append(
             Series(
                 sizes,
                 [
-                    np.median([u.meta[medium]["tau"] for u in have if u.meta["n_nodes"] == n])
+                    np.median([u.medium_times(medium)["tau"] for u in have if u.n_nodes == n])
                     for n in sizes
                 ],
                 f"{medium} tau (median)",
@@ -318,8 +312,8 @@ def figures(doc: Document, rules: dict, tasks: list, ratios: np.ndarray, names: 
         )
         series.append(
             Series(
-                [u.meta["n_nodes"] for u in have],
-                [u.meta[medium]["tau"] for u in have],
+                [u.n_nodes for u in have],
+                [u.medium_times(medium)["tau"] for u in have],
                 "",
                 style="",
                 marker=".",
