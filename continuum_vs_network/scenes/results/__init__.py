@@ -5,7 +5,9 @@ values (numbers, strings, lists: the unit's JSON record), arrays (annotated ``np
 the unit's ``.npz`` payload) or, in one field named ``fields``, a mapping of further
 arrays whose names carry a ``/`` (``"net/x"``, ``"cont/strain"``: what mesh export reads).
 Each is stored under the field's name, or under ``field(metadata={"stored": name})``
-(an array and a record value may share a stored name). A field with a default may be
+(an array and a record value may share a stored name). A field left at None is not
+stored, unless its metadata has ``"store_none": True`` (a record value that may be null,
+such as a step never reached). A field with a default may be
 absent from a stored unit (a continuum part a scene leaves out). The stored layout is the
 one untyped units write, so results computed before a kind was typed read back as its
 class.
@@ -14,7 +16,8 @@ class.
     result = from_stored(unit, TransmissionResult)      # what a section reads
 
 The result classes live in one module per kind: :mod:`.physics` (transmission,
-relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`.
+relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`, :mod:`.mechanism`
+(continuum_mechanism).
 """
 
 from __future__ import annotations
@@ -44,13 +47,14 @@ def _stored(f: dataclasses.Field) -> tuple[str, bool]:
 
 def to_stored(result: Any) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
     """``(arrays, meta)`` of a result dataclass: array fields and the ``fields`` mapping
-    to ``arrays``, every other field to ``meta``; fields left at None are not stored."""
+    to ``arrays``, every other field to ``meta``; fields left at None are not stored
+    (but one marked ``store_none``, stored as null)."""
     arrays: dict[str, np.ndarray] = {}
     meta: dict[str, Any] = {}
     for f in dataclasses.fields(result):
         value = getattr(result, f.name)
         name, is_array = _stored(f)
-        if value is None:
+        if value is None and not f.metadata.get("store_none"):
             continue
         if f.name == "fields":
             arrays.update(value)
