@@ -36,6 +36,8 @@ def test_refinement_change_is_zero_for_equal_fields():
 def test_tiny_scene_runs(tmp_path):
     import dataclasses
 
+    from continuum_vs_network.scenes.results import from_stored
+    from continuum_vs_network.scenes.results.mechanism import InverterResult, LearnResult
     from continuum_vs_network.scenes.runner import run_scene
 
     scene = load_scene("continuum_mechanism")
@@ -44,10 +46,10 @@ def test_tiny_scene_runs(tmp_path):
         inverter_h=0.2, rates=("adaptive",),
     )  # fmt: skip
     res = run_scene(dataclasses.replace(scene, mechanism=m), tmp_path)
-    assert res.units["continuum_mechanism/inverter"].meta["solves"] == 6
-    assert res.units["continuum_mechanism/learn/refine1/gcl/adaptive"].arrays["coarse"].shape == (
-        256,
-    )
+    inverter = from_stored(res.units["continuum_mechanism/inverter"], InverterResult)
+    assert inverter.solves == 6
+    learned = from_stored(res.units["continuum_mechanism/learn/refine1/gcl/adaptive"], LearnResult)
+    assert learned.coarse.shape == (256,)
 
 
 def test_lattice_beside_the_continuum_learns_the_same_task():
@@ -62,5 +64,5 @@ def test_lattice_beside_the_continuum_learns_the_same_task():
     assert np.hypot(*(mid[task.targets[0]] - (1.6, 0.5))) <= 0.125
     assert task.target_strain[0] == pytest.approx(-0.2 * task.source_strain[0])
     m = dataclasses.replace(scene.mechanism, steps=60)
-    _, meta = lattice_unit(dataclasses.replace(scene, mechanism=m), {"refine": 0}, None)
-    assert meta["ratio"] <= 1e-3 and meta["coupling"] == "coupled"
+    run = lattice_unit(dataclasses.replace(scene, mechanism=m), {"refine": 0}, None)
+    assert run.ratio <= 1e-3 and run.coupling == "coupled"

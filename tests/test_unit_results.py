@@ -46,3 +46,25 @@ def test_a_stored_unit_without_a_required_field_is_refused_by_name():
     del meta["source"]
     with pytest.raises(KeyError, match="unit 'transmission/n8' stores no 'source'"):
         from_stored(UnitResult("transmission/n8", arrays, meta, 0.0), TransmissionResult)
+
+
+def test_a_none_marked_keep_none_is_stored_as_null_and_read_back(tmp_path):
+    """``first_below`` (never below: None) is stored as null, as the untyped unit wrote it,
+    beside a trace that shares its record value's stored name."""
+    from continuum_vs_network.scenes.results.mechanism import LatticeResult, mechanism_result
+
+    result = LatticeResult(
+        refine=0, ratio=0.5, first_below=None, source_share=0.9, coupling="coupled",
+        outcome="not met", n_nodes=3, n_springs=3, spacing=0.125, completed=2, seconds=0.2,
+        solves=8.0, error=np.array([1.0, 0.7, 0.5]), seconds_trace=np.array([0.0, 0.1, 0.2]),
+        solves_trace=np.array([0.0, 4.0, 8.0]), positions=np.zeros((3, 2)),
+        springs=np.array([[0, 1], [1, 2], [0, 2]]), k=np.ones(3),
+    )  # fmt: skip
+    arrays, meta = to_stored(result)
+    assert meta["first_below"] is None and meta["seconds"] == 0.2
+    assert list(arrays) == ["error", "seconds", "solves", "positions", "springs", "k"]
+    unit = Unit("continuum_mechanism/lattice/refine0", lambda *a: None, {"refine": 0})
+    _save_unit(tmp_path, unit, result, 0.5)
+    back = mechanism_result(_read_unit(tmp_path, unit.key))
+    assert isinstance(back, LatticeResult) and back.first_below is None
+    np.testing.assert_array_equal(back.seconds_trace, result.seconds_trace)

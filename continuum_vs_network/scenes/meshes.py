@@ -110,10 +110,10 @@ def export_meshes(result: SceneResult, folder: str | os.PathLike[str]) -> list[P
                 written.append(_time_series(from_stored(unit, TimeRunResult), folder))
             continue
         if key.startswith("continuum_mechanism/"):
-            if "triangles" in a:
-                from .meshes_mechanism import mechanism_field_mesh
+            from .meshes_mechanism import mechanism_field_mesh
 
-                written.append(mechanism_field_mesh(key, a, folder))
+            if (path := mechanism_field_mesh(unit, folder)) is not None:
+                written.append(path)
             continue
         if key.startswith("continuum_learning/"):
             if export.continuum and "triangles" in a:

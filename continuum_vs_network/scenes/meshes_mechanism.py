@@ -6,22 +6,29 @@ from pathlib import Path
 
 import numpy as np
 
+from .units import UnitResult
+
 __all__ = ["mechanism_field_mesh"]
 
 
-def mechanism_field_mesh(key: str, a: dict, folder: Path) -> Path:
+def mechanism_field_mesh(unit: UnitResult, folder: Path) -> Path | None:
     """``mechanism_<unit>.vtu``: cell data ``modulus``, ``log10_modulus`` (learned, optimal
-    or SIMP modulus; the inverter's density there) and ``density`` where the unit has one,
-    on the undeformed mesh."""
+    or SIMP modulus; the inverter's density there) and ``density`` or ``frozen`` where the
+    unit has them, on the undeformed mesh; None for a unit without a field on a mesh (dof
+    runs, their optima, the lattice)."""
     from ..io.export import continuum_mesh, write_mesh
+    from .results.mechanism import mechanism_result
 
-    points = np.asarray(a["points"], dtype=float)
-    s = np.asarray(a["field"], dtype=float)
+    r = mechanism_result(unit)
+    if not hasattr(r, "triangles"):
+        return None
+    points = np.asarray(r.points, dtype=float)
+    s = np.asarray(r.field, dtype=float)
     fields = {"modulus": s, "log10_modulus": np.log10(np.maximum(s, 1e-300))}
-    if "density" in a:
-        fields["density"] = np.asarray(a["density"], dtype=float)
-    if "frozen" in a:
-        fields["frozen"] = np.asarray(a["frozen"], dtype=bool)
-    mesh = continuum_mesh(points, a["triangles"], np.zeros_like(points), cell_fields=fields)
-    name = key.removeprefix("continuum_mechanism/").replace("/", "_")
+    if getattr(r, "density", None) is not None:
+        fields["density"] = np.asarray(r.density, dtype=float)
+    if getattr(r, "frozen", None) is not None:
+        fields["frozen"] = np.asarray(r.frozen, dtype=bool)
+    mesh = continuum_mesh(points, r.triangles, np.zeros_like(points), cell_fields=fields)
+    name = unit.key.removeprefix("continuum_mechanism/").replace("/", "_")
     return write_mesh(mesh, Path(folder) / f"mechanism_{name}.vtu")

@@ -59,6 +59,15 @@ from typing import Any
 
 import numpy as np
 
+from .results.mechanism import (
+    DofOptimumResult,
+    DofResult,
+    InverterResult,
+    LatticeResult,
+    LearnResult,
+    OptimumResult,
+    SimpResult,
+)
 from .schema import Scene
 from .units import Unit, UnitContext
 
@@ -168,6 +177,7 @@ def _rule(scene: Scene, rule: str, rate: str):
 
 
 def _mesh_arrays(body, field, coarse_body) -> dict[str, Any]:
+    """``field``, ``coarse``, ``points``, ``triangles``, ``area`` of a result class."""
     from ..continuum.learned_fields import coarse_average
 
     return {
@@ -185,7 +195,7 @@ def _response(medium, task) -> float:
     return float(medium.free_state(task).target_strain[0] / task.source_strain[0])
 
 
-def learn_unit(scene: Scene, params: dict, ctx: UnitContext):
+def learn_unit(scene: Scene, params: dict, ctx: UnitContext) -> LearnResult:
     """Train the filtered modulus field with one rule and rate (see the module)."""
     from ..continuum.mechanism import rest_example
     from ..learning.coupling import body_source_share, coupling_verdict, outcome
@@ -202,33 +212,34 @@ def learn_unit(scene: Scene, params: dict, ctx: UnitContext):
     share = body_source_share(medium, trained, task)
     verdict = coupling_verdict(share)
     rest = rest_example(task)
-    arrays = {
-        "error": err,
-        "seconds": np.asarray(h.seconds[0], dtype=float),
-        "solves": np.asarray(h.solves[0], dtype=float),
-        "frozen": ~trained.learning_mask(task, learn_sources=False, learn_targets=False),
+    seconds = np.asarray(h.seconds[0], dtype=float)
+    solves = np.asarray(h.solves[0], dtype=float)
+    return LearnResult(
+        refine=params["refine"],
+        rule=params["rule"],
+        rate=params["rate"],
+        ratio=float(err[-1]),
+        first_below=first_below(err, LEVEL),
+        response=_response(trained, task),
+        response_initial=_response(medium, task),
+        asked=float(m.ratio),
+        rest_error=float(rest.error(trained.free_state(rest).target_strain)),
+        source_share=float(share),
+        coupling=verdict,
+        outcome=outcome(float(err[-1]), verdict),
+        n_elements=int(body.n_elements),
+        seconds=float(seconds[-1]),
+        solves=float(solves[-1]),
+        contrast=float(trained.modulus.max() / trained.modulus.min()),
+        error=err,
+        seconds_trace=seconds,
+        solves_trace=solves,
+        frozen=~trained.learning_mask(task, learn_sources=False, learn_targets=False),
         **_mesh_arrays(body, trained.modulus, coarse_body),
-    }
-    meta = {
-        **params,
-        "ratio": float(err[-1]),
-        "first_below": first_below(err, LEVEL),
-        "response": _response(trained, task),
-        "response_initial": _response(medium, task),
-        "asked": float(m.ratio),
-        "rest_error": float(rest.error(trained.free_state(rest).target_strain)),
-        "source_share": float(share),
-        "coupling": verdict,
-        "outcome": outcome(float(err[-1]), verdict),
-        "n_elements": int(body.n_elements),
-        "seconds": float(arrays["seconds"][-1]),
-        "solves": float(arrays["solves"][-1]),
-        "contrast": float(trained.modulus.max() / trained.modulus.min()),
-    }
-    return arrays, meta
+    )
 
 
-def dof_unit(scene: Scene, params: dict, ctx: UnitContext):
+def dof_unit(scene: Scene, params: dict, ctx: UnitContext) -> DofResult:
     """GCL of the filtered eigenstrain field, or of both fields, at the raw rate
     ``dof_alpha`` (the rule objects refuse a scale-free rate for a continuum's
     eigenstrain), on the task with its rest example (``rest``) or on the task alone."""
@@ -255,47 +266,39 @@ def dof_unit(scene: Scene, params: dict, ctx: UnitContext):
     )  # fmt: skip
     verdict = coupling_verdict(share)
     e = trained.eigenstrain
-    arrays = {
-        "error": err,
-        "seconds": np.asarray(h.seconds[0], dtype=float),
-        "solves": np.asarray(h.solves[0], dtype=float),
-        "modulus": trained.modulus,
-        "dilation": 0.5 * (e[:, 0] + e[:, 1]),
-    }
-    meta = {
-        **params, "ratio": float(err[-1]), "first_below": first_below(err, LEVEL),
-        "response": _response(trained, task), "asked": float(m.ratio),
-        "rest_error": float(rest.error(trained.free_state(rest).target_strain)),
-        "source_share": float(share), "coupling": verdict,
-        "outcome": outcome(float(err[-1]), verdict), "n_elements": int(body.n_elements),
-        "seconds": float(arrays["seconds"][-1]), "solves": float(arrays["solves"][-1]),
-        "completed": int(h.completed[0]), "eigenstrain_unit": unit,
-    }  # fmt: skip
-    return arrays, meta
+    seconds = np.asarray(h.seconds[0], dtype=float)
+    solves = np.asarray(h.solves[0], dtype=float)
+    return DofResult(
+        refine=params["refine"], dof=params["dof"], rest=params["rest"],
+        ratio=float(err[-1]), first_below=first_below(err, LEVEL),
+        response=_response(trained, task), asked=float(m.ratio),
+        rest_error=float(rest.error(trained.free_state(rest).target_strain)),
+        source_share=float(share), coupling=verdict,
+        outcome=outcome(float(err[-1]), verdict), n_elements=int(body.n_elements),
+        seconds=float(seconds[-1]), solves=float(solves[-1]),
+        completed=int(h.completed[0]), eigenstrain_unit=unit,
+        error=err, seconds_trace=seconds, solves_trace=solves,
+        modulus=trained.modulus, dilation=0.5 * (e[:, 0] + e[:, 1]),
+    )  # fmt: skip
 
 
-def optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
+def optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> OptimumResult:
     """The exact optimum of the filtered modulus field (L-BFGS-B, adjoint gradient)."""
     from ..learning.field_optimum import field_optimum
 
     body, task, medium = build(scene, params["refine"])
     coarse_body = body if params["refine"] == 0 else build(scene, 0)[0]
     o = field_optimum(medium, task)
-    arrays = {
-        "error": o.errors,
-        "seconds": o.times,
+    return OptimumResult(
+        refine=params["refine"], ratio=o.ratio, evaluations=o.evaluations,
+        solves=o.evaluations, seconds=o.seconds, converged=o.converged, message=o.message,
+        contrast=o.contrast, response=_response(o.medium, task),
+        n_elements=int(body.n_elements), error=o.errors, seconds_trace=o.times,
         **_mesh_arrays(body, o.medium.modulus, coarse_body),
-    }
-    meta = {
-        **params, "ratio": o.ratio, "evaluations": o.evaluations, "solves": o.evaluations,
-        "seconds": o.seconds, "converged": o.converged, "message": o.message,
-        "contrast": o.contrast, "response": _response(o.medium, task),
-        "n_elements": int(body.n_elements),
-    }  # fmt: skip
-    return arrays, meta
+    )  # fmt: skip
 
 
-def dof_optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
+def dof_optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> DofOptimumResult:
     """The exact optimum of the filtered eigenstrain field, or of both fields, on the task and
     its rest example (L-BFGS-B, adjoint gradient; see the module)."""
     from ..continuum.filtered_fields import MaterialExamples, filtered_fields
@@ -311,24 +314,19 @@ def dof_optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
     o = field_optimum(medium, examples, dof=params["dof"])
     trained = o.medium.body
     e = trained.eigenstrain
-    arrays = {
-        "error": o.errors,
-        "seconds": o.times,
-        "modulus": trained.modulus,
-        "dilation": 0.5 * (e[:, 0] + e[:, 1]),
-    }
-    meta = {
-        **params, "ratio": o.ratio, "feasible": bool(o.ratio <= MET_AT),
-        "evaluations": o.evaluations, "solves": o.evaluations * len(examples.tasks),
-        "seconds": o.seconds, "converged": o.converged, "message": o.message,
-        "contrast": o.contrast, "response": _response(trained, task),
-        "rest_error": float(rest.error(trained.free_state(rest).target_strain)),
-        "n_elements": int(body.n_elements), "eigenstrain_unit": unit,
-    }  # fmt: skip
-    return arrays, meta
+    return DofOptimumResult(
+        refine=params["refine"], dof=params["dof"], ratio=o.ratio,
+        feasible=bool(o.ratio <= MET_AT), evaluations=o.evaluations,
+        solves=o.evaluations * len(examples.tasks), seconds=o.seconds,
+        converged=o.converged, message=o.message, contrast=o.contrast,
+        response=_response(trained, task),
+        rest_error=float(rest.error(trained.free_state(rest).target_strain)),
+        n_elements=int(body.n_elements), eigenstrain_unit=unit, error=o.errors,
+        seconds_trace=o.times, modulus=trained.modulus, dilation=0.5 * (e[:, 0] + e[:, 1]),
+    )  # fmt: skip
 
 
-def simp_unit(scene: Scene, params: dict, ctx: UnitContext):
+def simp_unit(scene: Scene, params: dict, ctx: UnitContext) -> SimpResult:
     """SIMP on the allosteric task, on the coarsest mesh: over the learning's stiffness
     range, or (``solid``) the textbook's ``1e-4 .. 1``."""
     from ..continuum.topology import simp_allosteric
@@ -346,23 +344,16 @@ def simp_unit(scene: Scene, params: dict, ctx: UnitContext):
         e_min=e_min,
         e_max=e_max,
     )
-    arrays = {
-        "error": r.objective,
-        "seconds": r.times,
-        "density": r.density,
-        **_mesh_arrays(body, r.modulus, body),
-    }
-    meta = {
-        "ratio": r.final, "solves": r.solves, "seconds": r.seconds,
-        "iterations": r.iterations, "volume": r.volume, "method": r.method,
-        "e_min": e_min, "e_max": e_max,
-        "response": _response(body.with_modulus(r.modulus), task),
-        "n_elements": int(body.n_elements),
-    }  # fmt: skip
-    return arrays, meta
+    return SimpResult(
+        ratio=r.final, solves=r.solves, seconds=r.seconds, iterations=r.iterations,
+        volume=r.volume, method=r.method, e_min=e_min, e_max=e_max,
+        response=_response(body.with_modulus(r.modulus), task),
+        n_elements=int(body.n_elements), error=r.objective, seconds_trace=r.times,
+        density=r.density, **_mesh_arrays(body, r.modulus, body),
+    )  # fmt: skip
 
 
-def inverter_unit(scene: Scene, params: dict, ctx: UnitContext):
+def inverter_unit(scene: Scene, params: dict, ctx: UnitContext) -> InverterResult:
     """SIMP + OC on Sigmund's force inverter (half model 2 x 1, symmetry at the top)."""
     from ..continuum.learnable import learnable_body
     from ..continuum.materials import Material
@@ -378,19 +369,14 @@ def inverter_unit(scene: Scene, params: dict, ctx: UnitContext):
     r, u_in = simp_inverter(
         body, layout, radius=m.inverter_radius, iterations=m.inverter_iterations
     )
-    arrays = {
-        "output": r.objective,
-        "seconds": r.times,
-        "density": r.density,
-        **_mesh_arrays(body, r.density, body),
-    }
-    meta = {
-        "u_out": float(r.objective[-1]), "u_out_initial": float(r.objective[0]), "u_in": u_in,
-        "advantage": float(-r.objective[-1] / u_in), "volume": r.volume, "solves": r.solves,
-        "seconds": time.perf_counter() - t0, "n_elements": int(body.n_elements),
-        "k_in": layout.k_in, "k_out": layout.k_out, "force": layout.force,
-    }  # fmt: skip
-    return arrays, meta
+    mesh = _mesh_arrays(body, r.density, body)
+    return InverterResult(
+        u_out=float(r.objective[-1]), u_out_initial=float(r.objective[0]), u_in=u_in,
+        advantage=float(-r.objective[-1] / u_in), volume=r.volume, solves=r.solves,
+        seconds=time.perf_counter() - t0, n_elements=int(body.n_elements),
+        k_in=layout.k_in, k_out=layout.k_out, force=layout.force, output=r.objective,
+        seconds_trace=r.times, density=r.density, **mesh,
+    )  # fmt: skip
 
 
 def lattice(scene: Scene, refine: int):
@@ -416,7 +402,7 @@ def lattice(scene: Scene, refine: int):
     return net, task, anchored(task, net)
 
 
-def lattice_unit(scene: Scene, params: dict, ctx: UnitContext):
+def lattice_unit(scene: Scene, params: dict, ctx: UnitContext) -> LatticeResult:
     """GCL of the lattice's stiffnesses on the same 1 -> 1 task (see the module)."""
     from ..learning import measure_coupling, train
     from ..learning.coupling import outcome
@@ -432,20 +418,14 @@ def lattice_unit(scene: Scene, params: dict, ctx: UnitContext):
     err = e / e[0]
     final = h.final[0]
     c = measure_coupling(net, final, task)
-    arrays = {
-        "error": err,
-        "seconds": np.asarray(h.seconds[0], dtype=float),
-        "solves": np.asarray(h.solves[0], dtype=float),
-        "positions": net.positions,
-        "springs": net.springs,
-        "k": final.stiffness,
-    }
-    meta = {
-        **params, "ratio": float(err[-1]), "first_below": first_below(err, LEVEL),
-        "source_share": float(c.share), "coupling": c.verdict,
-        "outcome": outcome(float(err[-1]), c.verdict), "n_nodes": int(net.n_nodes),
-        "n_springs": len(net.springs), "spacing": float(m.h / 2 ** params["refine"]),
-        "completed": int(h.completed[0]), "seconds": float(arrays["seconds"][-1]),
-        "solves": float(arrays["solves"][-1]),
-    }  # fmt: skip
-    return arrays, meta
+    seconds = np.asarray(h.seconds[0], dtype=float)
+    solves = np.asarray(h.solves[0], dtype=float)
+    return LatticeResult(
+        refine=params["refine"], ratio=float(err[-1]), first_below=first_below(err, LEVEL),
+        source_share=float(c.share), coupling=c.verdict,
+        outcome=outcome(float(err[-1]), c.verdict), n_nodes=int(net.n_nodes),
+        n_springs=len(net.springs), spacing=float(m.h / 2 ** params["refine"]),
+        completed=int(h.completed[0]), seconds=float(seconds[-1]), solves=float(solves[-1]),
+        error=err, seconds_trace=seconds, solves_trace=solves, positions=net.positions,
+        springs=net.springs, k=final.stiffness,
+    )  # fmt: skip

@@ -13,6 +13,17 @@ import itertools
 import numpy as np
 
 from ...learning.coupling import MET_AT
+from ...scenes.results import from_stored
+from ...scenes.results.mechanism import (
+    DofOptimumResult,
+    DofResult,
+    InverterResult,
+    LatticeResult,
+    LearnResult,
+    OptimumResult,
+    SimpResult,
+    mechanism_result,
+)
 from ...scenes.units_mechanism import LEVEL
 from ..document import Document, fmt, mesh_name
 from ..figures import Panel, Series
@@ -30,20 +41,30 @@ RULES = {"gcl": "GCL (CoupledLearning)", "exact": "exact gradient (ExactGradient
 WITHIN = 10.0
 
 
-def dof_verdict(meta: dict, opt: dict | None) -> str:
+def dof_verdict(run: DofResult, opt: DofOptimumResult | None) -> str:
     """The table's verdict of a GCL dof run: ``"infeasible (optimum C/C0 = x)"`` when the
     exact optimum of its dof (None: not computed) misses ``MET_AT`` (the level its finding
     asks for), else the run's outcome (coupling vocabulary)."""
-    if opt is not None and not opt["feasible"]:
-        return f"infeasible (optimum C/C0 = {opt['ratio']:.2g})"
-    return str(meta["outcome"])
+    if opt is not None and not opt.feasible:
+        return f"infeasible (optimum C/C0 = {opt.ratio:.2g})"
+    return str(run.outcome)
 
 
-def _dof_opt(units: dict, r: int, name: str) -> dict | None:
-    """The dof optimum's meta of a dof run ``name`` on ``h/2^r`` (None: not computed; the
-    task alone has none)."""
+def _dof_opt(units: dict, r: int, name: str) -> DofOptimumResult | None:
+    """The dof optimum of a dof run ``name`` on ``h/2^r`` (None: not computed; the task
+    alone has none)."""
     u = units.get(f"continuum_mechanism/dof_optimum/refine{r}/{name}")
-    return None if u is None else u.meta
+    return None if u is None else from_stored(u, DofOptimumResult)
+
+
+def _learn(units: dict, r: int, rule: str, rate: str) -> LearnResult:
+    return from_stored(units[f"continuum_mechanism/learn/refine{r}/{rule}/{rate}"], LearnResult)
+
+
+def _lattices(units: dict, levels: int) -> dict[int, LatticeResult]:
+    """The lattice runs ``h/2^r``, r <= ``levels``, that the scene has."""
+    keys = {r: f"continuum_mechanism/lattice/refine{r}" for r in range(levels + 1)}
+    return {r: from_stored(units[k], LatticeResult) for r, k in keys.items() if k in units}
 
 
 def change(fine: np.ndarray, coarse: np.ndarray, area: np.ndarray) -> float:
@@ -55,10 +76,9 @@ def change(fine: np.ndarray, coarse: np.ndarray, area: np.ndarray) -> float:
 
 def refinement_changes(units: dict, prefix: str, levels: int) -> list[float]:
     """Successive changes ``h/2^r -> h/2^(r+1)`` of the fields ``<prefix with r>`` units."""
-    area = np.asarray(units[prefix.format(r=0)].arrays["area"], float)
-    fields = [
-        np.asarray(units[prefix.format(r=r)].arrays["coarse"], float) for r in range(levels + 1)
-    ]
+    runs = [mechanism_result(units[prefix.format(r=r)]) for r in range(levels + 1)]
+    area = np.asarray(runs[0].area, float)
+    fields = [np.asarray(run.coarse, float) for run in runs]
     return [change(fields[r + 1], fields[r], area) for r in range(levels)]
 
 
@@ -102,66 +122,64 @@ def section(doc: Document, result) -> None:
         "field follows the discretisation of the clamps (issue 47's eigenstrain runs).",
     )
     opt = {
-        r: units[f"continuum_mechanism/optimum/refine{r}"].meta
+        r: from_stored(units[f"continuum_mechanism/optimum/refine{r}"], OptimumResult)
         for r in range(R + 1) if f"continuum_mechanism/optimum/refine{r}" in units
     }  # fmt: skip
     simps = [
-        (units[k].meta, k.endswith("solid"))
+        (from_stored(units[k], SimpResult), k.endswith("solid"))
         for k in ("continuum_mechanism/simp", "continuum_mechanism/simp_solid") if k in units
     ]  # fmt: skip
+    lattices = _lattices(units, R)
     doc.heading("Side by side: local rule, exact gradient, exact optimum, SIMP", 3)
     rows = []
     for r in range(R + 1):
         for rule in m.rules:
             for rate in m.rates:
-                u = units[f"continuum_mechanism/learn/refine{r}/{rule}/{rate}"].meta
+                u = _learn(units, r, rule, rate)
                 rows.append([
-                    f"{RULES[rule]}, {rate}", mesh_name(r), u["n_elements"], fmt(u["ratio"]),
-                    u["first_below"] if u["first_below"] is not None else "-", int(u["solves"]),
-                    fmt(u["seconds"]), fmt(u["response"]), u["coupling"], u["outcome"],
+                    f"{RULES[rule]}, {rate}", mesh_name(r), u.n_elements, fmt(u.ratio),
+                    u.first_below if u.first_below is not None else "-", int(u.solves),
+                    fmt(u.seconds), fmt(u.response), u.coupling, u.outcome,
                 ])  # fmt: skip
         for name in [*m.dofs, "eigenstrain_norest"]:
             dk = f"continuum_mechanism/dof/refine{r}/{name}"
             if dk in units:
-                u = units[dk].meta
+                d = from_stored(units[dk], DofResult)
                 rows.append([
                     f"GCL of {DOFS[name]}, raw alpha {m.dof_alpha:g}", mesh_name(r),
-                    u["n_elements"],
-                    fmt(u["ratio"]), u["first_below"] if u["first_below"] is not None else "-",
-                    int(u["solves"]), fmt(u["seconds"]), fmt(u["response"]), u["coupling"],
-                    dof_verdict(u, _dof_opt(units, r, name)),
+                    d.n_elements,
+                    fmt(d.ratio), d.first_below if d.first_below is not None else "-",
+                    int(d.solves), fmt(d.seconds), fmt(d.response), d.coupling,
+                    dof_verdict(d, _dof_opt(units, r, name)),
                 ])  # fmt: skip
             o = _dof_opt(units, r, name)
             if o is not None:
                 rows.append([
-                    f"exact optimum of {DOFS[name]} (L-BFGS-B, {o['evaluations']} evaluations)",
-                    mesh_name(r), o["n_elements"], fmt(o["ratio"]), "-", o["solves"],
-                    fmt(o["seconds"]), fmt(o["response"]), "-",
-                    "feasible" if o["feasible"] else "infeasible",
+                    f"exact optimum of {DOFS[name]} (L-BFGS-B, {o.evaluations} evaluations)",
+                    mesh_name(r), o.n_elements, fmt(o.ratio), "-", o.solves,
+                    fmt(o.seconds), fmt(o.response), "-",
+                    "feasible" if o.feasible else "infeasible",
                 ])  # fmt: skip
-        lk = f"continuum_mechanism/lattice/refine{r}"
-        if lk in units:
-            u = units[lk].meta
+        if (lat := lattices.get(r)) is not None:
             rows.append([
                 "network: triangular lattice, GCL of k, adaptive", f"a = {mesh_name(r)}",
-                f"{u['n_springs']} springs", fmt(u["ratio"]),
-                u["first_below"] if u["first_below"] is not None else "-", int(u["solves"]),
-                fmt(u["seconds"]), "-", u["coupling"], u["outcome"],
+                f"{lat.n_springs} springs", fmt(lat.ratio),
+                lat.first_below if lat.first_below is not None else "-", int(lat.solves),
+                fmt(lat.seconds), "-", lat.coupling, lat.outcome,
             ])  # fmt: skip
         o = opt.get(r)
         if o is None:
             continue
         rows.append([
-            "exact optimum (L-BFGS-B)", mesh_name(r), o["n_elements"], fmt(o["ratio"]), "-",
-            o["solves"], fmt(o["seconds"]), fmt(o["response"]), "-", "-",
+            "exact optimum (L-BFGS-B)", mesh_name(r), o.n_elements, fmt(o.ratio), "-",
+            o.solves, fmt(o.seconds), fmt(o.response), "-", "-",
         ])  # fmt: skip
     for simp, solid in simps:
         rows.append([
-            f"SIMP p = 3 + filter, {simp.get('method', 'oc').upper()}, modulus "
-            f"{simp.get('e_min', 1e-4):g} .. {simp.get('e_max', 1.0):g}"
-            + (" (textbook)" if solid else ""),
-            "h", simp["n_elements"], fmt(simp["ratio"]), "-", simp["solves"],
-            fmt(simp["seconds"]), fmt(simp["response"]), "-", "-",
+            f"SIMP p = 3 + filter, {simp.method.upper()}, modulus "
+            f"{simp.e_min:g} .. {simp.e_max:g}" + (" (textbook)" if solid else ""),
+            "h", simp.n_elements, fmt(simp.ratio), "-", simp.solves,
+            fmt(simp.seconds), fmt(simp.response), "-", "-",
         ])  # fmt: skip
     doc.table(
         ["method", "mesh", "elements", "final C/C0", f"first step C/C0 <= {LEVEL:g}", "solves",
@@ -169,7 +187,7 @@ def section(doc: Document, result) -> None:
         rows,
     )  # fmt: skip
     rest = max(
-        units[f"continuum_mechanism/learn/refine{r}/{rule}/{rate}"].meta["rest_error"]
+        _learn(units, r, rule, rate).rest_error
         for r in range(R + 1) for rule in m.rules for rate in m.rates
     )  # fmt: skip
     doc.add(
@@ -194,10 +212,10 @@ def section(doc: Document, result) -> None:
     )
     _findings_learning(doc, m, units, opt)
     _findings_dofs(doc, m, units)
-    _findings_lattice(doc, m, units)
+    _findings_lattice(doc, lattices)
     _refinement(doc, m, units)
-    _curves(doc, m, units)
-    _inverter(doc, units["continuum_mechanism/inverter"].meta)
+    _curves(doc, m, units, opt, lattices)
+    _inverter(doc, from_stored(units["continuum_mechanism/inverter"], InverterResult))
     _renders(doc, m, units)
 
 
@@ -205,22 +223,19 @@ def _findings_learning(doc: Document, m, units, opt) -> None:
     if "gcl" not in m.rules:
         return
     for rate in m.rates:
-        metas = [
-            units[f"continuum_mechanism/learn/refine{r}/gcl/{rate}"].meta
-            for r in range(m.refine + 1)
-        ]
+        runs = [_learn(units, r, "gcl", rate) for r in range(m.refine + 1)]
         ok = [
-            (u["ratio"] <= LEVEL or (r in opt and u["ratio"] <= WITHIN * opt[r]["ratio"]))
-            and u["coupling"] == "coupled"
-            for r, u in enumerate(metas)
+            (u.ratio <= LEVEL or (r in opt and u.ratio <= WITHIN * opt[r].ratio))
+            and u.coupling == "coupled"
+            for r, u in enumerate(runs)
         ]  # fmt: skip
         doc.finding(
             Finding(
                 claim=f"modulus-field GCL ({rate} rate) learns the continuum 1 -> 1 task with "
                 f"the coupled verdict on every mesh h .. {mesh_name(m.refine)}",
                 metric="final C/C0 per mesh, the optimum's, and the coupling verdict",
-                measured={f"C/C0 {mesh_name(r)}": u["ratio"] for r, u in enumerate(metas)}
-                | {f"optimum {mesh_name(r)}": opt[r]["ratio"] for r in opt},
+                measured={f"C/C0 {mesh_name(r)}": u.ratio for r, u in enumerate(runs)}
+                | {f"optimum {mesh_name(r)}": opt[r].ratio for r in opt},
                 verdict=REPRODUCED if all(ok) else NOT_REPRODUCED,
                 rule=f"reproduced when on every mesh C/C0 <= {LEVEL:g} or <= {WITHIN:g} x the "
                 "optimum's, and the verdict is coupled",
@@ -233,7 +248,7 @@ def _unit_text(m, units, keys) -> str:
     """The eigenstrain unit the dof runs used, and where it comes from."""
     if m.eigenstrain_unit > 0:
         return f"{m.eigenstrain_unit:.3g} (set in the scene file)"
-    unit = units[next(iter(keys.values()))].meta["eigenstrain_unit"]
+    unit = from_stored(units[next(iter(keys.values()))], DofResult).eigenstrain_unit
     return (
         f"{unit:.3g}, its susceptibility relative to the modulus, computed by a rule: on the "
         "coarsest mesh the first GCL step on both fields moves the eigenstrain design by the "
@@ -266,27 +281,27 @@ def _findings_dofs(doc: Document, m, units) -> None:
         "eigenstrain meets it by prestress (decoupled).",
     )
     for (r, name), k in keys.items():
-        u = units[k].meta
-        met = u["ratio"] <= MET_AT
+        u = from_stored(units[k], DofResult)
+        met = u.ratio <= MET_AT
         o = _dof_opt(units, r, name)
-        if o is not None and not o["feasible"]:
+        if o is not None and not o.feasible:
             doc.finding(
                 Finding(
                     claim=f"GCL of {DOFS[name]} learns the task with the coupled verdict on "
                     f"{mesh_name(r)}",
                     metric="final C/C0, and the exact optimum's C/C0 of the same dof and "
                     "objective",
-                    measured={"C/C0": u["ratio"], "optimum C/C0": o["ratio"],
-                              "source share": u["source_share"]},
+                    measured={"C/C0": u.ratio, "optimum C/C0": o.ratio,
+                              "source share": u.source_share},
                     verdict=NOT_COMPARABLE,
-                    rule=f"infeasible (optimum C/C0 = {o['ratio']:.2g}): the exact optimum "
+                    rule=f"infeasible (optimum C/C0 = {o.ratio:.2g}): the exact optimum "
                     f"misses C/C0 <= {MET_AT:g}, so no rule can meet the task (counted apart)",
                     source="field",
                 )
             )  # fmt: skip
             continue
         if name == "eigenstrain_norest":
-            good, source = met and u["coupling"] == "decoupled", "check"
+            good, source = met and u.coupling == "decoupled", "check"
             basis = "met trivially" if good else ""
             claim = (
                 f"without the rest example, eigenstrain GCL meets the task by prestress "
@@ -294,7 +309,7 @@ def _findings_dofs(doc: Document, m, units) -> None:
             )
             rule = f"reproduced when C/C0 <= {MET_AT:g} and the verdict is decoupled"
         else:
-            good, source = met and u["coupling"] == "coupled", "field"
+            good, source = met and u.coupling == "coupled", "field"
             basis = "coupled" if good else ""
             claim = (
                 f"GCL of {DOFS[name]} learns the task with the coupled verdict on {mesh_name(r)}"
@@ -304,30 +319,26 @@ def _findings_dofs(doc: Document, m, units) -> None:
             Finding(
                 claim=claim,
                 metric="final C/C0 and the source share (coupling)",
-                measured={"C/C0": u["ratio"], "source share": u["source_share"],
-                          "rest error": u["rest_error"]}
-                | ({"optimum C/C0": o["ratio"]} if o is not None else {}),
+                measured={"C/C0": u.ratio, "source share": u.source_share,
+                          "rest error": u.rest_error}
+                | ({"optimum C/C0": o.ratio} if o is not None else {}),
                 verdict=REPRODUCED if good else NOT_REPRODUCED,
                 rule=rule, source=source, basis=basis,
             )
         )  # fmt: skip
 
 
-def _findings_lattice(doc: Document, m, units) -> None:
-    metas = [
-        units[k].meta
-        for r in range(m.refine + 1)
-        if (k := f"continuum_mechanism/lattice/refine{r}") in units
-    ]
-    if not metas:
+def _findings_lattice(doc: Document, lattices: dict[int, LatticeResult]) -> None:
+    runs = list(lattices.values())
+    if not runs:
         return
-    ok = [u["ratio"] <= LEVEL and u["coupling"] == "coupled" for u in metas]
+    ok = [u.ratio <= LEVEL and u.coupling == "coupled" for u in runs]
     doc.finding(
         Finding(
             claim="the triangular lattice learns the same 1 -> 1 task by GCL of its "
             "stiffnesses with the coupled verdict at every lattice constant",
             metric="final C/C0 per lattice constant and the coupling verdict",
-            measured={f"C/C0 a = {mesh_name(u['refine'])}": u["ratio"] for u in metas},
+            measured={f"C/C0 a = {mesh_name(u.refine)}": u.ratio for u in runs},
             verdict=REPRODUCED if all(ok) else NOT_REPRODUCED,
             rule=f"reproduced when on every lattice C/C0 <= {LEVEL:g} and the verdict is coupled",
             basis="coupled",
@@ -375,27 +386,21 @@ def _refinement(doc: Document, m, units) -> None:
         )
 
 
-def _curves(doc: Document, m, units) -> None:
+def _curves(doc: Document, m, units, opt: dict, lattices: dict) -> None:
     R = m.refine
     by_step, by_time = [], []
     for rule in m.rules:
         for rate in m.rates:
-            a = units[f"continuum_mechanism/learn/refine{R}/{rule}/{rate}"].arrays
+            a = _learn(units, R, rule, rate)
             label = f"{rule}, {rate}"
-            by_step.append(Series(np.arange(a["error"].size), a["error"], label))
-            by_time.append(Series(a["seconds"], a["error"], label))
-    lk = f"continuum_mechanism/lattice/refine{R}"
-    if lk in units:
-        a = units[lk].arrays
-        by_step.append(Series(np.arange(a["error"].size), a["error"], "lattice, GCL of k"))
-        by_time.append(Series(a["seconds"], a["error"], "lattice, GCL of k"))
-    key = f"continuum_mechanism/optimum/refine{R}"
-    if key in units:
-        o = units[key].arrays
-        by_step.append(
-            Series(np.arange(1, o["error"].size + 1), o["error"], "optimum (evaluations)")
-        )
-        by_time.append(Series(o["seconds"], o["error"], "optimum"))
+            by_step.append(Series(np.arange(a.error.size), a.error, label))
+            by_time.append(Series(a.seconds_trace, a.error, label))
+    if (lat := lattices.get(R)) is not None:
+        by_step.append(Series(np.arange(lat.error.size), lat.error, "lattice, GCL of k"))
+        by_time.append(Series(lat.seconds_trace, lat.error, "lattice, GCL of k"))
+    if (o := opt.get(R)) is not None:
+        by_step.append(Series(np.arange(1, o.error.size + 1), o.error, "optimum (evaluations)"))
+        by_time.append(Series(o.seconds_trace, o.error, "optimum"))
     doc.figure(
         "continuum_mechanism_curves",
         [
@@ -422,16 +427,16 @@ def _curves(doc: Document, m, units) -> None:
     )
 
 
-def _inverter(doc: Document, inv: dict) -> None:
+def _inverter(doc: Document, inv: InverterResult) -> None:
     doc.heading("The force inverter (Sigmund 1997)", 3)
-    ga = inv["advantage"]
+    ga = inv.advantage
     doc.add(
-        f"Half model 2 x 1 (symmetry at the top edge), {inv['n_elements']} P1 elements, "
-        f"input force {inv['force']:g} against k_in = {inv['k_in']:g}, output spring "
-        f"k_out = {inv['k_out']:g}, SIMP p = 3, volume fraction {fmt(inv['volume'])}, OC "
-        f"({inv['solves']} solves, {fmt(inv['seconds'])} s). Output u_out = "
-        f"{fmt(inv['u_out'])} (uniform start: {fmt(inv['u_out_initial'])}), input u_in = "
-        f"{fmt(inv['u_in'])}: geometric advantage -u_out/u_in = {fmt(ga)}.",
+        f"Half model 2 x 1 (symmetry at the top edge), {inv.n_elements} P1 elements, "
+        f"input force {inv.force:g} against k_in = {inv.k_in:g}, output spring "
+        f"k_out = {inv.k_out:g}, SIMP p = 3, volume fraction {fmt(inv.volume)}, OC "
+        f"({inv.solves} solves, {fmt(inv.seconds)} s). Output u_out = "
+        f"{fmt(inv.u_out)} (uniform start: {fmt(inv.u_out_initial)}), input u_in = "
+        f"{fmt(inv.u_in)}: geometric advantage -u_out/u_in = {fmt(ga)}.",
     )
     doc.add(
         "",
@@ -441,16 +446,16 @@ def _inverter(doc: Document, inv: dict) -> None:
         "tests/test_continuum_mechanism.py holds them to the same sign and within a factor "
         "3, so the verdict here stays on the sign.",
     )
-    good = inv["u_out"] < 0 < inv["u_in"] and inv["u_out_initial"] > 0
+    good = inv.u_out < 0 < inv.u_in and inv.u_out_initial > 0
     doc.finding(
         Finding(
             claim="topology optimisation turns the plate into a force inverter: the uniform "
             "plate's output moves with the input, the optimised one's against it (Sigmund 1997)",
             metric="sign of u_out against u_in, uniform start and optimised",
             measured={
-                "u_out": inv["u_out"],
-                "u_out uniform": inv["u_out_initial"],
-                "u_in": inv["u_in"],
+                "u_out": inv.u_out,
+                "u_out uniform": inv.u_out_initial,
+                "u_in": inv.u_in,
                 "advantage": ga,
             },
             verdict=REPRODUCED if good else NOT_REPRODUCED,
@@ -468,26 +473,26 @@ def _renders(doc: Document, m, units) -> None:
     R = m.refine
     rule = m.rules[0]
     shown = [
-        (f"{rule}_{m.rates[0]}",
-         units[f"continuum_mechanism/learn/refine{R}/{rule}/{m.rates[0]}"].arrays,
+        (f"{rule}_{m.rates[0]}", _learn(units, R, rule, m.rates[0]),
          f"log10 modulus learned by {rule} ({m.rates[0]}, {mesh_name(R)})"),
-        ("optimum", units[f"continuum_mechanism/optimum/refine{m.optimum_refine}"].arrays,
+        ("optimum", from_stored(units[f"continuum_mechanism/optimum/refine{m.optimum_refine}"],
+                                OptimumResult),
          f"log10 modulus, exact optimum ({mesh_name(m.optimum_refine)})"),
-        ("simp", units["continuum_mechanism/simp"].arrays,
+        ("simp", from_stored(units["continuum_mechanism/simp"], SimpResult),
          "log10 modulus, SIMP over the learning's range (h)"),
     ]  # fmt: skip
     for name, a, title in shown:
-        pts = np.asarray(a["points"], float)
+        pts = np.asarray(a.points, float)
         path = render_continuum(
-            pts, a["triangles"], np.zeros_like(pts), np.log10(np.asarray(a["field"], float)),
+            pts, a.triangles, np.zeros_like(pts), np.log10(np.asarray(a.field, float)),
             doc.folder / f"render_mechanism_{name}.png", clim=(-2.0, 2.0), scale=0.0,
             location="cell", window_size=(800, 450), title=title, scalar_bar_title="log10 s",
         )  # fmt: skip
         doc.image(path, f"pyvista: {title}; colour scale -2 .. 2.")
-    a = units["continuum_mechanism/inverter"].arrays
-    pts = np.asarray(a["points"], float)
+    a = from_stored(units["continuum_mechanism/inverter"], InverterResult)
+    pts = np.asarray(a.points, float)
     path = render_continuum(
-        pts, a["triangles"], np.zeros_like(pts), np.asarray(a["density"], float),
+        pts, a.triangles, np.zeros_like(pts), np.asarray(a.density, float),
         doc.folder / "render_mechanism_inverter.png", clim=(0.0, 1.0), scale=0.0,
         location="cell", window_size=(800, 450), title="force inverter: SIMP density",
         scalar_bar_title="density",

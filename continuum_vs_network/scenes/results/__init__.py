@@ -15,7 +15,8 @@ typed read back as its class.
     result = from_stored(unit, TransmissionResult)      # what a section reads
 
 The result classes live in one module per kind: :mod:`.physics` (transmission,
-relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`, :mod:`.physical_time`.
+relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`, :mod:`.physical_time`,
+:mod:`.mechanism` (continuum_mechanism), :mod:`.allostery`, :mod:`.learning`.
 """
 
 from __future__ import annotations

@@ -1,0 +1,256 @@
+"""Results of the ``continuum_mechanism`` units (:mod:`..units_mechanism`).
+
+Common to them: ``ratio`` is the final C/C0 (the error against the untrained uniform body);
+``error`` (steps + 1,) or (evaluations,) is C/C0 along the run; ``seconds`` and ``solves``
+are the run's wall-clock seconds and linear solves, ``seconds_trace`` and ``solves_trace``
+the same, cumulative, along ``error`` (stored as ``seconds`` and ``solves``); ``response``
+is the target's strain over the source's (``S_T / S_S``; asked: the scene's ``ratio``);
+``n_elements`` counts the mesh's triangles. ``first_below``: the first step with C/C0 <=
+``LEVEL`` (None: none; stored as null); ``source_share``: the share of the trained
+target's strain due to the source, ``coupling`` its verdict and ``outcome`` the run's
+(coupling vocabulary). A field on a mesh (learn, optimum, SIMP, inverter) comes with it:
+``field`` (n_elements,) per element, ``coarse`` the same averaged onto the ``refine = 0``
+mesh, ``points`` (n_points, 2), ``triangles`` (n_elements, 3) and the elements' ``area``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..units import UnitResult
+from . import KEEP_NONE, from_stored
+
+__all__ = [
+    "DofOptimumResult",
+    "DofResult",
+    "InverterResult",
+    "LatticeResult",
+    "LearnResult",
+    "OptimumResult",
+    "SimpResult",
+    "mechanism_result",
+]
+
+
+@dataclass(frozen=True)
+class LearnResult:
+    """The filtered modulus field trained by ``rule`` at ``rate`` on the mesh ``h /
+    2^refine`` (a ``continuum_mechanism/learn/...`` unit). ``field``: the learned modulus;
+    ``frozen`` (n_elements,) bool: the elements the rule leaves (the springs' discs);
+    ``response_initial``: S_T / S_S of the uniform body, ``asked`` the ratio asked;
+    ``rest_error``: the rest example's error, trained; ``contrast``: max / min modulus."""
+
+    refine: int
+    rule: str
+    rate: str
+    ratio: float
+    first_below: int | None = dataclasses.field(metadata=KEEP_NONE)
+    response: float
+    response_initial: float
+    asked: float
+    rest_error: float
+    source_share: float
+    coupling: str
+    outcome: str
+    n_elements: int
+    seconds: float
+    solves: float
+    contrast: float
+    error: np.ndarray
+    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
+    solves_trace: np.ndarray = dataclasses.field(metadata={"stored": "solves"})
+    frozen: np.ndarray
+    field: np.ndarray
+    coarse: np.ndarray
+    points: np.ndarray
+    triangles: np.ndarray
+    area: np.ndarray
+
+
+@dataclass(frozen=True)
+class DofResult:
+    """GCL of the filtered eigenstrain field, or of both fields (``dof``), on ``h /
+    2^refine``, with the rest example (``rest``) or on the task alone (a
+    ``continuum_mechanism/dof/...`` unit). ``completed``: steps run; ``eigenstrain_unit``:
+    the eigenstrain design's strain unit; ``modulus`` and ``dilation`` (n_elements,): the
+    trained modulus and mean normal eigenstrain; others as :class:`LearnResult`."""
+
+    refine: int
+    dof: str
+    rest: bool
+    ratio: float
+    first_below: int | None = dataclasses.field(metadata=KEEP_NONE)
+    response: float
+    asked: float
+    rest_error: float
+    source_share: float
+    coupling: str
+    outcome: str
+    n_elements: int
+    seconds: float
+    solves: float
+    completed: int
+    eigenstrain_unit: float
+    error: np.ndarray
+    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
+    solves_trace: np.ndarray = dataclasses.field(metadata={"stored": "solves"})
+    modulus: np.ndarray
+    dilation: np.ndarray
+
+
+@dataclass(frozen=True)
+class OptimumResult:
+    """The exact optimum of the filtered modulus field on ``h / 2^refine`` (a
+    ``continuum_mechanism/optimum/...`` unit): L-BFGS-B, ``evaluations`` (= ``solves``),
+    ``converged`` and its ``message``, ``contrast`` max / min modulus; ``field`` the
+    optimal modulus; ``error`` and ``seconds_trace`` per evaluation."""
+
+    refine: int
+    ratio: float
+    evaluations: int
+    solves: int
+    seconds: float
+    converged: bool
+    message: str
+    contrast: float
+    response: float
+    n_elements: int
+    error: np.ndarray
+    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
+    field: np.ndarray
+    coarse: np.ndarray
+    points: np.ndarray
+    triangles: np.ndarray
+    area: np.ndarray
+
+
+@dataclass(frozen=True)
+class DofOptimumResult:
+    """The exact optimum of the eigenstrain field, or of both (``dof``), on ``h / 2^refine``
+    with the task and its rest example (a ``continuum_mechanism/dof_optimum/...`` unit).
+    ``feasible``: its C/C0 <= ``MET_AT``; ``solves``: one free state per example per
+    evaluation; ``modulus`` and ``dilation`` as :class:`DofResult`, others as
+    :class:`OptimumResult`."""
+
+    refine: int
+    dof: str
+    ratio: float
+    feasible: bool
+    evaluations: int
+    solves: int
+    seconds: float
+    converged: bool
+    message: str
+    contrast: float
+    response: float
+    rest_error: float
+    n_elements: int
+    eigenstrain_unit: float
+    error: np.ndarray
+    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
+    modulus: np.ndarray
+    dilation: np.ndarray
+
+
+@dataclass(frozen=True)
+class SimpResult:
+    """SIMP on the allosteric task on the ``refine = 0`` mesh (a ``continuum_mechanism/simp``
+    or ``simp_solid`` unit): modulus ``e_min + x^3 (e_max - e_min)``, ``method`` (``"mma"``
+    or ``"oc"``), ``iterations``, the final ``volume`` fraction; ``density`` (n_elements,)
+    the design ``x``, ``field`` its modulus; ``error`` the objective C/C0 per evaluation.
+    Records from before ``method`` and the range were stored read as OC over ``1e-4 .. 1``."""
+
+    ratio: float
+    solves: int
+    seconds: float
+    iterations: int
+    volume: float
+    response: float
+    n_elements: int
+    error: np.ndarray
+    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
+    density: np.ndarray
+    field: np.ndarray
+    coarse: np.ndarray
+    points: np.ndarray
+    triangles: np.ndarray
+    area: np.ndarray
+    method: str = "oc"
+    e_min: float = 1e-4
+    e_max: float = 1.0
+
+
+@dataclass(frozen=True)
+class InverterResult:
+    """SIMP + OC on Sigmund's force inverter (the ``continuum_mechanism/inverter`` unit):
+    output ``u_out`` optimised and ``u_out_initial`` of the uniform plate, input ``u_in``,
+    ``advantage`` -u_out / u_in; the springs ``k_in``, ``k_out`` and input ``force``; the
+    final ``volume`` fraction. ``output`` (iterations + 1,): u_out per iteration;
+    ``density`` and ``field`` (n_elements,): the SIMP density (both)."""
+
+    u_out: float
+    u_out_initial: float
+    u_in: float
+    advantage: float
+    volume: float
+    solves: int
+    seconds: float
+    n_elements: int
+    k_in: float
+    k_out: float
+    force: float
+    output: np.ndarray
+    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
+    density: np.ndarray
+    field: np.ndarray
+    coarse: np.ndarray
+    points: np.ndarray
+    triangles: np.ndarray
+    area: np.ndarray
+
+
+@dataclass(frozen=True)
+class LatticeResult:
+    """GCL of a triangular lattice's stiffnesses on the same task at lattice constant
+    ``spacing`` = h / 2^refine (a ``continuum_mechanism/lattice/...`` unit): ``n_nodes``,
+    ``n_springs``, ``completed`` steps; ``positions`` (n_nodes, 2), ``springs`` (n_springs,
+    2) and the learned stiffnesses ``k`` (n_springs,)."""
+
+    refine: int
+    ratio: float
+    first_below: int | None = dataclasses.field(metadata=KEEP_NONE)
+    source_share: float
+    coupling: str
+    outcome: str
+    n_nodes: int
+    n_springs: int
+    spacing: float
+    completed: int
+    seconds: float
+    solves: float
+    error: np.ndarray
+    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
+    solves_trace: np.ndarray = dataclasses.field(metadata={"stored": "solves"})
+    positions: np.ndarray
+    springs: np.ndarray
+    k: np.ndarray
+
+
+_CLASSES = {
+    "learn": LearnResult,
+    "dof": DofResult,
+    "optimum": OptimumResult,
+    "dof_optimum": DofOptimumResult,
+    "simp": SimpResult,
+    "simp_solid": SimpResult,
+    "inverter": InverterResult,
+    "lattice": LatticeResult,
+}
+
+
+def mechanism_result(unit: UnitResult):
+    """A ``continuum_mechanism/<kind>/...`` unit read as its kind's class."""
+    return from_stored(unit, _CLASSES[unit.key.split("/")[1]])
