@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -101,6 +103,7 @@ def test_helpers_basis_reason_and_verdicts():
     )
     from continuum_vs_network.report.sections.beyond_paper.aging import rule_verdict
     from continuum_vs_network.report.sections.beyond_paper.thermal import baseline_converged
+    from continuum_vs_network.scenes.results.beyond_paper import OptimumResult
 
     coupled = {"outcome": "learned (coupled)", "coupling": "coupled"}
     missed = {"outcome": "not met", "coupling": "decoupled"}
@@ -108,10 +111,19 @@ def test_helpers_basis_reason_and_verdicts():
     assert runs_basis([coupled, coupled]) == "coupled"
     assert runs_basis([coupled, missed]) == "" and runs_basis([]) == ""
     assert runs_basis([coupled, trivial]) == "met trivially"
+    # a result's attributes read as a meta's keys
+    coupled, missed, trivial = (SimpleNamespace(**m) for m in (coupled, missed, trivial))
+    assert runs_basis([coupled, trivial]) == "met trivially"
+    assert runs_basis([coupled, coupled]) == "coupled"
     assert reasoned("r", REPRODUCED, "why") == "r"
     assert reasoned("r.", NOT_COMPARABLE, "why") == "r. Not comparable here: why"
-    feasible = {"outcome": "feasible", "feasible": True, "worst_example": 1e-5, "dof": "stiffness"}
-    infeasible = {**feasible, "outcome": "infeasible", "feasible": False, "worst_example": 0.2}
+    feasible = OptimumResult(
+        outcome="feasible", ratio=1e-6, worst_example=1e-5, feasible=True, source_share=1.0,
+        coupling="coupled", seconds=0.1, max_iter=8, dof="stiffness",
+    )  # fmt: skip
+    infeasible = dataclasses.replace(
+        feasible, outcome="infeasible", feasible=False, worst_example=0.2
+    )
     assert rule_verdict(coupled, feasible) == (REPRODUCED, "")
     assert rule_verdict(missed, feasible) == (NOT_REPRODUCED, "")
     verdict, reason = rule_verdict(missed, infeasible)
@@ -151,6 +163,14 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
             assert u.meta["coupling"] in (
                 "coupled", "partially coupled", "decoupled", "not measured"
             )  # fmt: skip
+    # every unit reads back as its result class; the exact gradient's null eta is stored
+    from continuum_vs_network.report.sections.beyond_paper.data import results
+
+    typed = results(units)
+    assert set(typed) == set(units)
+    assert typed["beyond/thermal/T0/exact"].eta is None
+    assert units["beyond/thermal/T0/exact"].meta["eta"] is None
+    assert typed["beyond/capacity/size6/examples2/seed0"].optimum.max_iter == 8
     from continuum_vs_network.report.writer import write_report
 
     write_report(result, tmp_path / "report")

@@ -1,6 +1,6 @@
 """Rules of the report's findings on learning that need a coupling measurement: the
 physical_time learning-speed claims, the beyond_paper thermal floors, the continuum_learning
-refinement; each judged from minimal stored-unit stand-ins (no computation)."""
+refinement; each judged from minimal stored-unit stand-ins or results (no computation)."""
 
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ from continuum_vs_network.report.findings import (
 from continuum_vs_network.report.sections.beyond_paper.thermal import _thermal
 from continuum_vs_network.report.sections.continuum_learning.findings import _verdicts
 from continuum_vs_network.report.sections.physical_time.findings import _findings
+from continuum_vs_network.scenes.results.beyond_paper import ThermalResult
 from continuum_vs_network.scenes.results.physical_time import TimeRunResult
 
 
@@ -105,7 +106,8 @@ def test_decoupled_caveat_counts_and_words():
 
 
 def _thermal_doc(tmp_path, coupling, ratio=None):
-    """``ratio``: every run's final C/C0 (None: that of its error curve)."""
+    """``ratio``: every run's final C/C0 (None: that of its error curve); ``coupling``:
+    every run's coupling verdict, its source share 0."""
     temps, etas = (0.0, 1e-6), (0.01, 1.0)
     steps = np.arange(61)
     falling = 0.04 * 0.93**steps  # -64 % over the last quarter: an upper bound
@@ -114,13 +116,23 @@ def _thermal_doc(tmp_path, coupling, ratio=None):
     for i in range(len(temps)):
         for run in [f"gcl_eta{eta:g}" for eta in etas] + ["exact"]:
             err = level if (i, run) == (1, "gcl_eta0.01") else falling
-            meta = {
-                "floor": float(np.median(err[-15:])),
-                "ratio": float(err[-1] / err[0]) if ratio is None else ratio,
-            }
-            if coupling is not None:
-                meta |= {"coupling": coupling, "source_share": 0.0}
-            units[f"beyond/thermal/T{i}/{run}"] = SimpleNamespace(meta=meta, arrays={"error": err})
+            units[f"beyond/thermal/T{i}/{run}"] = ThermalResult(
+                error=err,
+                seconds_trace=np.zeros(err.size),
+                completed=60,
+                steps=60,
+                stop_reason="",
+                ratio=float(err[-1] / err[0]) if ratio is None else ratio,
+                source_share=0.0,
+                coupling=coupling,
+                outcome="not met",
+                seconds=0.0,
+                rule={},
+                shares=[0.0],
+                floor=float(np.median(err[-15:])),
+                temperature=temps[i],
+                eta=None if run == "exact" else float(run.removeprefix("gcl_eta")),
+            )
     scene = SimpleNamespace(
         learning=SimpleNamespace(temperatures=temps, etas=etas, eta=0.1, steps=60),
         network=SimpleNamespace(sizes=(5,)),

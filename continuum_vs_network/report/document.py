@@ -9,7 +9,7 @@ assembles them.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -195,7 +195,10 @@ def fmt(x: float, digits: int = 3) -> str:
 
 def coupling_text(meta) -> str:
     """A learning run's coupling as the report writes it: "source share (verdict)", from its
-    meta's ``source_share`` and ``coupling``."""
+    meta's ``source_share`` and ``coupling`` (a meta dict or a result with those
+    attributes)."""
+    if not isinstance(meta, Mapping):
+        return f"{fmt(meta.source_share, 2)} ({meta.coupling})"
     return f"{fmt(meta['source_share'], 2)} ({meta['coupling']})"
 
 

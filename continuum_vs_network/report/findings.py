@@ -172,14 +172,19 @@ class Finding:
         )
 
 
-def runs_basis(metas: Iterable[dict]) -> str:
+def runs_basis(metas: Iterable[Any]) -> str:
     """What a verdict rests on, from the metas of the learning runs it reads (``outcome`` and
-    ``coupling``): ``"met trivially"`` when any met its task decoupled, ``"coupled"`` when
-    every one is coupled, ``""`` otherwise (or when there are none)."""
+    ``coupling``; a meta dict or a result with those attributes): ``"met trivially"`` when
+    any met its task decoupled, ``"coupled"`` when every one is coupled, ``""`` otherwise
+    (or when there are none)."""
     metas = list(metas)
-    if any(str(m.get("outcome", "")).startswith("met trivially") for m in metas):
+
+    def get(m: Any, name: str) -> Any:
+        return m.get(name) if isinstance(m, Mapping) else getattr(m, name, None)
+
+    if any(str(get(m, "outcome") or "").startswith("met trivially") for m in metas):
         return "met trivially"
-    if metas and all(m.get("coupling") == "coupled" for m in metas):
+    if metas and all(get(m, "coupling") == "coupled" for m in metas):
         return "coupled"
     return ""
 

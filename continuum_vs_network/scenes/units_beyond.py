@@ -43,6 +43,12 @@ from typing import Any
 
 import numpy as np
 
+from .results.beyond_paper import (
+    CompareResult,
+    NodeResult,
+    OptimumResult,
+    ThermalResult,
+)
 from .schema import Scene
 from .units import Unit, UnitContext
 
@@ -184,14 +190,14 @@ def callback(ctx: UnitContext):
     return None if ctx.on_step is None else (lambda trial, step, net: ctx.on_step())
 
 
-def record(h, initial, tasks) -> tuple[dict, dict]:
+def record(h, initial, tasks) -> dict[str, Any]:
     """Error curve, seconds, and the coupling of the trained network (every example whose
-    sources are on: a rest example has none to measure)."""
+    sources are on: a rest example has none to measure): the fields of
+    :class:`~.results.beyond_paper.LearningRun` and ``shares``."""
     from ..learning.coupling import coupling_verdict, measure_coupling, outcome
     from ..network.equilibrium import EquilibriumError
 
     e = np.asarray(h.error_initial[0], dtype=float)
-    arrays = {"error": e, "seconds": np.asarray(h.seconds[0], dtype=float)}
     done = int(h.completed[0]) == h.steps
     ratio = float(e[-1] / e[0]) if done and e[0] > 0 else float("nan")
     shares = []
@@ -206,7 +212,9 @@ def record(h, initial, tasks) -> tuple[dict, dict]:
                 break
     share = min(shares) if shares else float("nan")
     verdict = coupling_verdict(share) if shares else "not measured"
-    meta = {
+    return {
+        "error": e,
+        "seconds_trace": np.asarray(h.seconds[0], dtype=float),
         "completed": int(h.completed[0]),
         "steps": int(h.steps),
         "stop_reason": h.stop_reason[0],
@@ -218,12 +226,11 @@ def record(h, initial, tasks) -> tuple[dict, dict]:
         "seconds": float(np.nanmax(h.seconds[0])),
         "rule": h.settings,
     }
-    return arrays, meta
 
 
-def optimum_meta(net, tasks, dof: str, max_iter: int) -> dict:
+def optimum(net, tasks, dof: str, max_iter: int) -> OptimumResult:
     """The optimum of ``tasks`` learning ``dof`` (at most ``max_iter`` iterations): C/C0,
-    worst example, feasibility, coupling, effort; ``"outcome": "stopped"`` when no state."""
+    worst example, feasibility, coupling, effort; ``outcome="stopped"`` when no state."""
     from ..learning.coupling import coupling_verdict, measure_coupling
     from ..learning.optimum import exact_optimum
     from ..learning.step import LearningError
@@ -236,45 +243,44 @@ def optimum_meta(net, tasks, dof: str, max_iter: int) -> dict:
             measure_coupling(net, o.net, t).share for t in tasks.tasks if np.any(t.source_strain)
         ]
     except (EquilibriumError, LearningError) as err:
-        return {"outcome": "stopped", "stop_reason": str(err), "ratio": float("nan"),
-                "worst_example": float("nan"), "feasible": False, "source_share": float("nan"),
-                "coupling": "not measured", "seconds": time.perf_counter() - start,
-                "max_iter": max_iter}  # fmt: skip
+        return OptimumResult(outcome="stopped", stop_reason=str(err), ratio=float("nan"),
+                             worst_example=float("nan"), feasible=False,
+                             source_share=float("nan"), coupling="not measured",
+                             seconds=time.perf_counter() - start, max_iter=max_iter)  # fmt: skip
     worst = float(np.nanmax(o.example_ratio))
-    return {
-        "ratio": float(o.ratio),
-        "worst_example": worst,
-        "feasible": bool(worst <= FEASIBLE),
-        "source_share": float(min(shares)),
-        "coupling": coupling_verdict(min(shares)),
-        "outcome": "feasible" if worst <= FEASIBLE else "infeasible",
-        "converged": bool(o.converged),
-        "message": o.message,
-        "iterations": int(o.iterations),
-        "evaluations": int(o.evaluations),
-        "seconds": time.perf_counter() - start,
-        "max_iter": max_iter,
-        "dof": dof,
-    }
+    return OptimumResult(
+        ratio=float(o.ratio),
+        worst_example=worst,
+        feasible=bool(worst <= FEASIBLE),
+        source_share=float(min(shares)),
+        coupling=coupling_verdict(min(shares)),
+        outcome="feasible" if worst <= FEASIBLE else "infeasible",
+        converged=bool(o.converged),
+        message=o.message,
+        iterations=int(o.iterations),
+        evaluations=int(o.evaluations),
+        seconds=time.perf_counter() - start,
+        max_iter=max_iter,
+        dof=dof,
+    )
 
 
-def optimum_unit(scene: Scene, params: dict, ctx: UnitContext):
+def optimum_unit(scene: Scene, params: dict, ctx: UnitContext) -> OptimumResult:
     """The optimum of a comparison task for one dof."""
     net, _, tasks = compare_task(scene, params["task"])
-    meta = optimum_meta(net, tasks, params["dof"], scene.learning.steps)
-    return {}, meta
+    return optimum(net, tasks, params["dof"], scene.learning.steps)
 
 
-def compare_unit(scene: Scene, params: dict, ctx: UnitContext):
+def compare_unit(scene: Scene, params: dict, ctx: UnitContext) -> CompareResult:
     """One rule on the paper's or the lattice's anchored task."""
     from ..learning.train import train
 
     net, task, tasks = compare_task(scene, params["task"])
     r = rule(params["rule"], scene)
     h = train(net, tasks, r, scene.learning.steps, progress=False, callback=callback(ctx))
-    arrays, meta = record(h, net, tasks.tasks)
     k = net.stiffness
-    meta.update(
+    return CompareResult(
+        **record(h, net, tasks.tasks),
         dof=r.dof,
         uniform_stiffness=bool(np.ptp(k) <= 1e-12 * np.max(k)),
         stiffness_mean=float(np.mean(k)),
@@ -283,10 +289,9 @@ def compare_unit(scene: Scene, params: dict, ctx: UnitContext):
         source_strain=[float(s) for s in task.source_strain],
         target_strain=[float(s) for s in task.target_strain],
     )
-    return arrays, meta
 
 
-def node_unit(scene: Scene, params: dict, ctx: UnitContext):
+def node_unit(scene: Scene, params: dict, ctx: UnitContext) -> NodeResult:
     """One rule on an anchored node task (target node displacements)."""
     from ..learning.coupling import coupling_verdict, outcome, source_share
     from ..learning.examples import anchored
@@ -324,26 +329,27 @@ def node_unit(scene: Scene, params: dict, ctx: UnitContext):
             verdict = coupling_verdict(share)
         except EquilibriumError:
             pass
-    meta = {
-        "completed": int(h.completed[0]),
-        "steps": int(h.steps),
-        "stop_reason": h.stop_reason[0],
-        "ratio": ratio,
-        "source_share": share,
-        "coupling": verdict,
-        "outcome": outcome(ratio, None if verdict == "not measured" else verdict)
+    return NodeResult(
+        error=e,
+        seconds_trace=np.asarray(h.seconds[0], dtype=float),
+        completed=int(h.completed[0]),
+        steps=int(h.steps),
+        stop_reason=h.stop_reason[0],
+        ratio=ratio,
+        source_share=share,
+        coupling=verdict,
+        outcome=outcome(ratio, None if verdict == "not measured" else verdict)
         if done
         else "stopped",
-        "seconds": float(np.nanmax(h.seconds[0])),
-        "rule": h.settings,
-        "n_targets": task.n_targets,
-        "outputs": params["outputs"],
-        "learns": r.dof,
-    }
-    return {"error": e, "seconds": np.asarray(h.seconds[0], dtype=float)}, meta
+        seconds=float(np.nanmax(h.seconds[0])),
+        rule=h.settings,
+        n_targets=task.n_targets,
+        outputs=params["outputs"],
+        learns=r.dof,
+    )
 
 
-def thermal_unit(scene: Scene, params: dict, ctx: UnitContext):
+def thermal_unit(scene: Scene, params: dict, ctx: UnitContext) -> ThermalResult:
     """GCL of the stiffnesses at one nudge, or the exact gradient, at temperature ``T`` on
     the anchored lattice task."""
     from ..learning import CoupledLearning, ExactGradient
@@ -359,12 +365,12 @@ def thermal_unit(scene: Scene, params: dict, ctx: UnitContext):
         net, tasks, r, scene.learning.steps, temperature=params["temperature"],
         progress=False, callback=callback(ctx),
     )  # fmt: skip
-    arrays, meta = record(h, net, tasks.tasks)
-    e = arrays["error"]
+    common = record(h, net, tasks.tasks)
+    e = common["error"]
     tail = e[-max(1, e.size // 4) :] / e[0]
-    meta.update(
+    return ThermalResult(
+        **common,
         floor=float(np.median(tail)) if int(h.completed[0]) == h.steps else float("nan"),
         temperature=params["temperature"],
         eta=None if run == "exact" else r.eta,
     )
-    return arrays, meta

@@ -4,7 +4,7 @@ capacity, regression, symmetric training.
 All three learn the stiffnesses of a network at rest with the default GCL
 (:func:`~.units_beyond.rule` ``"gcl_k"``: adaptive rate, ``[learning] eta``) for
 ``[learning] steps`` steps, beside the optimum of the same examples (at most as many
-L-BFGS-B iterations, :func:`~.units_beyond.optimum_meta`). A network at rest that learns only
+L-BFGS-B iterations, :func:`~.units_beyond.optimum`). A network at rest that learns only
 stiffnesses keeps no prestress with the sources off, so a met task is a changed response;
 the coupling is measured all the same.
 
@@ -35,9 +35,11 @@ import itertools
 
 import numpy as np
 
+from .results import to_stored
+from .results.beyond_paper import CapacityResult, RegressionResult, SymmetricResult
 from .schema import Scene
 from .units import Unit, UnitContext
-from .units_beyond import callback, lattice, lattice_task, optimum_meta, record, rule
+from .units_beyond import callback, lattice, lattice_task, optimum, record, rule
 
 __all__ = ["CAPACITY", "REGRESSION", "plan_examples"]
 
@@ -85,13 +87,14 @@ def _train_k(scene: Scene, net, tasks, ctx: UnitContext):
 
     h = train(net, tasks, rule("gcl_k", scene), scene.learning.steps, progress=False,
               callback=callback(ctx))  # fmt: skip
-    arrays, meta = record(h, net, tasks.tasks)
-    meta["worst_example"] = _worst_example(h, tasks)
-    meta["exact"] = optimum_meta(net, tasks, "stiffness", scene.learning.steps)
-    return h, arrays, meta
+    common = record(h, net, tasks.tasks)
+    common["worst_example"] = _worst_example(h, tasks)
+    # the optimum's record, nested in the run's
+    common["exact"] = to_stored(optimum(net, tasks, "stiffness", scene.learning.steps))[1]
+    return h, common
 
 
-def capacity_unit(scene: Scene, params: dict, ctx: UnitContext):
+def capacity_unit(scene: Scene, params: dict, ctx: UnitContext) -> CapacityResult:
     """GCL of the stiffnesses on ``examples`` response-change examples at once on an
     ``n x n`` lattice (one seed), and their optimum."""
     from ..learning.examples import examples_task, gain_examples
@@ -103,13 +106,13 @@ def capacity_unit(scene: Scene, params: dict, ctx: UnitContext):
         net, params["examples"], rng, source_std=t.source_std, target_std=t.target_std
     )
     tasks = gain_examples(drawn, net, rng, change=CAPACITY["change"])
-    _, arrays, meta = _train_k(scene, net, tasks, ctx)
-    meta.update(n_nodes=net.n_nodes, n_springs=net.n_springs, examples=params["examples"],
-                seed=params["seed"], **CAPACITY)  # fmt: skip
-    return arrays, meta
+    _, common = _train_k(scene, net, tasks, ctx)
+    return CapacityResult(**common, n_nodes=net.n_nodes, n_springs=net.n_springs,
+                          examples=params["examples"], seed=params["seed"],
+                          **CAPACITY)  # fmt: skip
 
 
-def regression_unit(scene: Scene, params: dict, ctx: UnitContext):
+def regression_unit(scene: Scene, params: dict, ctx: UnitContext) -> RegressionResult:
     """GCL of the stiffnesses on a linear regression task; train and held-out test error."""
     from ..learning.examples import regression_task
     from ..network.equilibrium import EquilibriumError, relax
@@ -119,7 +122,7 @@ def regression_unit(scene: Scene, params: dict, ctx: UnitContext):
     train_set, test_set, _ = regression_task(
         net, R["n_train"], R["n_test"], rng, source_std=scene.task.source_std, gain=R["gain"]
     )
-    h, arrays, meta = _train_k(scene, net, train_set, ctx)
+    h, common = _train_k(scene, net, train_set, ctx)
 
     def test_error(which) -> float:
         try:
@@ -129,26 +132,26 @@ def regression_unit(scene: Scene, params: dict, ctx: UnitContext):
             return float("nan")
         return test_set.error(which, [f.positions for f in frees])
 
-    e = arrays["error"]
+    e = common["error"]
     done = int(h.completed[0]) == h.steps
-    meta.update(
+    return RegressionResult(
+        **common,
         train_initial=float(e[0]),
         train_final=float(e[-1]) if done else float("nan"),
         test_initial=test_error(net),
         test_final=test_error(h.final[0]) if done else float("nan"),
         **R,
     )
-    return arrays, meta
 
 
-def symmetric_unit(scene: Scene, params: dict, ctx: UnitContext):
+def symmetric_unit(scene: Scene, params: dict, ctx: UnitContext) -> SymmetricResult:
     """Rocks et al.'s task and its exchange trained at once (GCL of the stiffnesses)."""
     from ..learning.examples import symmetric
     from ..network.equilibrium import relax
 
     net, task = lattice_task(scene, scene.network.sizes[-1], 3)
     pair = symmetric(task)
-    h, arrays, meta = _train_k(scene, net, pair, ctx)
+    h, common = _train_k(scene, net, pair, ctx)
     per = []
     for which in (net, h.final[0]):
         per.append(
@@ -159,5 +162,4 @@ def symmetric_unit(scene: Scene, params: dict, ctx: UnitContext):
                 for t in pair.tasks
             ]
         )
-    meta.update(error_initial=per[0], error_final=per[1])
-    return arrays, meta
+    return SymmetricResult(**common, error_initial=per[0], error_final=per[1])

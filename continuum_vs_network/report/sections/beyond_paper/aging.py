@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from ....learning.coupling import MET_AT
+from ....scenes.results.beyond_paper import CompareResult, OptimumResult
 from ...document import coupling_text, fmt
 from ...figures import COLORS, Panel, Series
 from ...findings import (
@@ -37,23 +38,24 @@ RULE_NAMES = {
 }
 
 
-def rule_verdict(meta: dict, opt: dict | None) -> tuple[str, str]:
-    """Verdict of "the rule learns the task" from its run and the optimum of its dof, and
+def rule_verdict(run: CompareResult, opt: OptimumResult | None) -> tuple[str, str]:
+    """Verdict of "the rule learns the task" from its run (``outcome``) and the optimum of
+    its dof (``outcome``, ``feasible``, ``dof``, ``worst_example``), and
     the reason when not comparable: infeasible (the optimum misses ``FEASIBLE``: counted
     apart), met trivially, or no optimum; reproduced when learned (``C/C0 <= MET_AT``, not
     decoupled), not reproduced when a feasible task is not met in the budget."""
     from ....scenes.units_beyond import FEASIBLE
 
-    if opt is None or opt.get("outcome") == "stopped":
+    if opt is None or opt.outcome == "stopped":
         return NOT_COMPARABLE, "the optimum of this dof could not be found"
-    if not opt["feasible"]:
+    if not opt.feasible:
         return NOT_COMPARABLE, (
-            f"infeasible, the optimum of {opt['dof']} leaves its worst example at C_e/C_e0 = "
-            f"{fmt(opt['worst_example'])} > {FEASIBLE:g} (counted apart)"
+            f"infeasible, the optimum of {opt.dof} leaves its worst example at C_e/C_e0 = "
+            f"{fmt(opt.worst_example)} > {FEASIBLE:g} (counted apart)"
         )
-    if meta["outcome"].startswith("learned"):
+    if run.outcome.startswith("learned"):
         return REPRODUCED, ""
-    if meta["outcome"].startswith("met trivially"):
+    if run.outcome.startswith("met trivially"):
         return NOT_COMPARABLE, "met by prestress (decoupled), not learned"
     return NOT_REPRODUCED, ""
 
@@ -89,30 +91,32 @@ def _compare(doc, scene, units) -> None:
     panels = []
     for task in L.compare_tasks:
         rows, series = [], []
-        metas = {r: units[f"beyond/compare/{task}/{r}"].meta for r in rules}
-        opts = {d: units[f"beyond/optimum/{task}/{d}"].meta for d in {DOFS[r] for r in rules}}
+        metas: dict[str, CompareResult] = {r: units[f"beyond/compare/{task}/{r}"] for r in rules}
+        opts: dict[str, OptimumResult] = {
+            d: units[f"beyond/optimum/{task}/{d}"] for d in {DOFS[r] for r in rules}
+        }
         groups: dict[str, list[str]] = {}
         for i, r in enumerate(rules):
             m, o = metas[r], opts[DOFS[r]]
-            e = np.asarray(units[f"beyond/compare/{task}/{r}"].arrays["error"], dtype=float)
+            e = np.asarray(m.error, dtype=float)
             verdict, reason = rule_verdict(m, o)
             rows.append([
-                r, m["dof"], fmt(m["ratio"]), coupling_text(m),
-                m["outcome"], f"{fmt(o.get('worst_example'))} ({o.get('outcome')})",
-                fmt(m["seconds"]), (m["stop_reason"] or "")[:80],
+                r, m.dof, fmt(m.ratio), coupling_text(m),
+                m.outcome, f"{fmt(o.worst_example)} ({o.outcome})",
+                fmt(m.seconds), (m.stop_reason or "")[:80],
             ])  # fmt: skip
             series.append(Series(np.arange(e.size), e / e[0], r, color=COLORS[i % len(COLORS)]))
-            group = "infeasible" if reason.startswith("infeasible") else m["outcome"]
+            group = "infeasible" if reason.startswith("infeasible") else m.outcome
             groups.setdefault(group, []).append(r)
             doc.finding(
                 Finding(
                     claim=f"{RULE_NAMES[r]} learns {TASK_NAMES[task]} (with its rest example)",
-                    metric=f"final C/C0 after {m['steps']} steps, coupling verdict "
+                    metric=f"final C/C0 after {m.steps} steps, coupling verdict "
                     "(learning.coupling), and the optimum of the same dof",
                     measured={
-                        "C/C0": m["ratio"],
-                        "source share": m["source_share"],
-                        "optimum worst C_e/C_e0": o.get("worst_example", math.nan),
+                        "C/C0": m.ratio,
+                        "source share": m.source_share,
+                        "optimum worst C_e/C_e0": o.worst_example,
                     },
                     verdict=verdict,
                     rule=reasoned(
@@ -129,9 +133,9 @@ def _compare(doc, scene, units) -> None:
             )
         first = metas[rules[0]]
         doc.add(
-            f"**{TASK_NAMES[task]}** ({first['n_nodes']} nodes, {first['n_springs']} springs; "
-            f"source strain {', '.join(fmt(s) for s in first['source_strain'])}, desired "
-            f"target strain {', '.join(fmt(s) for s in first['target_strain'])}):"
+            f"**{TASK_NAMES[task]}** ({first.n_nodes} nodes, {first.n_springs} springs; "
+            f"source strain {', '.join(fmt(s) for s in first.source_strain)}, desired "
+            f"target strain {', '.join(fmt(s) for s in first.target_strain)}):"
         )
         doc.table(
             ["rule", "learns", "C/C0 at the end", "source share (coupling)", "outcome",
@@ -142,8 +146,8 @@ def _compare(doc, scene, units) -> None:
             "; ".join(f"{g}: {', '.join(rs)}" for g, rs in groups.items())
             + ". Optimum per dof: "
             + "; ".join(
-                f"{d} {fmt(o.get('worst_example'))} in {o.get('iterations', '-')} iterations "
-                f"({fmt(o.get('seconds'), 2)} s)"
+                f"{d} {fmt(o.worst_example)} in {_or_dash(o.iterations)} iterations "
+                f"({fmt(o.seconds, 2)} s)"
                 for d, o in sorted(opts.items())
             )
             + ".",
@@ -162,6 +166,11 @@ def _compare(doc, scene, units) -> None:
         + ".",
     )
     _aging_is_gpc(doc, scene, units)
+
+
+def _or_dash(value) -> object:
+    """``value``, or "-" when it is not recorded (None)."""
+    return "-" if value is None else value
 
 
 def _hidden(panels) -> str:
@@ -187,18 +196,18 @@ def _aging_is_gpc(doc, scene, units) -> None:
     if "aging" not in L.rules or "gpc" not in L.rules:
         return
     for task in L.compare_tasks:
-        a = np.asarray(units[f"beyond/compare/{task}/aging"].arrays["error"], dtype=float)
-        g = np.asarray(units[f"beyond/compare/{task}/gpc"].arrays["error"], dtype=float)
-        meta = units[f"beyond/compare/{task}/aging"].meta
+        meta: CompareResult = units[f"beyond/compare/{task}/aging"]
+        a = np.asarray(meta.error, dtype=float)
+        g = np.asarray(units[f"beyond/compare/{task}/gpc"].error, dtype=float)
         both = np.isfinite(a) & np.isfinite(g)
         diff = float(np.max(np.abs(a[both] - g[both]) / a[0])) if both.any() else math.nan
-        if meta["uniform_stiffness"] and np.isfinite(diff):
+        if meta.uniform_stiffness and np.isfinite(diff):
             verdict = REPRODUCED if diff <= SAME else CONTRADICTED
         else:
             verdict = NOT_COMPARABLE
         reason = (
             "k is not uniform, so the two rules differ by the k weighting"
-            if not meta["uniform_stiffness"]
+            if not meta.uniform_stiffness
             else "a run stopped before its first step"
         )
         doc.finding(
@@ -206,7 +215,7 @@ def _aging_is_gpc(doc, scene, units) -> None:
                 claim="GPC of rest lengths is directed aging of rest lengths with a k-weighted "
                 f"rate ({TASK_NAMES[task]})",
                 metric="largest difference of the two error curves over C0",
-                measured={"difference": diff, "uniform k": float(meta["uniform_stiffness"])},
+                measured={"difference": diff, "uniform k": float(meta.uniform_stiffness)},
                 verdict=verdict,
                 rule=reasoned(
                     "with uniform k, both at their scaled rate (alpha fixed at the first step "
@@ -220,7 +229,7 @@ def _aging_is_gpc(doc, scene, units) -> None:
         )
         doc.add(
             f"- {TASK_NAMES[task]}: aging and GPC error curves differ by at most {fmt(diff, 2)} "
-            f"of C0 ({'uniform' if meta['uniform_stiffness'] else 'non-uniform'} k; "
+            f"of C0 ({'uniform' if meta.uniform_stiffness else 'non-uniform'} k; "
             f"{verdict} by the rule in the findings)."
         )
     doc.add("")

@@ -12,6 +12,13 @@ from __future__ import annotations
 import numpy as np
 
 from ....learning.coupling import MET_AT
+from ....scenes.results.beyond_paper import (
+    CapacityResult,
+    ExamplesRun,
+    OptimumResult,
+    RegressionResult,
+    SymmetricResult,
+)
 from ...document import coupling_text, fmt
 from ...figures import COLORS, Panel, Series
 from ...findings import (
@@ -23,6 +30,7 @@ from ...findings import (
     reasoned,
     runs_basis,
 )
+from .aging import _or_dash
 
 
 def capacity(outcomes: dict[int, list[str]]) -> int:
@@ -36,20 +44,19 @@ def capacity(outcomes: dict[int, list[str]]) -> int:
     return best
 
 
-def _draw_outcome(meta: dict) -> str:
+def _draw_outcome(run: ExamplesRun) -> str:
     """A run's outcome, unless an example missed its own response
     (``worst_example > MET_AT``)."""
-    worst = meta.get("worst_example", float("nan"))
-    if meta["outcome"].startswith("learned") and not worst <= MET_AT:
+    if run.outcome.startswith("learned") and not run.worst_example <= MET_AT:
         return "not met (an example missed)"
-    return meta["outcome"]
+    return run.outcome
 
 
-def _held(opt: dict) -> str:
+def _held(opt: OptimumResult) -> str:
     """An optimum as a capacity outcome: held ("learned ...") when feasible and not
     decoupled."""
-    if opt.get("feasible") and opt.get("coupling") != "decoupled":
-        return f"learned ({opt['coupling']})"
+    if opt.feasible and opt.coupling != "decoupled":
+        return f"learned ({opt.coupling})"
     return "not met"
 
 
@@ -85,29 +92,31 @@ def _capacity(doc, scene, units) -> None:
     for i, n in enumerate(sizes):
         by_m, by_m_gcl, med = {}, {}, {}
         for m in L.examples:
-            us = [units[f"beyond/capacity/size{n}/examples{m}/seed{s}"] for s in seeds]
-            ex = [u.meta["exact"] for u in us]
+            us: list[CapacityResult] = [
+                units[f"beyond/capacity/size{n}/examples{m}/seed{s}"] for s in seeds
+            ]
+            ex = [u.optimum for u in us]
             by_m[m] = [_held(e) for e in ex]
-            feas = [u.meta for u, e in zip(us, ex) if e.get("feasible")]
+            feas = [u for u, e in zip(us, ex) if e.feasible]
             infeasible += len(us) - len(feas)
             feasible_runs += feas
             by_m_gcl[m] = [_draw_outcome(f) for f in feas]
             learned_runs += [f for f in feas if _draw_outcome(f).startswith("learned")]
-            worst = np.array([e["worst_example"] for e in ex], dtype=float)
+            worst = np.array([e.worst_example for e in ex], dtype=float)
             med[m] = float(np.median(worst)) if np.all(np.isfinite(worst)) else float("nan")
             rows.append(
                 [
-                    f"{n} x {n} ({us[0].meta['n_springs']} springs)",
+                    f"{n} x {n} ({us[0].n_springs} springs)",
                     m,
                     ", ".join(fmt(w) for w in worst),
                     f"{len(feas)} / {len(us)}",
-                    ", ".join(str(e.get("iterations", "-")) for e in ex),
-                    ", ".join(fmt(u.meta.get("worst_example")) for u in us),
+                    ", ".join(str(_or_dash(e.iterations)) for e in ex),
+                    ", ".join(fmt(u.worst_example) for u in us),
                     f"{sum(o.startswith('learned') for o in by_m_gcl[m])} / {len(feas)}",
-                    fmt(min(min(e["source_share"], u.meta["source_share"])
+                    fmt(min(min(e.source_share, u.source_share)
                            for e, u in zip(ex, us)), 2),
-                    fmt(sum(e["seconds"] for e in ex)) + " / "
-                    + fmt(sum(u.meta["seconds"] for u in us)),
+                    fmt(sum(e.seconds for e in ex)) + " / "
+                    + fmt(sum(u.seconds for u in us)),
                 ]
             )  # fmt: skip
         caps[n], gcl_caps[n] = capacity(by_m), capacity(by_m_gcl)
@@ -145,7 +154,7 @@ def _capacity(doc, scene, units) -> None:
     else:
         verdict = CONTRADICTED
     opt_metas = [
-        units[f"beyond/capacity/size{n}/examples{m}/seed{s}"].meta["exact"]
+        units[f"beyond/capacity/size{n}/examples{m}/seed{s}"].optimum
         for n in sizes for m in L.examples for s in seeds
     ]  # fmt: skip
     doc.finding(
@@ -163,7 +172,7 @@ def _capacity(doc, scene, units) -> None:
                 reason,
             ),
             source="field",
-            basis=runs_basis([e for e in opt_metas if e.get("feasible")]),
+            basis=runs_basis([e for e in opt_metas if e.feasible]),
         )
     )
     if not feasible_runs:
@@ -212,46 +221,45 @@ def _capacity(doc, scene, units) -> None:
     )  # fmt: skip
 
 
-def _infeasible(opt: dict) -> str:
+def _infeasible(opt: OptimumResult) -> str:
     """The reason a task is not comparable when its optimum shows it infeasible, else ""."""
     from ....scenes.units_beyond import FEASIBLE
 
-    if opt.get("outcome") == "stopped":
+    if opt.outcome == "stopped":
         return "the optimum could not be found"
-    if not opt.get("feasible"):
+    if not opt.feasible:
         return (
             f"infeasible, the optimum of the stiffnesses leaves its worst example at "
-            f"C_e/C_e0 = {fmt(opt['worst_example'])} > {FEASIBLE:g} in "
-            f"{opt.get('iterations', '-')} iterations (counted apart)"
+            f"C_e/C_e0 = {fmt(opt.worst_example)} > {FEASIBLE:g} in "
+            f"{_or_dash(opt.iterations)} iterations (counted apart)"
         )
     return ""
 
 
 def _symmetric(doc, units) -> None:
-    u = units.get("beyond/symmetric")
-    if u is None:
+    m: SymmetricResult | None = units.get("beyond/symmetric")
+    if m is None:
         return
-    m = u.meta
-    opt = m["exact"]
+    opt = m.optimum
     doc.heading("Symmetric training", 3)
-    before, after = m["error_initial"], m["error_final"]
+    before, after = m.error_initial, m.error_final
     total = float(sum(before))
     both = all(np.isfinite(a) and a <= MET_AT * total for a in after)
     doc.add(
         "Rocks et al.'s task (one source, one target) and its exchange trained at once by "
         "GCL of the stiffnesses (the target clamped at the strain it should reach and the "
         "source asked for its own strain, as a second example), "
-        f"{m['completed']} steps: errors forward / backward "
+        f"{m.completed} steps: errors forward / backward "
         f"{fmt(before[0])} / {fmt(before[1])} before, {fmt(after[0])} / {fmt(after[1])} after; "
         f"coupling {coupling_text(m)}. The optimum of the pair "
-        f"leaves its worst direction at C_e/C_e0 = {fmt(opt.get('worst_example'))} "
-        f"({opt.get('outcome')}).",
+        f"leaves its worst direction at C_e/C_e0 = {fmt(opt.worst_example)} "
+        f"({opt.outcome}).",
         "",
     )
     reason = _infeasible(opt)
     if reason:
         verdict = NOT_COMPARABLE
-    elif both and m["outcome"].startswith("learned"):
+    elif both and m.outcome.startswith("learned"):
         verdict = REPRODUCED
     else:
         verdict = NOT_REPRODUCED
@@ -263,8 +271,8 @@ def _symmetric(doc, units) -> None:
             measured={
                 "forward": after[0] / total,
                 "backward": after[1] / total,
-                "source share": m["source_share"],
-                "optimum worst C_e/C_e0": opt.get("worst_example", np.nan),
+                "source share": m.source_share,
+                "optimum worst C_e/C_e0": opt.worst_example,
             },
             verdict=verdict,
             rule=reasoned(
@@ -285,24 +293,23 @@ GENERALISES_WITHIN = 2.0
 
 
 def _regression(doc, units) -> None:
-    u = units.get("beyond/regression")
-    if u is None:
+    m: RegressionResult | None = units.get("beyond/regression")
+    if m is None:
         return
-    m = u.meta
-    opt = m["exact"]
+    opt = m.optimum
     doc.heading("A regression task: generalisation", 3)
-    train_ratio = m["train_final"] / m["train_initial"] if m["train_initial"] > 0 else np.nan
-    test_ratio = m["test_final"] / m["test_initial"] if m["test_initial"] > 0 else np.nan
+    train_ratio = m.train_final / m.train_initial if m.train_initial > 0 else np.nan
+    test_ratio = m.test_final / m.test_initial if m.test_initial > 0 else np.nan
     doc.add(
         "The seed paper's proposed next step: desired target strain a fixed linear map of two "
-        f"source strains, S_T = M S_S (random M, gain {fmt(m['gain'])}); GCL of the "
-        f"stiffnesses on {m['n_train']} training examples, {m['completed']} steps; the summed "
-        f"error of {m['n_test']} held-out examples is measured before and after. Training "
+        f"source strains, S_T = M S_S (random M, gain {fmt(m.gain)}); GCL of the "
+        f"stiffnesses on {m.n_train} training examples, {m.completed} steps; the summed "
+        f"error of {m.n_test} held-out examples is measured before and after. Training "
         f"C/C0 {fmt(train_ratio)}, held-out C/C0 {fmt(test_ratio)}; coupling of the trained "
         f"network (smallest source share over the training examples) "
-        f"{coupling_text(m)}; {fmt(m['seconds'], 2)} s. The optimum "
+        f"{coupling_text(m)}; {fmt(m.seconds, 2)} s. The optimum "
         f"of the training set leaves its worst example at C_e/C_e0 = "
-        f"{fmt(opt.get('worst_example'))} ({opt.get('outcome')}).",
+        f"{fmt(opt.worst_example)} ({opt.outcome}).",
         "",
     )
     finite = bool(np.isfinite(train_ratio) and np.isfinite(test_ratio))
@@ -324,7 +331,7 @@ def _regression(doc, units) -> None:
             measured={
                 "train C/C0": float(train_ratio),
                 "held-out C/C0": float(test_ratio),
-                "optimum worst C_e/C_e0": opt.get("worst_example", np.nan),
+                "optimum worst C_e/C_e0": opt.worst_example,
             },
             verdict=verdict,
             rule=reasoned(

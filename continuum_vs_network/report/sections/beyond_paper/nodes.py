@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ....learning.coupling import MET_AT
+from ....scenes.results.beyond_paper import NodeResult
 from ...document import coupling_text, fmt
 from ...figures import COLORS, Panel, Series
 from ...findings import NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding, reasoned, runs_basis
@@ -21,24 +22,22 @@ OUTPUT_NAMES = {
 JUDGED = ("gcl", "gcl_k", "gcl_both", "exact", "aging")
 
 
-def node_verdict(rule: str, metas: dict[str, dict]) -> tuple[str, str]:
+def node_verdict(rule: str, metas: dict[str, NodeResult]) -> tuple[str, str]:
     """Verdict of "``rule`` learns the node task" and the reason when not comparable: the
     optimum does not take node tasks, so a miss counts (not reproduced) only when another
     rule learning the same dof met the task (feasible for it)."""
     m = metas[rule]
-    if m["outcome"].startswith("learned"):
+    if m.outcome.startswith("learned"):
         return REPRODUCED, ""
-    if m["outcome"].startswith("met trivially"):
+    if m.outcome.startswith("met trivially"):
         return NOT_COMPARABLE, "met by prestress (decoupled), not learned"
     shown = [
-        r
-        for r, o in metas.items()
-        if o["learns"] == m["learns"] and o["outcome"].startswith("learned")
+        r for r, o in metas.items() if o.learns == m.learns and o.outcome.startswith("learned")
     ]
     if shown:
         return NOT_REPRODUCED, ""
     return NOT_COMPARABLE, (
-        f"no rule learning {m['learns']} met it and the optimum does not take node tasks, "
+        f"no rule learning {m.learns} met it and the optimum does not take node tasks, "
         "so whether it is feasible for that dof is not known"
     )
 
@@ -69,13 +68,12 @@ def _nodes(doc, scene, units) -> None:
         name, symbol = OUTPUT_NAMES[outputs]
         rows, series = [], []
         for i, rule in enumerate(rules):
-            u = units[f"beyond/node/{outputs}/{rule}"]
-            m = u.meta
-            e = np.asarray(u.arrays["error"], dtype=float)
+            m: NodeResult = units[f"beyond/node/{outputs}/{rule}"]
+            e = np.asarray(m.error, dtype=float)
             rows.append(
-                [rule, m.get("learns", "-"), fmt(m["ratio"]),
-                 coupling_text(m), m["outcome"],
-                 fmt(m["seconds"]), (m["stop_reason"] or "")[:80]]
+                [rule, m.learns, fmt(m.ratio),
+                 coupling_text(m), m.outcome,
+                 fmt(m.seconds), (m.stop_reason or "")[:80]]
             )  # fmt: skip
             series.append(Series(np.arange(e.size), e / e[0], rule, color=COLORS[i % len(COLORS)]))
         doc.add(f"**{name}** (output {symbol}):")
@@ -85,8 +83,8 @@ def _nodes(doc, scene, units) -> None:
             rows,
         )  # fmt: skip
         panels.append(Panel(series, name, "step", "C / C0", yscale="log", hlines=(MET_AT,)))
-        metas = {r: units[f"beyond/node/{outputs}/{r}"].meta for r in rules}
-        learned = [r for r in rules if metas[r]["outcome"].startswith("learned")]
+        metas = {r: units[f"beyond/node/{outputs}/{r}"] for r in rules}
+        learned = [r for r in rules if metas[r].outcome.startswith("learned")]
         doc.add(
             f"{name.capitalize()}: learned (C/C0 <= {MET_AT:g}, not decoupled) by "
             + (", ".join(learned) if learned else "no rule")
@@ -102,7 +100,7 @@ def _nodes(doc, scene, units) -> None:
                 Finding(
                     claim=f"{rule} learns a task of {name} (with its rest example)",
                     metric="final C/C0 and source share of the output displacements",
-                    measured={"C/C0": m["ratio"], "source share": m["source_share"]},
+                    measured={"C/C0": m.ratio, "source share": m.source_share},
                     verdict=verdict,
                     rule=reasoned(
                         f"reproduced when C/C0 <= {MET_AT:g} and the network is not "

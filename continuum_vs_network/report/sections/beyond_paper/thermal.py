@@ -11,6 +11,7 @@ import itertools
 import numpy as np
 
 from ....learning.metrics import PLATEAU, bound, tail_change
+from ....scenes.results.beyond_paper import ThermalResult
 from ...document import fmt
 from ...figures import COLORS, Panel, Series
 from ...findings import (
@@ -67,12 +68,12 @@ def rises(floors, kinds, *, factor: float = RISE) -> str:
     return REPRODUCED if all(v == REPRODUCED for v in verdicts) else NOT_COMPARABLE
 
 
-def coupling_cell(metas) -> str:
-    """The coupling of the runs at one temperature (``metas``: run label -> unit meta with
+def coupling_cell(metas: dict[str, ThermalResult]) -> str:
+    """The coupling of the runs at one temperature (``metas``: run label -> result with
     ``coupling`` and ``source_share``), in words: one verdict with its share range when all
     agree, else each run's."""
-    verdicts = {k: m.get("coupling", "not measured") for k, m in metas.items()}
-    shares = [m.get("source_share", float("nan")) for m in metas.values()]
+    verdicts = {k: m.coupling for k, m in metas.items()}
+    shares = [m.source_share for m in metas.values()]
     if len(set(verdicts.values())) == 1:
         (v,) = set(verdicts.values())
         lo, hi = float(np.nanmin(shares)), float(np.nanmax(shares))
@@ -128,21 +129,12 @@ def _thermal(doc, scene, units) -> None:
         "steps, not at convergence.",
         "",
     )
-    floors = {
-        run: [float(units[f"beyond/thermal/T{i}/{run}"].meta["floor"]) for i in range(len(temps))]
-        for run in runs
+    metas: dict[str, list[ThermalResult]] = {
+        run: [units[f"beyond/thermal/T{i}/{run}"] for i in range(len(temps))] for run in runs
     }
-    changes = {
-        run: [
-            tail_change(units[f"beyond/thermal/T{i}/{run}"].arrays["error"])
-            for i in range(len(temps))
-        ]
-        for run in runs
-    }
+    floors = {run: [float(m.floor) for m in metas[run]] for run in runs}
+    changes = {run: [tail_change(m.error) for m in metas[run]] for run in runs}
     kinds = {run: [bound(c) for c in changes[run]] for run in runs}
-    metas = {
-        run: [units[f"beyond/thermal/T{i}/{run}"].meta for i in range(len(temps))] for run in runs
-    }
     labels = {run: f"GCL eta={eta:g}" for run, eta in zip(runs, etas)} | {"exact": "exact"}
     doc.add(
         "Plateau test: the fitted relative change of C over the same last quarter (a least "
@@ -204,12 +196,12 @@ def _thermal(doc, scene, units) -> None:
 
     def caveat(judged: list[str], which: str) -> tuple[str, dict]:
         """The noise scene's caveat (:func:`.decoupled_caveat`) over the judged GCL runs
-        (unit keys under beyond/thermal/) whose coupling was measured."""
-        metas = [units[f"beyond/thermal/{k}"].meta for k in judged]
-        metas = [m for m in metas if "coupling" in m]
+        (unit keys under beyond/thermal/; every run records a coupling verdict, "not
+        measured" included)."""
+        metas = [units[f"beyond/thermal/{k}"] for k in judged]
         return decoupled_caveat(
-            [m["coupling"] for m in metas],
-            ratios=[m.get("ratio", np.nan) for m in metas],
+            [m.coupling for m in metas],
+            ratios=[m.ratio for m in metas],
             runs=f"GCL runs judged here ({which}) with a coupling measurement",
             what="The floor is the rule's error under its thermal update noise over the "
             "steps run, whichever minimum the run descends to",
@@ -221,7 +213,7 @@ def _thermal(doc, scene, units) -> None:
             [f"T{i}/{run}" for run in runs[:-1] for i in range(len(temps))], "every eta and T"
         )
         per_eta = {run: rises(floors[run], kinds[run]) for run in runs[:-1]}
-        final0 = {run: float(metas[run][0]["ratio"]) for run in runs}
+        final0 = {run: float(metas[run][0].ratio) for run in runs}
         converged = {
             run: baseline_converged(final0[run], floors[run][1:]) if temps[0] == 0 else True
             for run in runs
