@@ -105,16 +105,13 @@ def test_helpers_basis_reason_and_verdicts():
     from continuum_vs_network.report.sections.beyond_paper.thermal import baseline_converged
     from continuum_vs_network.scenes.results.beyond_paper import OptimumResult
 
-    coupled = {"outcome": "learned (coupled)", "coupling": "coupled"}
-    missed = {"outcome": "not met", "coupling": "decoupled"}
-    trivial = {"outcome": "met trivially (decoupled)", "coupling": "decoupled"}
+    coupled = SimpleNamespace(outcome="learned (coupled)", coupling="coupled")
+    missed = SimpleNamespace(outcome="not met", coupling="decoupled")
+    trivial = SimpleNamespace(outcome="met trivially (decoupled)", coupling="decoupled")
     assert runs_basis([coupled, coupled]) == "coupled"
     assert runs_basis([coupled, missed]) == "" and runs_basis([]) == ""
     assert runs_basis([coupled, trivial]) == "met trivially"
-    # a result's attributes read as a meta's keys
-    coupled, missed, trivial = (SimpleNamespace(**m) for m in (coupled, missed, trivial))
-    assert runs_basis([coupled, trivial]) == "met trivially"
-    assert runs_basis([coupled, coupled]) == "coupled"
+    assert runs_basis([coupled, SimpleNamespace()]) == ""  # a run without a coupling
     assert reasoned("r", REPRODUCED, "why") == "r"
     assert reasoned("r.", NOT_COMPARABLE, "why") == "r. Not comparable here: why"
     feasible = OptimumResult(

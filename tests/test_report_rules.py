@@ -32,11 +32,14 @@ def test_field_agreement_of_decoupled_runs_is_not_comparable():
 
 
 def test_coupling_agreement_says_what_was_agreed():
-    both = agreed_coupling({"network": {"coupling": "decoupled"}, "c": {"coupling": "decoupled"}})
+    def run(coupling: str) -> SimpleNamespace:
+        return SimpleNamespace(coupling=coupling)
+
+    both = agreed_coupling({"network": run("decoupled"), "c": run("decoupled")})
     assert both.startswith("here both decoupled") and "not that any learned it" in both
-    coupled = agreed_coupling({"a": {"coupling": "coupled"}, "b": {"coupling": "coupled"}})
+    coupled = agreed_coupling({"a": run("coupled"), "b": run("coupled")})
     assert coupled == "here both coupled"
-    split = agreed_coupling({"a": {"coupling": "coupled"}, "b": {"coupling": "decoupled"}})
+    split = agreed_coupling({"a": run("coupled"), "b": run("decoupled")})
     assert split == "here a coupled, b decoupled"
 
 

@@ -173,13 +173,11 @@ def test_thermal_floors_disclose_decoupled_runs_and_unsettled_points(tmp_path):
 def _refinement(share):
     units = {}
     for key in ("network", "refine0"):
-        meta = {
-            "source_share": share,
-            "coupling": "decoupled" if share < 0.1 else "coupled",
-            "outcome": "met",
-        }
         units[f"continuum_learning/{key}/gcl"] = SimpleNamespace(
-            meta=meta, arrays={"error": np.array([1.0, 1e-3])}
+            source_share=share,
+            coupling="decoupled" if share < 0.1 else "coupled",
+            outcome="met",
+            error=np.array([1.0, 1e-3]),
         )
     summary = {
         "correlation": [0.95],

@@ -9,7 +9,7 @@ assembles them.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -193,13 +193,10 @@ def fmt(x: float, digits: int = 3) -> str:
     return f"{x:.{digits}g}"
 
 
-def coupling_text(meta) -> str:
-    """A learning run's coupling as the report writes it: "source share (verdict)", from its
-    meta's ``source_share`` and ``coupling`` (a meta dict or a result with those
-    attributes)."""
-    if not isinstance(meta, Mapping):
-        return f"{fmt(meta.source_share, 2)} ({meta.coupling})"
-    return f"{fmt(meta['source_share'], 2)} ({meta['coupling']})"
+def coupling_text(run) -> str:
+    """A learning run's coupling as the report writes it: "source share (verdict)", from a
+    result's ``source_share`` and ``coupling``."""
+    return f"{fmt(run.source_share, 2)} ({run.coupling})"
 
 
 def mesh_name(refine: int) -> str:

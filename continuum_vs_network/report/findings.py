@@ -172,19 +172,15 @@ class Finding:
         )
 
 
-def runs_basis(metas: Iterable[Any]) -> str:
-    """What a verdict rests on, from the metas of the learning runs it reads (``outcome`` and
-    ``coupling``; a meta dict or a result with those attributes): ``"met trivially"`` when
-    any met its task decoupled, ``"coupled"`` when every one is coupled, ``""`` otherwise
-    (or when there are none)."""
-    metas = list(metas)
-
-    def get(m: Any, name: str) -> Any:
-        return m.get(name) if isinstance(m, Mapping) else getattr(m, name, None)
-
-    if any(str(get(m, "outcome") or "").startswith("met trivially") for m in metas):
+def runs_basis(runs: Iterable[Any]) -> str:
+    """What a verdict rests on, from the learning runs it reads (results with ``outcome``
+    and ``coupling``, None where a run has none): ``"met trivially"`` when any met its
+    task decoupled, ``"coupled"`` when every one is coupled, ``""`` otherwise (or when
+    there are none)."""
+    runs = list(runs)
+    if any(str(getattr(m, "outcome", None) or "").startswith("met trivially") for m in runs):
         return "met trivially"
-    if metas and all(get(m, "coupling") == "coupled" for m in metas):
+    if runs and all(getattr(m, "coupling", None) == "coupled" for m in runs):
         return "coupled"
     return ""
 

@@ -49,6 +49,8 @@ from typing import Any
 
 import numpy as np
 
+from .results import from_stored
+from .results.continuum_learning import ContinuumRun, LearnedRelaxationResult, NetworkRun
 from .schema import CONTINUUM_RULES, Scene
 from .units import Unit, UnitContext
 
@@ -148,15 +150,17 @@ def _lattice_and_task(scene: Scene, which: str):
     return net, task
 
 
-def _history_arrays(h) -> tuple[dict[str, Any], dict[str, Any]]:
-    arrays = {"error": h.error_initial[0], "seconds": h.seconds[0]}
-    meta = {
+def _training(h) -> dict[str, Any]:
+    """The fields every training run records (see :class:`~.results.continuum_learning._Training`)
+    but the rule and the coupling."""
+    return {
+        "error": h.error_initial[0],
+        "seconds_trace": h.seconds[0],
         "completed": int(h.completed[0]),
         "stop_reason": h.stop_reason[0],
         "factorisations": float(np.nan_to_num(h.factorisations[0, -1])),
         "solves": float(np.nan_to_num(h.solves[0, -1])),
     }
-    return arrays, meta
 
 
 def _steps_callback(ctx: UnitContext):
@@ -165,7 +169,7 @@ def _steps_callback(ctx: UnitContext):
     return lambda trial, step, net: ctx.on_step()
 
 
-def network_unit(scene: Scene, params: dict, ctx: UnitContext):
+def network_unit(scene: Scene, params: dict, ctx: UnitContext) -> NetworkRun:
     """Train the lattice with the rule; its learned rest strain on its own triangles."""
     from ..continuum.learned_fields import network_rest_strain
     from ..continuum.mesh import network_faces
@@ -181,9 +185,12 @@ def network_unit(scene: Scene, params: dict, ctx: UnitContext):
         progress=False,
         callback=_steps_callback(ctx),
     )
-    arrays, meta = _history_arrays(h)
     faces = network_faces(net)
-    arrays.update(
+    from ..learning.coupling import measure_coupling, outcome
+
+    coupling = measure_coupling(net, h.final[0], task)
+    return NetworkRun(
+        **_training(h),
         coarse=network_rest_strain(net, h.final[0], faces),
         points=net.positions,
         triangles=faces,
@@ -191,11 +198,6 @@ def network_unit(scene: Scene, params: dict, ctx: UnitContext):
         sources=task.sources,
         targets=task.targets,
         springs=net.springs,
-    )
-    from ..learning.coupling import measure_coupling, outcome
-
-    coupling = measure_coupling(net, h.final[0], task)
-    meta.update(
         n_nodes=net.n_nodes,
         n_springs=net.n_springs,
         rule=rule.settings(),
@@ -203,10 +205,9 @@ def network_unit(scene: Scene, params: dict, ctx: UnitContext):
         coupling=coupling.verdict,
         outcome=outcome(float(h.error_initial[0, -1] / h.error_initial[0, 0]), coupling.verdict),
     )
-    return arrays, meta
 
 
-def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
+def continuum_unit(scene: Scene, params: dict, ctx: UnitContext) -> ContinuumRun:
     """Train the continuum at one refinement with the rule; its learned eigenstrain."""
     from ..continuum.learnable import learnable_body
     from ..continuum.learned_fields import coarse_average
@@ -236,22 +237,20 @@ def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
         progress=False,
         callback=_steps_callback(ctx),
     )
-    arrays, meta = _history_arrays(h)
     field = h.final[0].eigenstrain
     mask = rule.learning_mask(body, mtask)
-    arrays.update(
+    from ..learning.coupling import body_source_share, coupling_verdict, outcome
+
+    share = body_source_share(body, h.final[0], mtask)
+    ratio = float(h.error_initial[0, -1] / h.error_initial[0, 0])
+    return ContinuumRun(
+        **_training(h),
         field=field,
         coarse=coarse_average(field, body, lattice_body),
         area=body.area,
         frozen=~mask,
         points=body.body.mesh.p.T,
         triangles=body.body.mesh.t.T,
-    )
-    from ..learning.coupling import body_source_share, coupling_verdict, outcome
-
-    share = body_source_share(body, h.final[0], mtask)
-    ratio = float(h.error_initial[0, -1] / h.error_initial[0, 0])
-    meta.update(
         source_share=share,
         coupling=coupling_verdict(share),
         outcome=outcome(ratio, coupling_verdict(share)),
@@ -265,10 +264,9 @@ def continuum_unit(scene: Scene, params: dict, ctx: UnitContext):
         source_strain=mtask.source_strain.tolist(),
         target_strain=mtask.target_strain.tolist(),
     )
-    return arrays, meta
 
 
-def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
+def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext) -> LearnedRelaxationResult:
     """Target strains after the sources switch on: trained network and trained continuum."""
     from ..continuum.learnable import learnable_body
     from ..continuum.learned_relaxation import source_step, time_to_settle
@@ -283,7 +281,7 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
     rule = params["rule"]
     net, task = _lattice_and_task(scene, "stern")
     L0 = net.rest_length
-    change = ctx.unit(f"continuum_learning/network/{rule}").arrays["rest_change"]
+    change = from_stored(ctx.unit(f"continuum_learning/network/{rule}"), NetworkRun).rest_change
     trained = net.with_rest_length(L0 * (1.0 + np.asarray(change)))
     off = {int(s): float(L0[s]) for s in task.sources}
     on = {int(s): float(L0[s] * (1 + S)) for s, S in zip(task.sources, task.source_strain)}
@@ -309,7 +307,7 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
     nodes, nodes_strain, nodes_seconds = run(False)
     net_final = trained.lengths(x_on, task.targets) / L0[task.targets] - 1.0
 
-    field = ctx.unit(f"continuum_learning/refine0/{rule}").arrays["field"]
+    field = from_stored(ctx.unit(f"continuum_learning/refine0/{rule}"), ContinuumRun).field
     c = scene.continuum
     body = learnable_body(
         network_mesh(net), lattice_lame(float(np.mean(net.stiffness))), order=c.order
@@ -319,30 +317,27 @@ def relaxation_unit(scene: Scene, params: dict, ctx: UnitContext):
     step = source_step(
         body, mtask, damping=Damping(drag=eta), dt=params["dt"], t_end=params["t_end"]
     )
-    arrays = {
-        "times": step.times,
-        "continuum_strain": step.target_strain,
-        "continuum_final": step.final,
-        "network_times": traj.times,
-        "network_strain": net_strain,
-        "network_final": net_final,
-        "network_nodes_times": nodes.times,
-        "network_nodes_strain": nodes_strain,
-    }
-    meta = {
-        "rule": rule,
-        "continuum_settle": time_to_settle(step.times, step.target_strain, step.target_strain[-1]),
-        "network_settle": time_to_settle(traj.times, net_strain, net_strain[-1]),
-        "continuum_gap": float(np.max(np.abs(step.target_strain[-1] - step.final))),
-        "network_gap": float(np.max(np.abs(net_strain[-1] - net_final))),
-        "network_nodes_settle": time_to_settle(nodes.times, nodes_strain, nodes_strain[-1]),
-        "network_nodes_gap": float(np.max(np.abs(nodes_strain[-1] - net_final))),
-        "network_nodes_seconds": nodes_seconds,
-        "rod_factor": ROD_FACTOR,
-        "rod_strain_error": rod_error,
-        "continuum_seconds": step.seconds,
-        "network_seconds": net_seconds,
-        "dt": params["dt"],
-        "t_end": params["t_end"],
-    }
-    return arrays, meta
+    return LearnedRelaxationResult(
+        times=step.times,
+        continuum_strain=step.target_strain,
+        continuum_final=step.final,
+        network_times=traj.times,
+        network_strain=net_strain,
+        network_final=net_final,
+        network_nodes_times=nodes.times,
+        network_nodes_strain=nodes_strain,
+        rule=rule,
+        continuum_settle=time_to_settle(step.times, step.target_strain, step.target_strain[-1]),
+        network_settle=time_to_settle(traj.times, net_strain, net_strain[-1]),
+        continuum_gap=float(np.max(np.abs(step.target_strain[-1] - step.final))),
+        network_gap=float(np.max(np.abs(net_strain[-1] - net_final))),
+        network_nodes_settle=time_to_settle(nodes.times, nodes_strain, nodes_strain[-1]),
+        network_nodes_gap=float(np.max(np.abs(nodes_strain[-1] - net_final))),
+        network_nodes_seconds=nodes_seconds,
+        rod_factor=ROD_FACTOR,
+        rod_strain_error=rod_error,
+        continuum_seconds=step.seconds,
+        network_seconds=net_seconds,
+        dt=params["dt"],
+        t_end=params["t_end"],
+    )

@@ -17,7 +17,7 @@ typed read back as its class.
 The result classes live in one module per kind: :mod:`.physics` (transmission,
 relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`, :mod:`.physical_time`,
 :mod:`.mechanism` (continuum_mechanism), :mod:`.allostery`, :mod:`.learning`,
-:mod:`.beyond_paper`.
+:mod:`.beyond_paper`, :mod:`.continuum_learning`.
 """
 
 from __future__ import annotations

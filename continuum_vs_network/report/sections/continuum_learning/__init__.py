@@ -19,6 +19,7 @@ import math
 import numpy as np
 
 from ....learning.coupling import DECOUPLED_BELOW
+from ....scenes.results.continuum_learning import ContinuumRun
 from ...document import Document, coupling_text, fmt, mesh_name
 from ...figures import COLORS, Panel, Series
 from ...findings import NOT_REPRODUCED, REPRODUCED, Finding
@@ -30,6 +31,7 @@ from .findings import (
     _verdicts,
     field_summary,
     steps_to,
+    typed_runs,
 )
 
 __all__ = ["section"]
@@ -38,7 +40,7 @@ __all__ = ["section"]
 def section(doc: Document, result) -> None:
     """The section (see the module docstring); pyvista renders when ``doc.render``."""
     scene = result.scene
-    units = result.units
+    units = typed_runs(result.units)
     R = scene.continuum.refine
     L = scene.learning
     doc.add(
@@ -64,8 +66,8 @@ def section(doc: Document, result) -> None:
         needed = []
         for i, (name, key) in enumerate(media):
             u = units[key]
-            e = np.asarray(u.arrays["error"], dtype=float)
-            t = np.asarray(u.arrays["seconds"], dtype=float)
+            e = np.asarray(u.error, dtype=float)
+            t = np.asarray(u.seconds_trace, dtype=float)
             ratio = e / e[0]
             k = steps_to(e)
             needed.append(k)
@@ -73,14 +75,14 @@ def section(doc: Document, result) -> None:
             rows.append(
                 [
                     name,
-                    u.meta.get("n_dofs", 2 * u.meta.get("n_nodes", 0)),
+                    u.n_dofs if isinstance(u, ContinuumRun) else 2 * u.n_nodes,
                     fmt(k),
                     fmt(t[int(k)]) if np.isfinite(k) else "-",
                     fmt(float(ratio[-1])),
                     fmt(1e3 * per_step),
-                    coupling_text(u.meta),
-                    u.meta["outcome"],
-                    u.meta["stop_reason"] or "",
+                    coupling_text(u),
+                    u.outcome,
+                    u.stop_reason or "",
                 ]
             )
             color = COLORS[i % len(COLORS)]
@@ -156,23 +158,23 @@ def _field_figure(doc, units, rule: str, refine: int) -> None:
     from ...figures import _pyplot, _save
 
     plt = _pyplot()
-    net = units[f"continuum_learning/network/{rule}"].arrays
+    net = units[f"continuum_learning/network/{rule}"]
     panels = [
         (
             "network (rest-length change per triangle)",
-            net["points"],
-            net["triangles"],
-            _magnitude(np.asarray(net["coarse"])),
+            net.points,
+            net.triangles,
+            _magnitude(np.asarray(net.coarse)),
         )
     ]
     for r in range(refine + 1):
-        a = units[f"continuum_learning/refine{r}/{rule}"].arrays
+        a = units[f"continuum_learning/refine{r}/{rule}"]
         panels.append(
             (
                 f"continuum {mesh_name(r)}",
-                a["points"],
-                a["triangles"],
-                _magnitude(np.asarray(a["field"])),
+                a.points,
+                a.triangles,
+                _magnitude(np.asarray(a.field)),
             )
         )
     vmax = max(float(np.max(p[3])) for p in panels) or 1.0
@@ -203,21 +205,19 @@ def _renders(doc, units, rule: str, R: int) -> None:
     from ....io.render_continuum import render_continuum
 
     shown = [
-        ("network", units[f"continuum_learning/network/{rule}"].arrays, "coarse"),
-        (
-            f"continuum {mesh_name(R)}",
-            units[f"continuum_learning/refine{R}/{rule}"].arrays,
-            "field",
-        ),
+        ("network", units[f"continuum_learning/network/{rule}"].coarse),
+        (f"continuum {mesh_name(R)}", units[f"continuum_learning/refine{R}/{rule}"].field),
     ]
-    vmax = max(float(np.max(_magnitude(np.asarray(a[f])))) for _, a, f in shown) or 1.0
-    for name, a, f in shown:
-        pts = np.asarray(a["points"], dtype=float)
+    meshes = [units[f"continuum_learning/network/{rule}"]]
+    meshes.append(units[f"continuum_learning/refine{R}/{rule}"])
+    vmax = max(float(np.max(_magnitude(np.asarray(v)))) for _, v in shown) or 1.0
+    for (name, values), a in zip(shown, meshes, strict=True):
+        pts = np.asarray(a.points, dtype=float)
         path = render_continuum(
             pts,
-            a["triangles"],
+            a.triangles,
             np.zeros_like(pts),
-            _magnitude(np.asarray(a[f])),
+            _magnitude(np.asarray(values)),
             doc.folder / f"render_learned_{name.replace(' ', '_').replace('/', '_')}.png",
             clim=(0.0, vmax),
             scale=0.0,
@@ -231,19 +231,18 @@ def _renders(doc, units, rule: str, R: int) -> None:
 
 def _relaxation(doc, units) -> None:
     """Target strains against time after the sources switch on, both trained media."""
-    u = units.get("continuum_learning/relaxation")
-    if u is None:
+    m = units.get("continuum_learning/relaxation")
+    if m is None:
         return
-    a, m = u.arrays, u.meta
     doc.heading("Relaxation of the learned material", 3)
-    strain_clamp = "network_nodes_settle" in m
+    strain_clamp = m.network_nodes_settle is not None
     if strain_clamp:
         drive = (
             "Both media are driven by a strain clamp: the continuum holds the source springs' "
             "strains as exact constraints, the network holds each source spring as a stiff "
-            f"rod (stiffness {m['rod_factor']:.0e} x the mean k, rest length the clamp "
+            f"rod (stiffness {m.rod_factor:.0e} x the mean k, rest length the clamp "
             "length; backward Euler, L-stable), its end nodes free otherwise (the rods' "
-            f"largest strain error {m['rod_strain_error']:.1e}). For comparison, the network "
+            f"largest strain error {m.rod_strain_error:.1e}). For comparison, the network "
             "is also run with its clamps as prescribed end-node displacements (both end nodes "
             "held, so a source spring cannot rotate or translate)"
         )
@@ -253,10 +252,10 @@ def _relaxation(doc, units) -> None:
             "end-node displacements"
         )
     doc.add(
-        f"The trained network and the trained continuum (rule `{m['rule']}`, on the lattice "
+        f"The trained network and the trained continuum (rule `{m.rule}`, on the lattice "
         "triangles) start at rest with the sources off; at t = 0 the sources switch on and "
         "both creep against node drag c = 1 (the continuum: its equivalent substrate drag; "
-        f"the network: overdamped dynamics). {drive}. dt = {m['dt']:g}, time in units of "
+        f"the network: overdamped dynamics). {drive}. dt = {m.dt:g}, time in units of "
         "c / k."
     )
     runs = [("network, strain clamp" if strain_clamp else "network", "network", "network")]
@@ -265,11 +264,18 @@ def _relaxation(doc, units) -> None:
     runs.append(("continuum h, strain clamp", "continuum", None))
     panels, rows = [], []
     for name, key, arr in runs:
-        t = a[f"{arr}_times"] if arr else a["times"]
-        s = np.asarray(a[f"{arr}_strain"] if arr else a["continuum_strain"])
+        t = getattr(m, f"{arr}_times") if arr else m.times
+        s = np.asarray(getattr(m, f"{arr}_strain") if arr else m.continuum_strain)
         d = np.linalg.norm(s - s[-1], axis=1)
         panels.append(Series(t, d / d[0], name))
-        rows.append([name, fmt(m[f"{key}_settle"]), fmt(m[f"{key}_gap"]), fmt(m[f"{key}_seconds"])])
+        rows.append(
+            [
+                name,
+                fmt(getattr(m, f"{key}_settle")),
+                fmt(getattr(m, f"{key}_gap")),
+                fmt(getattr(m, f"{key}_seconds")),
+            ]
+        )
     doc.table(
         [
             "medium",
@@ -316,17 +322,17 @@ def _paper(doc, units, R: int, rule: str) -> None:
     rows, finals = [], []
     for r in range(R + 1):
         u = units[f"continuum_learning/paper/refine{r}"]
-        e = np.asarray(u.arrays["error"], dtype=float)
+        e = np.asarray(u.error, dtype=float)
         finals.append(float(e[-1] / e[0]) if np.isfinite(e[-1]) else math.inf)
         rows.append(
             [
                 mesh_name(r),
-                u.meta["n_dofs"],
-                fmt(u.meta["source_strain"][0]),
-                fmt(u.meta["target_strain"][0]),
+                u.n_dofs,
+                fmt(u.source_strain[0]),
+                fmt(u.target_strain[0]),
                 fmt(steps_to(e)),
                 fmt(e[-1] / e[0]),
-                coupling_text(u.meta),
+                coupling_text(u),
             ]
         )
     doc.add(
@@ -347,8 +353,7 @@ def _paper(doc, units, R: int, rule: str) -> None:
     )
     worst = max(finals)
     share = min(
-        float(units[f"continuum_learning/paper/refine{r}"].meta["source_share"])
-        for r in range(R + 1)
+        float(units[f"continuum_learning/paper/refine{r}"].source_share) for r in range(R + 1)
     )
     learned = worst <= TOLERANCE and share >= DECOUPLED_BELOW
     doc.finding(

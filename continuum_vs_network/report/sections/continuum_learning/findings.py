@@ -18,6 +18,12 @@ from numpy.typing import NDArray
 
 from ....fits import power_law
 from ....learning.coupling import DECOUPLED_BELOW
+from ....scenes.results import from_stored
+from ....scenes.results.continuum_learning import (
+    ContinuumRun,
+    LearnedRelaxationResult,
+    NetworkRun,
+)
 from ...document import coupling_text, fmt, mesh_name
 from ...findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
@@ -31,12 +37,27 @@ __all__ = [
     "fields_agree_verdict",
     "refinement_verdict",
     "steps_to",
+    "typed_runs",
 ]
 
 TOLERANCE = 1e-3  # C / C0 a run must reach to count as having learned the task
 SHRINK = 1.5  # a field converges when successive refinements change it less by this factor
 SETTLED = 0.1  # ... and the last refinement changes it by at most this (relative L2)
 LOCALISED = 0.1  # localisation threshold: a fraction of the largest change
+
+
+def typed_runs(units: dict[str, Any]) -> dict[str, Any]:
+    """The scene's stored units read as their results, keyed as stored
+    (:mod:`....scenes.results.continuum_learning`)."""
+    out = {}
+    for key, unit in units.items():
+        if key == "continuum_learning/relaxation":
+            out[key] = from_stored(unit, LearnedRelaxationResult)
+        elif key.startswith("continuum_learning/network/"):
+            out[key] = from_stored(unit, NetworkRun)
+        elif key.startswith("continuum_learning/"):
+            out[key] = from_stored(unit, ContinuumRun)
+    return out
 
 
 def steps_to(error: NDArray, tol: float = TOLERANCE) -> float:
@@ -56,15 +77,15 @@ def field_summary(units: dict[str, Any], rule: str, refine: int) -> dict[str, li
     """Per refinement ``r``: relative L2 change of the field on the lattice triangles from
     ``r - 1`` (area-weighted), correlation with the network's field, and the area fraction
     whose change exceeds ``LOCALISED`` of the largest (native mesh)."""
-    net = units[f"continuum_learning/network/{rule}"].arrays
+    net = units[f"continuum_learning/network/{rule}"]
     out: dict[str, list[float]] = {"change": [], "correlation": [], "localised": []}
     prev = None
     area0 = None
     for r in range(refine + 1):
-        a = units[f"continuum_learning/refine{r}/{rule}"].arrays
-        coarse = np.asarray(a["coarse"])
+        a = units[f"continuum_learning/refine{r}/{rule}"]
+        coarse = np.asarray(a.coarse)
         if area0 is None:
-            area0 = np.asarray(a["area"])
+            area0 = np.asarray(a.area)
         w = np.sqrt(area0)[:, None]
         norm = float(np.linalg.norm(coarse * w))
         if prev is None or norm == 0:
@@ -72,10 +93,10 @@ def field_summary(units: dict[str, Any], rule: str, refine: int) -> dict[str, li
         else:
             out["change"].append(float(np.linalg.norm((coarse - prev) * w)) / norm)
         prev = coarse
-        c = np.corrcoef(coarse.ravel(), np.asarray(net["coarse"]).ravel())[0, 1]
+        c = np.corrcoef(coarse.ravel(), np.asarray(net.coarse).ravel())[0, 1]
         out["correlation"].append(float(c))
-        mag = _magnitude(np.asarray(a["field"]))
-        area = np.asarray(a["area"])
+        mag = _magnitude(np.asarray(a.field))
+        area = np.asarray(a.area)
         top = float(mag.max())
         out["localised"].append(
             float(np.sum(area[mag > LOCALISED * top]) / np.sum(area)) if top > 0 else math.nan
@@ -87,20 +108,18 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     """Findings of one rule (registered on ``doc``) and the sentences that show them."""
     lines = [""]
     final = {
-        name: float(
-            np.asarray(units[key].arrays["error"])[-1] / np.asarray(units[key].arrays["error"])[0]
-        )
+        name: float(np.asarray(units[key].error)[-1] / np.asarray(units[key].error)[0])
         for name, key in (
             ("network", f"continuum_learning/network/{rule}"),
             ("continuum h", f"continuum_learning/refine0/{rule}"),
         )
     }
     metas = {
-        "network": units[f"continuum_learning/network/{rule}"].meta,
-        "continuum h": units[f"continuum_learning/refine0/{rule}"].meta,
+        "network": units[f"continuum_learning/network/{rule}"],
+        "continuum h": units[f"continuum_learning/refine0/{rule}"],
     }
     learned = all(v <= TOLERANCE for v in final.values()) and all(
-        m["source_share"] >= DECOUPLED_BELOW for m in metas.values()
+        m.source_share >= DECOUPLED_BELOW for m in metas.values()
     )
     doc.finding(
         Finding(
@@ -111,7 +130,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
             "lattice triangles",
             measured={
                 **{f"C/C0 {k}": v for k, v in final.items()},
-                **{f"share {k}": m["source_share"] for k, m in metas.items()},
+                **{f"share {k}": m.source_share for k, m in metas.items()},
             },
             verdict=REPRODUCED if learned else NOT_REPRODUCED,
             rule=f"reproduced when both reach C/C0 <= {TOLERANCE:g} and neither is decoupled "
@@ -125,7 +144,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
             claim=f"the continuum gets the network's coupling verdict ({rule})",
             metric="source share of the trained media (learning.coupling; 'coupled' >= "
             f"0.5, 'decoupled' < {DECOUPLED_BELOW:g})",
-            measured={f"share {k}": m["source_share"] for k, m in metas.items()},
+            measured={f"share {k}": m.source_share for k, m in metas.items()},
             verdict=REPRODUCED if _same_coupling(metas) else NOT_REPRODUCED,
             rule="reproduced when both media get the same coupling verdict; "
             + agreed_coupling(metas),
@@ -133,7 +152,7 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     )
     corr = summary["correlation"][0]
     # a decoupled medium's learned field is prestress of its targets: nothing to compare
-    decoupled = any(m["source_share"] < DECOUPLED_BELOW for m in metas.values())
+    decoupled = any(m.source_share < DECOUPLED_BELOW for m in metas.values())
     unless = "; not comparable when either medium is decoupled (its field is prestress)"
     doc.finding(
         Finding(
@@ -195,10 +214,10 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
             f"standard error is a lower bound) (network: {fmt(needed[0])} steps)."
         )
     lines.append(
-        f"- **Coupling.** Network: {metas['network']['outcome']}; continuum at h: "
-        f"{metas['continuum h']['outcome']} (source shares "
-        f"{fmt(metas['network']['source_share'], 2)} and "
-        f"{fmt(metas['continuum h']['source_share'], 2)}). A decoupled solution meets the "
+        f"- **Coupling.** Network: {metas['network'].outcome}; continuum at h: "
+        f"{metas['continuum h'].outcome} (source shares "
+        f"{fmt(metas['network'].source_share, 2)} and "
+        f"{fmt(metas['continuum h'].source_share, 2)}). A decoupled solution meets the "
         "task by prestressing the targets, not by transmitting the sources' strain. "
         f"Coupling verdicts: {agreed_coupling(metas)}."
     )
@@ -209,14 +228,14 @@ def _verdicts(doc, rule, units, summary, needed, R: int) -> list[str]:
     return [*lines, ""]
 
 
-def _same_coupling(metas: dict[str, dict]) -> bool:
-    return len({m["coupling"] for m in metas.values()}) == 1
+def _same_coupling(metas: dict[str, Any]) -> bool:
+    return len({m.coupling for m in metas.values()}) == 1
 
 
-def agreed_coupling(metas: dict[str, dict]) -> str:
-    """What two or more media's coupling verdicts say, in words (``metas``: name -> unit
-    meta with ``coupling``): the agreement, or the disagreement, stated plainly."""
-    verdicts = {k: m["coupling"] for k, m in metas.items()}
+def agreed_coupling(metas: dict[str, Any]) -> str:
+    """What two or more media's coupling verdicts say, in words (``metas``: name -> a run
+    with ``coupling``): the agreement, or the disagreement, stated plainly."""
+    verdicts = {k: m.coupling for k, m in metas.items()}
     if _same_coupling(metas):
         (v,) = set(verdicts.values())
         many = len(verdicts) > 2
@@ -237,12 +256,12 @@ def _rules_agree(doc, units, rules, R: int) -> None:
     if "gcl" not in rules or "exact" not in rules:
         return
     fields = [
-        np.asarray(units[f"continuum_learning/refine{R}/{r}"].arrays["field"]).ravel()
+        np.asarray(units[f"continuum_learning/refine{R}/{r}"].field).ravel()
         for r in ("gcl", "exact")
     ]
     diff = float(np.linalg.norm(fields[0] - fields[1]) / np.linalg.norm(fields[1]))
-    metas = {r: units[f"continuum_learning/refine{R}/{r}"].meta for r in ("gcl", "exact")}
-    verdict = fields_agree_verdict(diff, [m["source_share"] for m in metas.values()])
+    metas = {r: units[f"continuum_learning/refine{R}/{r}"] for r in ("gcl", "exact")}
+    verdict = fields_agree_verdict(diff, [m.source_share for m in metas.values()])
     doc.finding(
         Finding(
             source="check",
@@ -250,7 +269,7 @@ def _rules_agree(doc, units, rules, R: int) -> None:
             metric=f"relative difference of the learned eigenstrain at continuum {mesh_name(R)}",
             measured={
                 "relative difference": diff,
-                **{f"share {r}": m["source_share"] for r, m in metas.items()},
+                **{f"share {r}": m.source_share for r, m in metas.items()},
             },
             verdict=verdict,
             rule="reproduced when the fields differ by <= 1 % (both runs converged); not "
