@@ -36,20 +36,17 @@ __all__ = [
 
 
 @dataclass(frozen=True)
-class LearnResult:
-    """The filtered modulus field trained by ``rule`` at ``rate`` on the mesh ``h /
-    2^refine`` (a ``continuum_mechanism/learn/...`` unit). ``field``: the learned modulus;
-    ``frozen`` (n_elements,) bool: the elements the rule leaves (the springs' discs);
-    ``response_initial``: S_T / S_S of the uniform body, ``asked`` the ratio asked;
-    ``rest_error``: the rest example's error, trained; ``contrast``: max / min modulus."""
+class _Training:
+    """What a trained body records: final C/C0 ``ratio``; the first step at C/C0 <= LEVEL
+    (``first_below``, None: never, stored as null); the trained ``response`` S_T / S_S
+    and the ratio ``asked``; ``rest_error``: the rest example's error, trained; the
+    coupling (``source_share``, ``coupling``) and the verdict (``outcome``); elements;
+    wall-clock ``seconds`` and linear ``solves`` in all; traces (steps + 1,): ``error``
+    (C), ``seconds_trace`` and ``solves_trace`` (stored as ``seconds`` and ``solves``)."""
 
-    refine: int
-    rule: str
-    rate: str
     ratio: float
     first_below: int | None = dataclasses.field(metadata=KEEP_NONE)
     response: float
-    response_initial: float
     asked: float
     rest_error: float
     source_share: float
@@ -58,10 +55,25 @@ class LearnResult:
     n_elements: int
     seconds: float
     solves: float
-    contrast: float
     error: np.ndarray
     seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
     solves_trace: np.ndarray = dataclasses.field(metadata={"stored": "solves"})
+
+
+@dataclass(frozen=True)
+class LearnResult(_Training):
+    """The filtered modulus field trained by ``rule`` at ``rate`` on the mesh ``h /
+    2^refine`` (a ``continuum_mechanism/learn/...`` unit). ``field``: the learned modulus;
+    ``frozen`` (n_elements,) bool: the elements the rule leaves (the springs' discs);
+    ``response_initial``: S_T / S_S of the uniform body; ``contrast``: max / min modulus;
+    ``coarse`` and ``area``, on ``points`` and ``triangles``: for the figures and mesh
+    export."""
+
+    refine: int
+    rule: str
+    rate: str
+    response_initial: float
+    contrast: float
     frozen: np.ndarray
     field: np.ndarray
     coarse: np.ndarray
@@ -71,32 +83,18 @@ class LearnResult:
 
 
 @dataclass(frozen=True)
-class DofResult:
+class DofResult(_Training):
     """GCL of the filtered eigenstrain field, or of both fields (``dof``), on ``h /
     2^refine``, with the rest example (``rest``) or on the task alone (a
     ``continuum_mechanism/dof/...`` unit). ``completed``: steps run; ``eigenstrain_unit``:
     the eigenstrain design's strain unit; ``modulus`` and ``dilation`` (n_elements,): the
-    trained modulus and mean normal eigenstrain; others as :class:`LearnResult`."""
+    trained modulus and mean normal eigenstrain."""
 
     refine: int
     dof: str
     rest: bool
-    ratio: float
-    first_below: int | None = dataclasses.field(metadata=KEEP_NONE)
-    response: float
-    asked: float
-    rest_error: float
-    source_share: float
-    coupling: str
-    outcome: str
-    n_elements: int
-    seconds: float
-    solves: float
     completed: int
     eigenstrain_unit: float
-    error: np.ndarray
-    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
-    solves_trace: np.ndarray = dataclasses.field(metadata={"stored": "solves"})
     modulus: np.ndarray
     dilation: np.ndarray
 
