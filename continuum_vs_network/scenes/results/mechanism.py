@@ -36,6 +36,19 @@ __all__ = [
 
 
 @dataclass(frozen=True)
+class _OnMesh:
+    """A learned field on its mesh: ``field`` (n_elements,), its ``coarse`` average on the
+    lattice triangles, element ``area``, and the mesh's ``points`` (n_points, 2) and
+    ``triangles`` (n_elements, 3): for the figures and mesh export."""
+
+    field: np.ndarray
+    coarse: np.ndarray
+    points: np.ndarray
+    triangles: np.ndarray
+    area: np.ndarray
+
+
+@dataclass(frozen=True)
 class _Training:
     """What a trained body records: final C/C0 ``ratio``; the first step at C/C0 <= LEVEL
     (``first_below``, None: never, stored as null); the trained ``response`` S_T / S_S
@@ -61,7 +74,7 @@ class _Training:
 
 
 @dataclass(frozen=True)
-class LearnResult(_Training):
+class LearnResult(_Training, _OnMesh):
     """The filtered modulus field trained by ``rule`` at ``rate`` on the mesh ``h /
     2^refine`` (a ``continuum_mechanism/learn/...`` unit). ``field``: the learned modulus;
     ``frozen`` (n_elements,) bool: the elements the rule leaves (the springs' discs);
@@ -75,11 +88,6 @@ class LearnResult(_Training):
     response_initial: float
     contrast: float
     frozen: np.ndarray
-    field: np.ndarray
-    coarse: np.ndarray
-    points: np.ndarray
-    triangles: np.ndarray
-    area: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -100,13 +108,12 @@ class DofResult(_Training):
 
 
 @dataclass(frozen=True)
-class OptimumResult:
-    """The exact optimum of the filtered modulus field on ``h / 2^refine`` (a
-    ``continuum_mechanism/optimum/...`` unit): L-BFGS-B, ``evaluations`` (= ``solves``),
-    ``converged`` and its ``message``, ``contrast`` max / min modulus; ``field`` the
-    optimal modulus; ``error`` and ``seconds_trace`` per evaluation."""
+class _Search:
+    """What an exact optimum records: its C/C0 ``ratio``, L-BFGS-B's ``evaluations``, the
+    linear ``solves``, wall-clock ``seconds``, ``converged`` and its ``message``, the
+    design's ``contrast`` (max / min modulus) and ``response`` S_T / S_S, elements, and per
+    evaluation ``error`` (C) and ``seconds_trace`` (stored as ``seconds``)."""
 
-    refine: int
     ratio: float
     evaluations: int
     solves: int
@@ -118,43 +125,36 @@ class OptimumResult:
     n_elements: int
     error: np.ndarray
     seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
-    field: np.ndarray
-    coarse: np.ndarray
-    points: np.ndarray
-    triangles: np.ndarray
-    area: np.ndarray
 
 
 @dataclass(frozen=True)
-class DofOptimumResult:
+class OptimumResult(_Search, _OnMesh):
+    """The exact optimum of the filtered modulus field on ``h / 2^refine`` (a
+    ``continuum_mechanism/optimum/...`` unit; ``evaluations`` = ``solves``); ``field`` the
+    optimal modulus."""
+
+    refine: int
+
+
+@dataclass(frozen=True)
+class DofOptimumResult(_Search):
     """The exact optimum of the eigenstrain field, or of both (``dof``), on ``h / 2^refine``
     with the task and its rest example (a ``continuum_mechanism/dof_optimum/...`` unit).
     ``feasible``: its C/C0 <= ``MET_AT``; ``solves``: one free state per example per
-    evaluation; ``modulus`` and ``dilation`` as :class:`DofResult`, others as
-    :class:`OptimumResult`."""
+    evaluation; ``rest_error``: the rest example's error at the optimum; ``modulus`` and
+    ``dilation`` as :class:`DofResult`."""
 
     refine: int
     dof: str
-    ratio: float
     feasible: bool
-    evaluations: int
-    solves: int
-    seconds: float
-    converged: bool
-    message: str
-    contrast: float
-    response: float
     rest_error: float
-    n_elements: int
     eigenstrain_unit: float
-    error: np.ndarray
-    seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
     modulus: np.ndarray
     dilation: np.ndarray
 
 
 @dataclass(frozen=True)
-class SimpResult:
+class SimpResult(_OnMesh):
     """SIMP on the allosteric task on the ``refine = 0`` mesh (a ``continuum_mechanism/simp``
     or ``simp_solid`` unit): modulus ``e_min + x^3 (e_max - e_min)``, ``method`` (``"mma"``
     or ``"oc"``), ``iterations``, the final ``volume`` fraction; ``density`` (n_elements,)
@@ -171,18 +171,13 @@ class SimpResult:
     error: np.ndarray
     seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
     density: np.ndarray
-    field: np.ndarray
-    coarse: np.ndarray
-    points: np.ndarray
-    triangles: np.ndarray
-    area: np.ndarray
     method: str = "oc"
     e_min: float = 1e-4
     e_max: float = 1.0
 
 
 @dataclass(frozen=True)
-class InverterResult:
+class InverterResult(_OnMesh):
     """SIMP + OC on Sigmund's force inverter (the ``continuum_mechanism/inverter`` unit):
     output ``u_out`` optimised and ``u_out_initial`` of the uniform plate, input ``u_in``,
     ``advantage`` -u_out / u_in; the springs ``k_in``, ``k_out`` and input ``force``; the
@@ -203,11 +198,6 @@ class InverterResult:
     output: np.ndarray
     seconds_trace: np.ndarray = dataclasses.field(metadata={"stored": "seconds"})
     density: np.ndarray
-    field: np.ndarray
-    coarse: np.ndarray
-    points: np.ndarray
-    triangles: np.ndarray
-    area: np.ndarray
 
 
 @dataclass(frozen=True)
