@@ -161,9 +161,10 @@ def test_tiny_scene_runs_and_reports_computed_findings(tmp_path):
                 "coupled", "partially coupled", "decoupled", "not measured"
             )  # fmt: skip
     # every unit reads back as its result class; the exact gradient's null eta is stored
-    from continuum_vs_network.report.sections.beyond_paper.data import results
+    from continuum_vs_network.scenes.results import read_results
+    from continuum_vs_network.scenes.results.beyond_paper import CLASSES
 
-    typed = results(units)
+    typed = read_results(units, CLASSES)
     assert set(typed) == set(units)
     assert typed["beyond/thermal/T0/exact"].eta is None
     assert units["beyond/thermal/T0/exact"].meta["eta"] is None

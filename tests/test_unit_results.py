@@ -51,7 +51,8 @@ def test_a_stored_unit_without_a_required_field_is_refused_by_name():
 def test_a_none_marked_keep_none_is_stored_as_null_and_read_back(tmp_path):
     """``first_below`` (never below: None) is stored as null, as the untyped unit wrote it,
     beside a trace that shares its record value's stored name."""
-    from continuum_vs_network.scenes.results.mechanism import LatticeResult, mechanism_result
+    from continuum_vs_network.scenes.results import read_result
+    from continuum_vs_network.scenes.results.mechanism import CLASSES, LatticeResult
 
     result = LatticeResult(
         refine=0, ratio=0.5, first_below=None, source_share=0.9, coupling="coupled",
@@ -65,6 +66,6 @@ def test_a_none_marked_keep_none_is_stored_as_null_and_read_back(tmp_path):
     assert list(arrays) == ["error", "seconds", "solves", "positions", "springs", "k"]
     unit = Unit("continuum_mechanism/lattice/refine0", lambda *a: None, {"refine": 0})
     _save_unit(tmp_path, unit, result, 0.5)
-    back = mechanism_result(_read_unit(tmp_path, unit.key))
+    back = read_result(_read_unit(tmp_path, unit.key), CLASSES)
     assert isinstance(back, LatticeResult) and back.first_below is None
     np.testing.assert_array_equal(back.seconds_trace, result.seconds_trace)

@@ -17,9 +17,10 @@ def mechanism_field_mesh(unit: UnitResult, folder: Path) -> Path | None:
     unit has them, on the undeformed mesh; None for a unit without a field on a mesh (dof
     runs, their optima, the lattice)."""
     from ..io.export import continuum_mesh, write_mesh
-    from .results.mechanism import mechanism_result
+    from .results import read_result
+    from .results.mechanism import CLASSES
 
-    r = mechanism_result(unit)
+    r = read_result(unit, CLASSES)
     if not hasattr(r, "triangles"):
         return None
     points = np.asarray(r.points, dtype=float)

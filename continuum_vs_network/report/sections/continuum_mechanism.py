@@ -13,8 +13,9 @@ import itertools
 import numpy as np
 
 from ...learning.coupling import MET_AT
-from ...scenes.results import from_stored
+from ...scenes.results import from_stored, read_result
 from ...scenes.results.mechanism import (
+    CLASSES,
     DofOptimumResult,
     DofResult,
     InverterResult,
@@ -22,7 +23,6 @@ from ...scenes.results.mechanism import (
     LearnResult,
     OptimumResult,
     SimpResult,
-    mechanism_result,
 )
 from ...scenes.units_mechanism import LEVEL
 from ..document import Document, fmt, mesh_name
@@ -76,7 +76,7 @@ def change(fine: np.ndarray, coarse: np.ndarray, area: np.ndarray) -> float:
 
 def refinement_changes(units: dict, prefix: str, levels: int) -> list[float]:
     """Successive changes ``h/2^r -> h/2^(r+1)`` of the fields ``<prefix with r>`` units."""
-    runs = [mechanism_result(units[prefix.format(r=r)]) for r in range(levels + 1)]
+    runs = [read_result(units[prefix.format(r=r)], CLASSES) for r in range(levels + 1)]
     area = np.asarray(runs[0].area, float)
     fields = [np.asarray(run.coarse, float) for run in runs]
     return [change(fields[r + 1], fields[r], area) for r in range(levels)]

@@ -13,6 +13,7 @@ typed read back as its class.
 
     arrays, meta = to_stored(TransmissionResult(...))   # what the store writes
     result = from_stored(unit, TransmissionResult)      # what a section reads
+    runs = read_results(units, CLASSES)                 # a kind's units, each its class
 
 The result classes live in one module per kind: :mod:`.physics` (transmission,
 relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`, :mod:`.physical_time`,
@@ -23,13 +24,21 @@ relaxation), :mod:`.solvers`, :mod:`.accuracy`, :mod:`.stability`, :mod:`.physic
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from typing import Any, TypeVar
 
 import numpy as np
 
 from ..units import UnitResult
 
-__all__ = ["KEEP_NONE", "from_stored", "is_result", "to_stored"]
+__all__ = [
+    "KEEP_NONE",
+    "from_stored",
+    "is_result",
+    "read_result",
+    "read_results",
+    "to_stored",
+]
 
 T = TypeVar("T")
 
@@ -85,3 +94,22 @@ def from_stored(unit: UnitResult, cls: type[T]) -> T:
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
             raise KeyError(f"unit {unit.key!r} stores no {name!r} for {cls.__name__}")
     return cls(**values)
+
+
+def read_result(unit: UnitResult, classes: Mapping[str, type]) -> Any:
+    """``unit`` read as the class of the first key start in ``classes`` (in order) that its
+    key begins with (a kind's ``CLASSES``); KeyError naming the key when none does."""
+    for start, cls in classes.items():
+        if unit.key.startswith(start):
+            return from_stored(unit, cls)
+    raise KeyError(f"unit {unit.key!r} begins with none of {', '.join(classes)}")
+
+
+def read_results(units: Mapping[str, UnitResult], classes: Mapping[str, type]) -> dict[str, Any]:
+    """The units of ``units`` (key -> stored unit) whose key begins with a key start of
+    ``classes``, each read by :func:`read_result`, by key; the others are left out."""
+    return {
+        key: read_result(unit, classes)
+        for key, unit in units.items()
+        if any(key.startswith(start) for start in classes)
+    }

@@ -15,6 +15,7 @@ import numpy as np
 from . import KEEP_NONE
 
 __all__ = [
+    "CLASSES",
     "CapacityResult",
     "CompareResult",
     "ExamplesRun",
@@ -180,3 +181,15 @@ class SymmetricResult(ExamplesRun):
 
     error_initial: list[float]
     error_final: list[float]
+
+
+#: the result class of a unit, by the start of its key (:func:`~.read_result`)
+CLASSES = {
+    "beyond/compare/": CompareResult,
+    "beyond/optimum/": OptimumResult,
+    "beyond/node/": NodeResult,
+    "beyond/thermal/": ThermalResult,
+    "beyond/capacity/": CapacityResult,
+    "beyond/regression": RegressionResult,
+    "beyond/symmetric": SymmetricResult,
+}

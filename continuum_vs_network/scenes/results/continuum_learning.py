@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ContinuumRun", "LearnedRelaxationResult", "NetworkRun"]
+__all__ = ["CLASSES", "ContinuumRun", "LearnedRelaxationResult", "NetworkRun"]
 
 
 @dataclass(frozen=True)
@@ -113,3 +113,12 @@ class LearnedRelaxationResult:
     network_nodes_seconds: float | None = None
     rod_factor: float | None = None
     rod_strain_error: float | None = None
+
+
+#: the result class of a unit, by the start of its key (:func:`~.read_result`; the first
+#: that matches)
+CLASSES = {
+    "continuum_learning/relaxation": LearnedRelaxationResult,
+    "continuum_learning/network/": NetworkRun,
+    "continuum_learning/": ContinuumRun,
+}

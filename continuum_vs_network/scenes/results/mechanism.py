@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..units import UnitResult
-from . import KEEP_NONE, from_stored
+from . import KEEP_NONE
 
 __all__ = [
+    "CLASSES",
     "DofOptimumResult",
     "DofResult",
     "InverterResult",
@@ -31,7 +31,6 @@ __all__ = [
     "LearnResult",
     "OptimumResult",
     "SimpResult",
-    "mechanism_result",
 ]
 
 
@@ -227,18 +226,13 @@ class LatticeResult:
     k: np.ndarray
 
 
-_CLASSES = {
-    "learn": LearnResult,
-    "dof": DofResult,
-    "optimum": OptimumResult,
-    "dof_optimum": DofOptimumResult,
-    "simp": SimpResult,
-    "simp_solid": SimpResult,
-    "inverter": InverterResult,
-    "lattice": LatticeResult,
+#: the result class of a unit, by the start of its key (:func:`~.read_result`)
+CLASSES = {
+    "continuum_mechanism/learn/": LearnResult,
+    "continuum_mechanism/dof/": DofResult,
+    "continuum_mechanism/optimum/": OptimumResult,
+    "continuum_mechanism/dof_optimum/": DofOptimumResult,
+    "continuum_mechanism/simp": SimpResult,
+    "continuum_mechanism/inverter": InverterResult,
+    "continuum_mechanism/lattice/": LatticeResult,
 }
-
-
-def mechanism_result(unit: UnitResult):
-    """A ``continuum_mechanism/<kind>/...`` unit read as its kind's class."""
-    return from_stored(unit, _CLASSES[unit.key.split("/")[1]])

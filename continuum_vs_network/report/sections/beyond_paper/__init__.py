@@ -8,17 +8,19 @@ capacity of a network trained on several examples at once (optimum and GCL again
 number of examples and the network size), the thermal floor against temperature, a
 regression task (training and held-out error: generalisation) and symmetric training.
 
-This module reads the units as their result classes once (:mod:`.data`) and orders the
-parts; each is its own module: :mod:`.aging`, :mod:`.nodes`, :mod:`.examples` (capacity,
+This module reads the units as their result classes once (by
+:data:`~....scenes.results.beyond_paper.CLASSES`) and orders the parts; each is its own
+module: :mod:`.aging`, :mod:`.nodes`, :mod:`.examples` (capacity,
 symmetric training, regression), :mod:`.thermal`.
 """
 
 from __future__ import annotations
 
 from ....learning.coupling import MET_AT
+from ....scenes.results import read_results
+from ....scenes.results.beyond_paper import CLASSES
 from ...document import Document
 from .aging import _compare
-from .data import results
 from .examples import _capacity, _regression, _symmetric
 from .nodes import _nodes
 from .thermal import _thermal
@@ -28,7 +30,7 @@ __all__ = ["section"]
 
 def section(doc: Document, result) -> None:
     scene = result.scene
-    units = results(result.units)
+    units = read_results(result.units, CLASSES)
     L = scene.learning
     doc.add(
         "Options of the existing rules, tasks and `train` that the field uses beyond the "

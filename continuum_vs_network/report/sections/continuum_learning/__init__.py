@@ -19,7 +19,8 @@ import math
 import numpy as np
 
 from ....learning.coupling import DECOUPLED_BELOW
-from ....scenes.results.continuum_learning import ContinuumRun
+from ....scenes.results import read_results
+from ....scenes.results.continuum_learning import CLASSES, ContinuumRun
 from ...document import Document, coupling_text, fmt, mesh_name
 from ...figures import COLORS, Panel, Series
 from ...findings import NOT_REPRODUCED, REPRODUCED, Finding
@@ -31,7 +32,6 @@ from .findings import (
     _verdicts,
     field_summary,
     steps_to,
-    typed_runs,
 )
 
 __all__ = ["section"]
@@ -40,7 +40,7 @@ __all__ = ["section"]
 def section(doc: Document, result) -> None:
     """The section (see the module docstring); pyvista renders when ``doc.render``."""
     scene = result.scene
-    units = typed_runs(result.units)
+    units = read_results(result.units, CLASSES)
     R = scene.continuum.refine
     L = scene.learning
     doc.add(

@@ -18,12 +18,6 @@ from numpy.typing import NDArray
 
 from ....fits import power_law
 from ....learning.coupling import DECOUPLED_BELOW
-from ....scenes.results import from_stored
-from ....scenes.results.continuum_learning import (
-    ContinuumRun,
-    LearnedRelaxationResult,
-    NetworkRun,
-)
 from ...document import coupling_text, fmt, mesh_name
 from ...findings import CONTRADICTED, NOT_COMPARABLE, NOT_REPRODUCED, REPRODUCED, Finding
 
@@ -37,27 +31,12 @@ __all__ = [
     "fields_agree_verdict",
     "refinement_verdict",
     "steps_to",
-    "typed_runs",
 ]
 
 TOLERANCE = 1e-3  # C / C0 a run must reach to count as having learned the task
 SHRINK = 1.5  # a field converges when successive refinements change it less by this factor
 SETTLED = 0.1  # ... and the last refinement changes it by at most this (relative L2)
 LOCALISED = 0.1  # localisation threshold: a fraction of the largest change
-
-
-def typed_runs(units: dict[str, Any]) -> dict[str, Any]:
-    """The scene's stored units read as their results, keyed as stored
-    (:mod:`....scenes.results.continuum_learning`)."""
-    out = {}
-    for key, unit in units.items():
-        if key == "continuum_learning/relaxation":
-            out[key] = from_stored(unit, LearnedRelaxationResult)
-        elif key.startswith("continuum_learning/network/"):
-            out[key] = from_stored(unit, NetworkRun)
-        elif key.startswith("continuum_learning/"):
-            out[key] = from_stored(unit, ContinuumRun)
-    return out
 
 
 def steps_to(error: NDArray, tol: float = TOLERANCE) -> float:
