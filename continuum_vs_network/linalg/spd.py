@@ -204,15 +204,6 @@ def _banded_cholesky(
     c, info = sla.lapack.dpbtrf(band, lower=1, overwrite_ab=1)
     if info:
         return None
-    rounded = []  # the factor in float32, made when first preconditioning
-
-    def precondition(b: NDArray) -> NDArray:
-        if not rounded:
-            rounded.append(np.asfortranarray(c, dtype=np.float32))
-        x, info = sla.lapack.spbtrs(rounded[0], np.asarray(b, dtype=np.float32), lower=1)
-        if info:
-            raise ValueError(f"spbtrs: illegal argument {-info}")
-        return x.astype(np.float64)
 
     def solve(b: NDArray) -> NDArray:
         # LAPACK directly: scipy's cho_solve_banded checks cost as much as the solve on
@@ -225,9 +216,21 @@ def _banded_cholesky(
             raise ValueError(f"dpbtrs: illegal argument {-info}")
         return x
 
-    # below ROUGH_BANDED_MIN rows the float64 solve preconditions too: conjugate gradients
-    # then meet their tolerance in fewer iterations than the float32 solve saves
-    return Factor(solve, n, precondition if n >= ROUGH_BANDED_MIN else None)
+    if n < ROUGH_BANDED_MIN:
+        # the float64 solve preconditions too: conjugate gradients then meet their
+        # tolerance in fewer iterations than a float32 solve saves
+        return Factor(solve, n)
+    rounded = []  # the factor in float32, made when first preconditioning
+
+    def precondition(b: NDArray) -> NDArray:
+        if not rounded:
+            rounded.append(np.asfortranarray(c, dtype=np.float32))
+        x, info = sla.lapack.spbtrs(rounded[0], np.asarray(b, dtype=np.float32), lower=1)
+        if info:
+            raise ValueError(f"spbtrs: illegal argument {-info}")
+        return x.astype(np.float64)
+
+    return Factor(solve, n, precondition)
 
 
 def _band_layout(W: sp.csr_matrix) -> tuple[int, NDArray, NDArray, NDArray] | None:
