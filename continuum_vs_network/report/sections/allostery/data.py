@@ -83,11 +83,14 @@ def groups(scene, units) -> list[Group]:
         for task in a.tasks:
             for dof in a.dofs:
                 base = f"allostery/%s/n{n}/{task}/{dof}/draw"
-                opt = [
-                    from_stored(units[f"{base % 'opt'}{i}"], AllosteryOptimumResult)
-                    for i in range(a.draws)
+                opt = (
+                    [
+                        from_stored(units[f"{base % 'opt'}{i}"], AllosteryOptimumResult)
+                        for i in range(a.draws)
+                    ]
                     if a.optimum
-                ]
+                    else []
+                )
                 rs = {r.name: r for r in runs(scene)}
                 train = {
                     r: [
